@@ -1,0 +1,1 @@
+//! DT-Grid (being written).

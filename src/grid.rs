@@ -1,0 +1,121 @@
+//! What both sparse grids share: the grid's placement in space, band semantics, the
+//! memory report and the error type of grid construction and maintenance.
+
+use crate::coord::Coord;
+use serde::Serialize;
+
+/// Placement of a grid in world space and its narrow-band half-width.
+///
+/// # Band semantics (shared by the tiles, the DT-Grid and the dense reference)
+/// φ < 0 inside, φ > 0 outside, in world units. Every stored value lies in `[-γ, γ]`
+/// with `γ = half_width · voxel_size` ([`GridSpec::gamma`]). A voxel is a *band voxel*
+/// when `|φ| < γ`. A voxel that a grid does not store reads as `-γ` inside and `+γ`
+/// outside (DT-Grid paper Sec. 3.3; tile paper Sec. 4.7 "dummy tile").
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct GridSpec {
+    /// Edge length of a voxel in world units (> 0, finite).
+    pub voxel_size: f32,
+    /// World position of voxel (0, 0, 0).
+    pub origin: [f64; 3],
+    /// Half-width of the band in voxels (≥ 1, finite); the papers' default is 3.
+    pub half_width: f32,
+}
+
+impl Default for GridSpec {
+    fn default() -> Self {
+        GridSpec { voxel_size: 1.0, origin: [0.0; 3], half_width: 3.0 }
+    }
+}
+
+impl GridSpec {
+    /// A checked spec: voxel size finite and > 0, half-width finite and ≥ 1.
+    pub fn new(voxel_size: f32, origin: [f64; 3], half_width: f32) -> Result<Self, GridError> {
+        if !(voxel_size.is_finite() && voxel_size > 0.0) {
+            return Err(GridError::InvalidParameter(format!(
+                "voxel size must be finite and > 0, got {voxel_size}"
+            )));
+        }
+        if !(half_width.is_finite() && half_width >= 1.0) {
+            return Err(GridError::InvalidParameter(format!(
+                "half-width must be finite and >= 1 voxel, got {half_width}"
+            )));
+        }
+        if origin.iter().any(|o| !o.is_finite()) {
+            return Err(GridError::InvalidParameter(format!("origin must be finite, got {origin:?}")));
+        }
+        Ok(GridSpec { voxel_size, origin, half_width })
+    }
+
+    /// γ = half-width × voxel size, in world units.
+    #[inline]
+    pub fn gamma(&self) -> f32 {
+        self.half_width * self.voxel_size
+    }
+
+    /// World position of the centre of voxel `c`.
+    #[inline]
+    pub fn world(&self, c: Coord) -> [f64; 3] {
+        let h = self.voxel_size as f64;
+        [
+            self.origin[0] + c.x as f64 * h,
+            self.origin[1] + c.y as f64 * h,
+            self.origin[2] + c.z as f64 * h,
+        ]
+    }
+
+    /// `+γ` when `inside` is false, `-γ` when true.
+    #[inline]
+    pub fn background(&self, inside: bool) -> f32 {
+        if inside {
+            -self.gamma()
+        } else {
+            self.gamma()
+        }
+    }
+}
+
+/// Bytes a grid uses, by part. `slack` is capacity allocated but not in use (vector
+/// growth, arena tiles not in the list).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct MemoryReport {
+    /// Numerical values (f32), including tile padding.
+    pub values: usize,
+    /// Coordinates and indices: the DT-Grid's nCoord/acc/proj arrays, the tile list.
+    pub indices: usize,
+    /// Per-tile border and activity flags.
+    pub flags: usize,
+    /// Allocated but unused capacity.
+    pub slack: usize,
+}
+
+impl MemoryReport {
+    pub fn total(&self) -> usize {
+        self.values + self.indices + self.flags + self.slack
+    }
+}
+
+/// Bytes used and allocated-but-unused of a vector.
+pub(crate) fn vec_bytes<T>(v: &Vec<T>) -> (usize, usize) {
+    let s = std::mem::size_of::<T>();
+    (v.len() * s, (v.capacity() - v.len()) * s)
+}
+
+/// Errors of grid construction and maintenance. Grids are left unchanged when one is
+/// returned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    /// A coordinate (voxel, or tile for the tile list) would leave the representable
+    /// range; grids never wrap around.
+    #[error("coordinate {coord} is outside the representable range of the grid")]
+    OutOfRange { coord: Coord },
+    /// `push`/`append` must receive strictly increasing coordinates in the order of
+    /// [`Coord`].
+    #[error("coordinates must be pushed in strictly increasing lexicographic order: {coord} after {last}")]
+    NotSorted { last: Coord, coord: Coord },
+    /// A NaN value was given where a level-set value is required.
+    #[error("value at {coord} is NaN")]
+    NaN { coord: Coord },
+    /// A parameter outside its documented domain.
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+}

@@ -1,0 +1,1 @@
+//! The Sorted Tile List (being written).
