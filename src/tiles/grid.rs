@@ -1,0 +1,528 @@
+//! The [`TileGrid`] type: list, arena, flags, random access and tile management.
+
+use super::flags::{compute_activity, ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
+use super::stream::{DilationStream, NeighbourCursor};
+use super::{tile_in_range, tile_of, voxel_of, Tile, TILE_LEN};
+use crate::coord::{direction_index, reverse, Coord, MID, NEIGHBOURHOOD};
+use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
+
+/// A narrow band stored as 4³ tiles behind a sorted tile list (tile paper Sec. 4.1).
+///
+/// # Invariants
+/// * `coords` is strictly increasing in [`Coord`] order (sorted, no duplicates) and every
+///   coordinate is within [`super::TILE_MIN`]..=[`super::TILE_MAX`];
+/// * `ids.len() == coords.len()` and `ids` is a permutation of `0..arena.len()`: every
+///   entry owns one tile of the arena and no tile data is orphaned;
+/// * `border`, `activity` have one entry per arena tile; border flags use only
+///   [`BORDER_MASK`] bits and activity flags only [`ACTIVE_MASK`] | [`INSIDE`], never
+///   [`INSIDE`] together with a region bit;
+/// * every value is finite and within `[-γ, γ]`.
+///
+/// Construction ([`TileGrid::append`]) and [`TileGrid::manage_tiles`] keep `ids` the
+/// identity (tile data in list order); [`TileGrid::check_invariants`] checks all of the
+/// above and runs after every mutation in debug builds.
+#[derive(Clone, Debug)]
+pub struct TileGrid {
+    spec: GridSpec,
+    coords: Vec<Coord>,
+    ids: Vec<u32>,
+    arena: Vec<Tile>,
+    border: Vec<u32>,
+    activity: Vec<u32>,
+}
+
+/// What one tile-management step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ManageStats {
+    pub kept: usize,
+    pub removed: usize,
+    pub created: usize,
+}
+
+const PLUS_X: usize = direction_index(1, 0, 0);
+const MINUS_X: usize = direction_index(-1, 0, 0);
+
+impl TileGrid {
+    /// An empty grid.
+    pub fn new(spec: GridSpec) -> TileGrid {
+        TileGrid {
+            spec,
+            coords: Vec::new(),
+            ids: Vec::new(),
+            arena: Vec::new(),
+            border: Vec::new(),
+            activity: Vec::new(),
+        }
+    }
+
+    pub fn spec(&self) -> &GridSpec {
+        &self.spec
+    }
+
+    /// γ in world units.
+    pub fn gamma(&self) -> f32 {
+        self.spec.gamma()
+    }
+
+    /// Number of tiles in the list.
+    pub fn len(&self) -> usize {
+        self.coords.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.coords.is_empty()
+    }
+
+    /// The sorted tile coordinates.
+    pub fn tile_coords(&self) -> &[Coord] {
+        &self.coords
+    }
+
+    /// Arena id of each list entry.
+    pub fn tile_ids(&self) -> &[u32] {
+        &self.ids
+    }
+
+    /// Values of the tile at list position `pos`.
+    #[inline]
+    pub fn tile(&self, pos: usize) -> &Tile {
+        &self.arena[self.ids[pos] as usize]
+    }
+
+    /// Mutable values of the tile at list position `pos`. Values must stay finite and
+    /// within `[-γ, γ]`; call [`TileGrid::refresh_activity`] after changing them.
+    #[inline]
+    pub fn tile_mut(&mut self, pos: usize) -> &mut Tile {
+        &mut self.arena[self.ids[pos] as usize]
+    }
+
+    /// Border flags of the tile at list position `pos` (see [`super::flags`]).
+    #[inline]
+    pub fn border_flags(&self, pos: usize) -> u32 {
+        self.border[self.ids[pos] as usize]
+    }
+
+    /// Activity flags of the tile at list position `pos` (see [`super::flags`]).
+    #[inline]
+    pub fn activity_flags(&self, pos: usize) -> u32 {
+        self.activity[self.ids[pos] as usize]
+    }
+
+    /// Sets the activity flags of the tile at `pos` (as the time step does while it
+    /// computes, Sec. 4.7). Bits outside [`ACTIVE_MASK`] | [`INSIDE`] are dropped.
+    #[inline]
+    pub fn set_activity_flags(&mut self, pos: usize, flags: u32) {
+        let f = flags & (ACTIVE_MASK | INSIDE);
+        let f = if f & ACTIVE_MASK != 0 {
+            f & ACTIVE_MASK
+        } else {
+            f
+        };
+        self.activity[self.ids[pos] as usize] = f;
+    }
+
+    /// Recomputes every tile's activity flags from its values.
+    pub fn refresh_activity(&mut self) {
+        let g = self.gamma();
+        for (a, t) in self.activity.iter_mut().zip(&self.arena) {
+            *a = compute_activity(t, g);
+        }
+    }
+
+    /// Appends a tile after the last one (Sec. 4.3), O(1). `tile_coord` must be greater
+    /// than the last coordinate in [`Coord`] order and within the tile range; values are
+    /// clamped to `[-γ, γ]` (NaN is an error); `border` holds the border flags (bits
+    /// outside [`BORDER_MASK`] are ignored). Activity flags are computed from the values.
+    /// Returns the list position.
+    pub fn append(
+        &mut self,
+        tile_coord: Coord,
+        values: &Tile,
+        border: u32,
+    ) -> Result<usize, GridError> {
+        if let Some(&last) = self.coords.last() {
+            if tile_coord <= last {
+                return Err(GridError::NotSorted {
+                    last,
+                    coord: tile_coord,
+                });
+            }
+        }
+        if !tile_in_range(tile_coord) {
+            return Err(GridError::OutOfRange { coord: tile_coord });
+        }
+        let g = self.gamma();
+        let mut t = *values;
+        for (i, v) in t.0.iter_mut().enumerate() {
+            if v.is_nan() {
+                return Err(GridError::NaN {
+                    coord: voxel_of(tile_coord, i),
+                });
+            }
+            *v = v.clamp(-g, g);
+        }
+        let id = u32::try_from(self.arena.len())
+            .map_err(|_| GridError::InvalidParameter("more than 2^32 tiles".into()))?;
+        self.activity.push(compute_activity(&t, g));
+        self.arena.push(t);
+        self.border.push(border & BORDER_MASK);
+        self.coords.push(tile_coord);
+        self.ids.push(id);
+        Ok(self.coords.len() - 1)
+    }
+
+    /// Builds a grid from tiles sorted by coordinate, computing the border flags with
+    /// Algorithm 1: for every absent neighbour, `inside(tile coordinate)` tells whether
+    /// that (uniformly signed) tile is inside. `inside` is called only with in-range
+    /// coordinates; tiles beyond the range count as outside.
+    pub fn from_sorted_tiles<F: Fn(Coord) -> bool>(
+        spec: GridSpec,
+        tiles: impl IntoIterator<Item = (Coord, Tile)>,
+        inside: F,
+    ) -> Result<TileGrid, GridError> {
+        let mut g = TileGrid::new(spec);
+        let it = tiles.into_iter();
+        let (lo, _) = it.size_hint();
+        g.reserve(lo);
+        for (c, t) in it {
+            g.append(c, &t, 0)?;
+        }
+        let mut cur = NeighbourCursor::new(&g.coords, 0, g.coords.len());
+        while let Some(nb) = cur.next() {
+            let mut flags = 0u32;
+            let mut absent = !nb.matched & BORDER_MASK;
+            while absent != 0 {
+                let d = absent.trailing_zeros() as usize;
+                absent &= absent - 1;
+                let t = nb.coord.wrapping_add(NEIGHBOURHOOD[d]);
+                if tile_in_range(t) && inside(t) {
+                    flags |= 1 << d;
+                }
+            }
+            g.border[g.ids[nb.pos] as usize] = flags;
+        }
+        g.debug_check();
+        Ok(g)
+    }
+
+    /// Reserves room for `additional` more tiles.
+    pub fn reserve(&mut self, additional: usize) {
+        self.coords.reserve(additional);
+        self.ids.reserve(additional);
+        self.arena.reserve(additional);
+        self.border.reserve(additional);
+        self.activity.reserve(additional);
+    }
+
+    /// List position of a tile coordinate (`Err` = insertion position), by binary
+    /// search (Sec. 4.5), O(log N).
+    #[inline]
+    pub fn find_tile(&self, tile_coord: Coord) -> Result<usize, usize> {
+        self.coords.binary_search(&tile_coord)
+    }
+
+    /// Whether the absent tile `t`, whose insertion position in the list is `p`, is
+    /// inside. All tiles of a tile row between two present tiles are absent and share
+    /// one sign (a sign change needs band voxels), which the present tile before them
+    /// records in its +x border flag and the one after them in its −x flag. A tile row
+    /// without tiles is outside: a row through the interior of a bounded region crosses
+    /// the band.
+    #[inline]
+    fn absent_tile_inside(&self, t: Coord, p: usize) -> bool {
+        let same_row = |c: Coord| c.z == t.z && c.y == t.y;
+        if p > 0 && same_row(self.coords[p - 1]) {
+            self.border[self.ids[p - 1] as usize] & (1 << PLUS_X) != 0
+        } else if p < self.coords.len() && same_row(self.coords[p]) {
+            self.border[self.ids[p] as usize] & (1 << MINUS_X) != 0
+        } else {
+            false
+        }
+    }
+
+    /// Value at a voxel by random access (Sec. 4.5): the stored value, or ±γ outside the
+    /// tiles with the sign from the border flags.
+    #[inline]
+    pub fn value(&self, voxel: Coord) -> f32 {
+        let (t, l) = tile_of(voxel);
+        match self.find_tile(t) {
+            Ok(p) => self.arena[self.ids[p] as usize].0[l],
+            Err(p) => self.spec.background(self.absent_tile_inside(t, p)),
+        }
+    }
+
+    /// Whether tile coordinate `t` is inside, present or not: for a present tile, whether
+    /// its first voxel is negative.
+    pub fn tile_inside(&self, t: Coord) -> bool {
+        match self.find_tile(t) {
+            Ok(p) => self.tile(p).0[0] < 0.0,
+            Err(p) => self.absent_tile_inside(t, p),
+        }
+    }
+
+    /// Number of stored voxels with `|φ| < γ`.
+    pub fn band_voxels(&self) -> usize {
+        let g = self.gamma();
+        self.ids
+            .iter()
+            .map(|&id| {
+                self.arena[id as usize]
+                    .0
+                    .iter()
+                    .filter(|v| v.abs() < g)
+                    .count()
+            })
+            .sum()
+    }
+
+    /// Number of stored voxels, tile padding included.
+    pub fn stored_voxels(&self) -> usize {
+        self.coords.len() * TILE_LEN
+    }
+
+    /// Inclusive voxel bounding box of the stored tiles.
+    pub fn bounding_box(&self) -> Option<(Coord, Coord)> {
+        let first = *self.coords.first()?;
+        let (mut lo, mut hi) = (first, first);
+        for c in &self.coords {
+            lo = Coord::new(lo.x.min(c.x), lo.y.min(c.y), lo.z.min(c.z));
+            hi = Coord::new(hi.x.max(c.x), hi.y.max(c.y), hi.z.max(c.z));
+        }
+        Some((voxel_of(lo, 0), voxel_of(hi, TILE_LEN - 1)))
+    }
+
+    /// Visits every stored voxel in [`Coord`] order (not tile order): slab by slab of
+    /// tiles with the same z, voxel row by voxel row. O(stored voxels).
+    pub fn for_each_voxel_sorted(&self, mut f: impl FnMut(Coord, f32)) {
+        let n = self.coords.len();
+        let mut slab = 0;
+        while slab < n {
+            let tz = self.coords[slab].z;
+            let mut slab_end = slab;
+            while slab_end < n && self.coords[slab_end].z == tz {
+                slab_end += 1;
+            }
+            for lz in 0..4 {
+                let mut row = slab;
+                while row < slab_end {
+                    let ty = self.coords[row].y;
+                    let mut row_end = row;
+                    while row_end < slab_end && self.coords[row_end].y == ty {
+                        row_end += 1;
+                    }
+                    for ly in 0..4 {
+                        for p in row..row_end {
+                            let t = self.tile(p);
+                            let base = 16 * lz + 4 * ly;
+                            for lx in 0..4 {
+                                f(voxel_of(self.coords[p], base + lx), t.0[base + lx]);
+                            }
+                        }
+                    }
+                    row = row_end;
+                }
+            }
+            slab = slab_end;
+        }
+    }
+
+    /// Bytes by part: values (the arena), indices (coordinate list and ids), flags
+    /// (border and activity), slack (unused capacity).
+    pub fn memory(&self) -> MemoryReport {
+        let (v, vs) = vec_bytes(&self.arena);
+        let (c, cs) = vec_bytes(&self.coords);
+        let (i, is) = vec_bytes(&self.ids);
+        let (b, bs) = vec_bytes(&self.border);
+        let (a, as_) = vec_bytes(&self.activity);
+        MemoryReport {
+            values: v,
+            indices: c + i,
+            flags: b + a,
+            slack: vs + cs + is + bs + as_,
+        }
+    }
+
+    /// Releases unused capacity.
+    pub fn shrink_to_fit(&mut self) {
+        self.coords.shrink_to_fit();
+        self.ids.shrink_to_fit();
+        self.arena.shrink_to_fit();
+        self.border.shrink_to_fit();
+        self.activity.shrink_to_fit();
+    }
+
+    /// Tile management (Sec. 4.6): streams the dilation of the list (Algorithm 2) and, for
+    /// every position, keeps, removes or creates a tile from the activity flags of the
+    /// tile and its neighbours (Algorithm 3). A removed tile writes its classification into
+    /// the border flags of its neighbours that face it; a created tile is filled with ±γ
+    /// from the border flags its neighbours hold towards it, and all its own border flags
+    /// take that sign. The result is sorted, and the tile data is compacted in list order.
+    /// Linear in the number of tiles.
+    ///
+    /// A tile that would be created outside the representable range gives
+    /// [`GridError::OutOfRange`] and leaves the grid unchanged.
+    pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
+        self.restructure(|nb, activity, ids| {
+            let mut m = nb.matched;
+            while m != 0 {
+                let d = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if activity[ids[nb.ptr[d]] as usize] & NEIGHBOUR_TRIGGER[d] != 0 {
+                    return true;
+                }
+            }
+            false
+        })
+    }
+
+    /// Dilates the tile set by one tile in all 26 directions (the 3×3×3 structuring
+    /// element of Sec. 4.6): every tile is kept and every absent neighbour is created,
+    /// filled with ±γ from the border flags. Sorted output, data compacted in list order.
+    pub fn dilate(&mut self) -> Result<ManageStats, GridError> {
+        self.restructure(|_, _, _| true)
+    }
+
+    /// Algorithms 2 and 3 with `trigger` deciding which positions must hold a tile, then
+    /// compaction of the arena into list order.
+    fn restructure<T>(&mut self, trigger: T) -> Result<ManageStats, GridError>
+    where
+        T: Fn(&super::Neighbours, &[u32], &[u32]) -> bool,
+    {
+        let old_tiles = self.arena.len();
+        let mut new_coords = Vec::with_capacity(self.coords.len() + self.coords.len() / 4 + 16);
+        let mut new_ids: Vec<u32> = Vec::with_capacity(new_coords.capacity());
+        // Border flags change for removals; work on a copy so an error leaves `self` as is.
+        let mut border = self.border.clone();
+        let mut created_inside: Vec<bool> = Vec::new();
+        let mut stats = ManageStats::default();
+
+        let mut stream = DilationStream::new(&self.coords);
+        while let Some(nb) = stream.next() {
+            let triggered = trigger(&nb, &self.activity, &self.ids);
+            if nb.matched & (1 << MID) != 0 {
+                let id = self.ids[nb.ptr[MID]];
+                if triggered {
+                    new_coords.push(nb.coord);
+                    new_ids.push(id);
+                    stats.kept += 1;
+                } else {
+                    // Algorithm 3 lines 11-18: tell the neighbours what the tile was.
+                    let inside = self.activity[id as usize] & INSIDE != 0;
+                    let mut m = nb.matched & !(1 << MID);
+                    while m != 0 {
+                        let d = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let b = &mut border[self.ids[nb.ptr[d]] as usize];
+                        let bit = 1 << reverse(d);
+                        *b = if inside { *b | bit } else { *b & !bit };
+                    }
+                    stats.removed += 1;
+                }
+            } else if triggered {
+                if !tile_in_range(nb.coord) {
+                    return Err(GridError::OutOfRange { coord: nb.coord });
+                }
+                // Lines 22-27: the sign of the new tile from the neighbours' border flags.
+                let mut inside = false;
+                let mut m = nb.matched;
+                while m != 0 {
+                    let d = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    inside |= border[self.ids[nb.ptr[d]] as usize] & (1 << reverse(d)) != 0;
+                }
+                let id = u32::try_from(old_tiles + created_inside.len())
+                    .map_err(|_| GridError::InvalidParameter("more than 2^32 tiles".into()))?;
+                created_inside.push(inside);
+                new_coords.push(nb.coord);
+                new_ids.push(id);
+                stats.created += 1;
+            }
+        }
+
+        // Compaction: gather the tiles in list order into a fresh arena.
+        let g = self.gamma();
+        let n = new_coords.len();
+        let mut arena = Vec::with_capacity(n);
+        let mut new_border = Vec::with_capacity(n);
+        let mut activity = Vec::with_capacity(n);
+        for &id in &new_ids {
+            let id = id as usize;
+            if id < old_tiles {
+                arena.push(self.arena[id]);
+                new_border.push(border[id]);
+                activity.push(self.activity[id]);
+            } else {
+                let inside = created_inside[id - old_tiles];
+                arena.push(Tile::splat(if inside { -g } else { g }));
+                new_border.push(if inside { BORDER_MASK } else { 0 });
+                activity.push(if inside { INSIDE } else { 0 });
+            }
+        }
+        self.coords = new_coords;
+        self.ids = (0..n as u32).collect();
+        self.arena = arena;
+        self.border = new_border;
+        self.activity = activity;
+        self.debug_check();
+        Ok(stats)
+    }
+
+    #[inline]
+    fn debug_check(&self) {
+        #[cfg(debug_assertions)]
+        if let Err(e) = self.check_invariants() {
+            panic!("TileGrid invariant violated: {e}");
+        }
+    }
+
+    /// Checks every invariant listed on the type; O(N) plus O(64 N) for the values.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        let n = self.coords.len();
+        if self.ids.len() != n {
+            return Err(format!("{} ids for {} coordinates", self.ids.len(), n));
+        }
+        let t = self.arena.len();
+        if self.border.len() != t || self.activity.len() != t {
+            return Err("flag arrays and arena differ in length".into());
+        }
+        if t != n {
+            return Err(format!("{t} arena tiles for {n} list entries (orphans)"));
+        }
+        for w in self.coords.windows(2) {
+            if w[0] >= w[1] {
+                return Err(format!(
+                    "list not strictly increasing at {:?} -> {:?}",
+                    w[0], w[1]
+                ));
+            }
+        }
+        if let Some(c) = self.coords.iter().find(|&&c| !tile_in_range(c)) {
+            return Err(format!("tile {c:?} out of range"));
+        }
+        let mut seen = vec![false; t];
+        for &id in &self.ids {
+            let id = id as usize;
+            if id >= t || std::mem::replace(&mut seen[id], true) {
+                return Err(format!("tile id {id} out of range or shared"));
+            }
+        }
+        if self.border.iter().any(|b| b & !BORDER_MASK != 0) {
+            return Err("border flag outside BORDER_MASK".into());
+        }
+        if self
+            .activity
+            .iter()
+            .any(|&a| a & !(ACTIVE_MASK | INSIDE) != 0 || (a & INSIDE != 0 && a & ACTIVE_MASK != 0))
+        {
+            return Err("malformed activity flags".into());
+        }
+        let g = self.gamma();
+        if self
+            .arena
+            .iter()
+            .any(|tile| tile.0.iter().any(|v| !(v.abs() <= g)))
+        {
+            return Err("value not finite or outside [-γ, γ]".into());
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,564 @@
+//! Tests of the Sorted Tile List against brute force and a dense ground truth.
+
+use super::*;
+use crate::coord::{Coord, MID, NEIGHBOURHOOD};
+use crate::grid::{GridError, GridSpec};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// A random union of spheres and boxes: exact signed distance (union = min).
+struct RandomShape {
+    spheres: Vec<([f64; 3], f64)>,
+    boxes: Vec<([f64; 3], [f64; 3])>,
+}
+
+impl RandomShape {
+    fn new(rng: &mut fastrand::Rng, around: [f64; 3]) -> Self {
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.f64();
+        let ns = 1 + (r(0.0, 3.0) as usize);
+        let nb = r(0.0, 2.5) as usize;
+        let spheres = (0..ns)
+            .map(|_| {
+                (
+                    [
+                        around[0] + r(-9.0, 9.0),
+                        around[1] + r(-9.0, 9.0),
+                        around[2] + r(-9.0, 9.0),
+                    ],
+                    r(2.5, 9.7),
+                )
+            })
+            .collect();
+        let boxes = (0..nb)
+            .map(|_| {
+                (
+                    [
+                        around[0] + r(-8.0, 8.0),
+                        around[1] + r(-8.0, 8.0),
+                        around[2] + r(-8.0, 8.0),
+                    ],
+                    [r(1.5, 7.3), r(1.5, 6.1), r(1.5, 5.9)],
+                )
+            })
+            .collect();
+        RandomShape { spheres, boxes }
+    }
+
+    fn sdf(&self, p: [f64; 3]) -> f64 {
+        let mut d = f64::INFINITY;
+        for (c, r) in &self.spheres {
+            let v =
+                ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r;
+            d = d.min(v);
+        }
+        for (c, h) in &self.boxes {
+            let q: Vec<f64> = (0..3).map(|a| (p[a] - c[a]).abs() - h[a]).collect();
+            let outside = q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>().sqrt();
+            let inside = q[0].max(q[1]).max(q[2]).min(0.0);
+            d = d.min(outside + inside);
+        }
+        d
+    }
+}
+
+/// The clamped ground-truth value of a voxel.
+fn truth(shape: &RandomShape, spec: &GridSpec, v: Coord) -> f32 {
+    let g = spec.gamma();
+    (shape.sdf(spec.world(v)) as f32).clamp(-g, g)
+}
+
+/// Builds a tile grid by brute force over a box that holds the band: every tile with a
+/// band voxel, border flags from the truth.
+fn build(shape: &RandomShape, spec: GridSpec, lo: Coord, hi: Coord) -> TileGrid {
+    let (tlo, _) = tile_of(lo);
+    let (thi, _) = tile_of(hi);
+    let g = spec.gamma();
+    let mut tiles = Vec::new();
+    for tz in tlo.z..=thi.z {
+        for ty in tlo.y..=thi.y {
+            for tx in tlo.x..=thi.x {
+                let t = Coord::new(tx, ty, tz);
+                let mut tile = Tile::splat(0.0);
+                for l in 0..TILE_LEN {
+                    tile.0[l] = truth(shape, &spec, voxel_of(t, l));
+                }
+                if tile.0.iter().any(|v| v.abs() < g) {
+                    tiles.push((t, tile));
+                }
+            }
+        }
+    }
+    TileGrid::from_sorted_tiles(spec, tiles, |t| truth(shape, &spec, voxel_of(t, 0)) < 0.0).unwrap()
+}
+
+struct Case {
+    shape: RandomShape,
+    spec: GridSpec,
+    lo: Coord,
+    hi: Coord,
+}
+
+fn cases(seed: u64, n: usize) -> Vec<Case> {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    (0..n)
+        .map(|i| {
+            let voxel_size = if i % 2 == 0 { 1.0 } else { 0.5 };
+            let half_width = if i % 3 == 0 { 2.0 } else { 3.0 };
+            let spec = GridSpec::new(voxel_size, [0.0; 3], half_width).unwrap();
+            let around = [
+                rng.f64() * 80.0 - 40.0,
+                rng.f64() * 80.0 - 40.0,
+                rng.f64() * 80.0 - 40.0,
+            ];
+            let shape = RandomShape::new(&mut rng, around);
+            // A voxel box that holds the band: shapes reach at most ~19 units from `around`.
+            let reach = 20.0 + spec.gamma() as f64 + 2.0;
+            let to_v = |w: f64| (w / voxel_size as f64).round() as i32;
+            let lo = Coord::new(
+                to_v(around[0] - reach),
+                to_v(around[1] - reach),
+                to_v(around[2] - reach),
+            );
+            let hi = Coord::new(
+                to_v(around[0] + reach) + 3,
+                to_v(around[1] + reach) + 1,
+                to_v(around[2] + reach) + 2,
+            );
+            Case {
+                shape,
+                spec,
+                lo,
+                hi,
+            }
+        })
+        .collect()
+}
+
+fn for_box(lo: Coord, hi: Coord, mut f: impl FnMut(Coord)) {
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                f(Coord::new(x, y, z));
+            }
+        }
+    }
+}
+
+#[test]
+fn random_access_equals_dense_truth() {
+    for case in cases(11, 6) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        grid.check_invariants().unwrap();
+        assert!(!grid.is_empty());
+        let (blo, bhi) = grid.bounding_box().unwrap();
+        let m = Coord::new(2, 2, 2);
+        let mut checked = 0;
+        for_box(blo.wrapping_sub(m), bhi.wrapping_add(m), |v| {
+            let want = truth(&case.shape, &case.spec, v);
+            let got = grid.value(v);
+            let g = case.spec.gamma();
+            if want.abs() < g {
+                assert_eq!(got, want, "band voxel {v:?}");
+            } else {
+                // Outside the band a grid reads exactly ±γ with the truth's sign.
+                assert!(
+                    got.abs() == g && got.signum() == want.signum(),
+                    "voxel {v:?}: {got} vs {want}"
+                );
+            }
+            checked += 1;
+        });
+        assert!(checked > 10_000);
+        assert_eq!(grid.band_voxels(), {
+            let mut n = 0;
+            for_box(case.lo, case.hi, |v| {
+                n += (truth(&case.shape, &case.spec, v).abs() < case.spec.gamma()) as usize
+            });
+            n
+        });
+    }
+}
+
+#[test]
+fn sorted_traversal_visits_stored_voxels_in_order() {
+    for case in cases(12, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        let mut prev: Option<Coord> = None;
+        let mut n = 0;
+        grid.for_each_voxel_sorted(|c, v| {
+            if let Some(p) = prev {
+                assert!(p < c, "{p:?} then {c:?}");
+            }
+            prev = Some(c);
+            assert_eq!(v, grid.value(c));
+            n += 1;
+        });
+        assert_eq!(n, grid.stored_voxels());
+    }
+}
+
+fn brute_neighbours(coords: &[Coord], pos: usize) -> (u32, [usize; 27]) {
+    let mut m = 0;
+    let mut ptr = [0; 27];
+    for d in 0..27 {
+        if let Ok(p) = coords.binary_search(&coords[pos].wrapping_add(NEIGHBOURHOOD[d])) {
+            m |= 1 << d;
+            ptr[d] = p;
+        }
+    }
+    (m, ptr)
+}
+
+#[test]
+fn neighbour_tracking_equals_brute_force_from_any_start() {
+    let mut rng = fastrand::Rng::with_seed(5);
+    for case in cases(13, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        let coords = grid.tile_coords();
+        let n = coords.len();
+        let mut starts = vec![(0, n)];
+        for _ in 0..8 {
+            let a = rng.usize(0..n);
+            starts.push((a, rng.usize(a..=n)));
+        }
+        for (a, b) in starts {
+            let mut cur = NeighbourCursor::new(coords, a, b);
+            let mut visited = 0;
+            while let Some(nb) = cur.next() {
+                assert_eq!(nb.pos, a + visited);
+                let (m, ptr) = brute_neighbours(coords, nb.pos);
+                assert_eq!(nb.matched, m, "tile {}", nb.pos);
+                for d in 0..27 {
+                    assert_eq!(nb.get(d), (m & (1 << d) != 0).then_some(ptr[d]));
+                }
+                visited += 1;
+            }
+            assert_eq!(visited, b - a);
+        }
+    }
+}
+
+fn brute_dilation(coords: &[Coord]) -> BTreeSet<Coord> {
+    coords
+        .iter()
+        .flat_map(|c| NEIGHBOURHOOD.iter().map(move |d| c.wrapping_add(*d)))
+        .collect()
+}
+
+#[test]
+fn dilation_stream_equals_brute_force() {
+    for case in cases(14, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        let coords = grid.tile_coords();
+        let want = brute_dilation(coords);
+        let got: Vec<_> = DilationStream::new(coords).collect();
+        assert_eq!(got.len(), want.len());
+        for (nb, w) in got.iter().zip(&want) {
+            assert_eq!(nb.coord, *w);
+            for d in 0..27 {
+                let there = coords.binary_search(&nb.coord.wrapping_add(NEIGHBOURHOOD[d]));
+                assert_eq!(nb.matched & (1 << d) != 0, there.is_ok());
+                if let Ok(p) = there {
+                    assert_eq!(nb.ptr[d], p);
+                }
+            }
+        }
+    }
+    assert_eq!(DilationStream::new(&[]).count(), 0);
+}
+
+#[test]
+fn dilate_equals_brute_force_with_signed_fill() {
+    for case in cases(15, 4) {
+        let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
+        let before = grid.clone();
+        let want = brute_dilation(grid.tile_coords());
+        let stats = grid.dilate().unwrap();
+        grid.check_invariants().unwrap();
+        assert_eq!(
+            grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(),
+            want
+        );
+        assert_eq!(stats.kept, before.len());
+        assert_eq!(stats.created, want.len() - before.len());
+        let g = case.spec.gamma();
+        for (p, &t) in grid.tile_coords().iter().enumerate() {
+            match before.find_tile(t) {
+                Ok(q) => assert_eq!(grid.tile(p), before.tile(q)),
+                Err(_) => {
+                    let inside = truth(&case.shape, &case.spec, voxel_of(t, 0)) < 0.0;
+                    assert_eq!(
+                        grid.tile(p),
+                        &Tile::splat(if inside { -g } else { g }),
+                        "new tile {t:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Brute-force Algorithm 3 trigger set: positions whose tile or a neighbour has activity in
+/// the regions facing the position.
+fn brute_triggered(grid: &TileGrid) -> BTreeSet<Coord> {
+    let mut out = BTreeSet::new();
+    for c in brute_dilation(grid.tile_coords()) {
+        for d in 0..27 {
+            if let Ok(p) = grid.find_tile(c.wrapping_add(NEIGHBOURHOOD[d])) {
+                if grid.activity_flags(p) & NEIGHBOUR_TRIGGER[d] != 0 {
+                    out.insert(c);
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn management_with_random_activity_keeps_list_valid() {
+    let mut rng = fastrand::Rng::with_seed(99);
+    for case in cases(16, 3) {
+        let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
+        for _round in 0..6 {
+            for p in 0..grid.len() {
+                let f = match rng.u32(0..4) {
+                    0 => 0,
+                    1 => INSIDE,
+                    2 => 1 << rng.u32(0..27),
+                    _ => rng.u32(..) & ACTIVE_MASK,
+                };
+                grid.set_activity_flags(p, f);
+            }
+            let want = brute_triggered(&grid);
+            let before = grid.clone();
+            let stats = grid.manage_tiles().unwrap();
+            grid.check_invariants().unwrap();
+            let got: BTreeSet<Coord> = grid.tile_coords().iter().copied().collect();
+            assert_eq!(got, want);
+            assert_eq!(stats.kept + stats.removed, before.len());
+            assert_eq!(stats.kept + stats.created, grid.len());
+            // Kept tiles keep their data and flags.
+            for (p, &t) in grid.tile_coords().iter().enumerate() {
+                if let Ok(q) = before.find_tile(t) {
+                    assert_eq!(grid.tile(p), before.tile(q));
+                    assert_eq!(grid.activity_flags(p), before.activity_flags(q));
+                }
+            }
+            if grid.is_empty() {
+                break;
+            }
+        }
+    }
+}
+
+fn grid_from(spec: GridSpec, tiles: &[(Coord, f32)], inside: impl Fn(Coord) -> bool) -> TileGrid {
+    let mut v: Vec<_> = tiles.iter().map(|&(c, x)| (c, Tile::splat(x))).collect();
+    v.sort_by_key(|t| t.0);
+    TileGrid::from_sorted_tiles(spec, v, inside).unwrap()
+}
+
+#[test]
+fn management_hand_made_growth_removal_creation() {
+    let spec = GridSpec::default();
+    let g = spec.gamma();
+    // One active tile at the origin, its +x neighbour outside and present, everything
+    // else absent; the surroundings are outside except the tile at -x, which is inside.
+    let mut grid = grid_from(
+        spec,
+        &[(Coord::new(0, 0, 0), 0.5), (Coord::new(1, 0, 0), g)],
+        |t| t == Coord::new(-1, 0, 0),
+    );
+    assert_eq!(grid.value(Coord::new(-1, 0, 0)), -g);
+    assert_eq!(
+        grid.value(Coord::new(-9, 1, 1)),
+        -g,
+        "row gap before an inside-flagged border"
+    );
+    assert_eq!(grid.value(Coord::new(9, 1, 1)), g);
+    // Activity only in the centre region of tile 0 triggers nothing around it: the +x
+    // tile (no activity) is removed and tells tile 0 it was outside.
+    let centre_region = 1 << 13;
+    grid.set_activity_flags(0, centre_region);
+    grid.set_activity_flags(1, 0);
+    let s = grid.manage_tiles().unwrap();
+    assert_eq!(
+        s,
+        ManageStats {
+            kept: 1,
+            removed: 1,
+            created: 0
+        }
+    );
+    assert_eq!(grid.tile_coords(), &[Coord::new(0, 0, 0)]);
+    assert_eq!(
+        grid.border_flags(0) & (1 << crate::coord::direction_index(1, 0, 0)),
+        0
+    );
+    assert_eq!(grid.value(Coord::new(5, 2, 2)), g);
+
+    // Growth: activity in the low-x face region of tile 0 creates the -x neighbours
+    // (face, edges, corners: 9 tiles) and they are inside, from tile 0's border flags.
+    grid.set_activity_flags(0, 1 << 12); // region (rx=0, ry=1, rz=1)
+    let s = grid.manage_tiles().unwrap();
+    assert_eq!(
+        s,
+        ManageStats {
+            kept: 1,
+            removed: 0,
+            created: 1
+        }
+    );
+    assert_eq!(
+        grid.tile_coords(),
+        &[Coord::new(-1, 0, 0), Coord::new(0, 0, 0)]
+    );
+    assert_eq!(grid.tile(0), &Tile::splat(-g));
+    assert_eq!(grid.activity_flags(0), INSIDE);
+    assert_eq!(grid.border_flags(0), BORDER_MASK);
+
+    // A corner region triggers all 7 tiles around that corner, created outside.
+    grid.set_activity_flags(1, 1 << 26); // region (2,2,2): the +x+y+z corner
+    grid.set_activity_flags(0, INSIDE);
+    let s = grid.manage_tiles().unwrap();
+    // The inside tile at -x has no activity and no trigger: removed, telling tile 0.
+    assert_eq!(
+        s,
+        ManageStats {
+            kept: 1,
+            removed: 1,
+            created: 7
+        }
+    );
+    let want: BTreeSet<Coord> = (0..8)
+        .map(|i| Coord::new(i & 1, (i >> 1) & 1, i >> 2))
+        .collect();
+    assert_eq!(
+        grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(),
+        want
+    );
+    // New tiles take their sign from the border flags their neighbours hold towards them
+    // (Alg. 3 lines 22-27): those touching the inside tile at -x (whose flags all say
+    // inside) are inside, the others outside. In a distance field a tile within one
+    // diagonal of a -γ tile is indeed inside.
+    for (p, &t) in grid.tile_coords().iter().enumerate() {
+        if t == Coord::new(0, 0, 0) {
+            continue;
+        }
+        let want = if t.x == 0 { -g } else { g };
+        assert_eq!(grid.tile(p), &Tile::splat(want), "created tile {t:?}");
+    }
+    let origin = grid.find_tile(Coord::new(0, 0, 0)).unwrap();
+    assert_ne!(
+        grid.border_flags(origin) & (1 << crate::coord::direction_index(-1, 0, 0)),
+        0
+    );
+    assert_eq!(
+        grid.value(Coord::new(-1, 1, 1)),
+        -g,
+        "removed inside tile reads -γ"
+    );
+
+    // Everything inactive: the list empties and random access reads outside.
+    for p in 0..grid.len() {
+        grid.set_activity_flags(p, 0);
+    }
+    grid.manage_tiles().unwrap();
+    assert!(grid.is_empty());
+    assert_eq!(grid.value(Coord::new(0, 0, 0)), g);
+}
+
+#[test]
+fn growth_past_the_i32_range_is_an_error_and_leaves_the_grid() {
+    let spec = GridSpec::default();
+    let edge = Coord::new(TILE_MAX, 0, TILE_MIN);
+    let mut grid = grid_from(spec, &[(edge, 0.0)], |_| false);
+    assert_eq!(grid.value(voxel_of(edge, 63)), 0.0);
+    assert_eq!(voxel_of(edge, 63).x, i32::MAX);
+    let before = grid.clone();
+    assert!(matches!(grid.dilate(), Err(GridError::OutOfRange { .. })));
+    assert_eq!(grid.tile_coords(), before.tile_coords());
+    assert_eq!(grid.border_flags(0), before.border_flags(0));
+    // Activity in the middle of the low-x face grows only towards -x, inside the range.
+    grid.set_activity_flags(0, 1 << 12);
+    assert_eq!(
+        grid.manage_tiles().unwrap(),
+        ManageStats {
+            kept: 1,
+            removed: 0,
+            created: 1
+        }
+    );
+    // Activity at the low-z face of the tile at z = TILE_MIN would leave the range.
+    let p = grid.find_tile(edge).unwrap();
+    grid.set_activity_flags(p, 1 << 4); // region (rx=1, ry=1, rz=0)
+    let before = grid.clone();
+    assert!(matches!(
+        grid.manage_tiles(),
+        Err(GridError::OutOfRange { .. })
+    ));
+    assert_eq!(grid.tile_coords(), before.tile_coords());
+}
+
+#[test]
+fn append_rejects_bad_input() {
+    let spec = GridSpec::default();
+    let mut grid = TileGrid::new(spec);
+    assert_eq!(grid.value(Coord::new(i32::MIN, i32::MAX, 0)), spec.gamma());
+    grid.append(Coord::new(0, 0, 0), &Tile::splat(10.0), 0)
+        .unwrap();
+    assert_eq!(grid.tile(0), &Tile::splat(3.0), "values are clamped to γ");
+    assert!(matches!(
+        grid.append(Coord::new(0, 0, 0), &Tile::splat(0.0), 0),
+        Err(GridError::NotSorted { .. })
+    ));
+    assert!(matches!(
+        grid.append(Coord::new(5, -1, 0), &Tile::splat(0.0), 0),
+        Err(GridError::NotSorted { .. })
+    ));
+    assert!(matches!(
+        grid.append(Coord::new(0, 0, TILE_MAX + 1), &Tile::splat(0.0), 0),
+        Err(GridError::OutOfRange { .. })
+    ));
+    let mut nan = Tile::splat(0.0);
+    nan.0[17] = f32::NAN;
+    assert_eq!(
+        grid.append(Coord::new(1, 0, 0), &nan, 0),
+        Err(GridError::NaN {
+            coord: Coord::new(5, 0, 1)
+        })
+    );
+    assert_eq!(grid.len(), 1);
+    grid.check_invariants().unwrap();
+}
+
+#[test]
+fn trigger_masks_match_fig4() {
+    // Centre: all regions. Face: 9 regions. Edge: 3. Corner: 1.
+    for d in 0..27 {
+        let o = NEIGHBOURHOOD[d];
+        let axes_off = (o.x != 0) as u32 + (o.y != 0) as u32 + (o.z != 0) as u32;
+        assert_eq!(
+            NEIGHBOUR_TRIGGER[d].count_ones(),
+            [27, 9, 3, 1][axes_off as usize]
+        );
+    }
+    assert_eq!(NEIGHBOUR_TRIGGER[MID], ACTIVE_MASK);
+    // Every local voxel maps to the region its coordinates say.
+    let mut per_region = BTreeMap::new();
+    for l in 0..TILE_LEN {
+        *per_region.entry(region_of_local(l)).or_insert(0) += 1;
+    }
+    assert_eq!(per_region.len(), 27);
+    assert_eq!(per_region[&13], 8, "centre region is 2x2x2");
+    assert_eq!(per_region[&0], 1, "corner region is one voxel");
+}
+
+#[test]
+fn memory_reports_every_part() {
+    let case = &cases(17, 1)[0];
+    let grid = build(&case.shape, case.spec, case.lo, case.hi);
+    let m = grid.memory();
+    assert_eq!(m.values, grid.len() * 256);
+    assert_eq!(m.indices, grid.len() * 16);
+    assert_eq!(m.flags, grid.len() * 8);
+    assert_eq!(m.total(), m.values + m.indices + m.flags + m.slack);
+}
