@@ -23,7 +23,11 @@ pub struct GridSpec {
 
 impl Default for GridSpec {
     fn default() -> Self {
-        GridSpec { voxel_size: 1.0, origin: [0.0; 3], half_width: 3.0 }
+        GridSpec {
+            voxel_size: 1.0,
+            origin: [0.0; 3],
+            half_width: 3.0,
+        }
     }
 }
 
@@ -41,9 +45,15 @@ impl GridSpec {
             )));
         }
         if origin.iter().any(|o| !o.is_finite()) {
-            return Err(GridError::InvalidParameter(format!("origin must be finite, got {origin:?}")));
+            return Err(GridError::InvalidParameter(format!(
+                "origin must be finite, got {origin:?}"
+            )));
         }
-        Ok(GridSpec { voxel_size, origin, half_width })
+        Ok(GridSpec {
+            voxel_size,
+            origin,
+            half_width,
+        })
     }
 
     /// γ = half-width × voxel size, in world units.
