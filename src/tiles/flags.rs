@@ -51,11 +51,7 @@ pub const NEIGHBOUR_TRIGGER: [u32; 27] = {
     let mut out = [0u32; 27];
     let mut d = 0;
     while d < 27 {
-        let off = [
-            (d % 3) as i32 - 1,
-            ((d / 3) % 3) as i32 - 1,
-            (d / 9) as i32 - 1,
-        ];
+        let off = [(d % 3) as i32 - 1, ((d / 3) % 3) as i32 - 1, (d / 9) as i32 - 1];
         let mut r = 0;
         while r < 27 {
             let reg = [r % 3, (r / 3) % 3, r / 9];

@@ -113,11 +113,7 @@ impl TileGrid {
     #[inline]
     pub fn set_activity_flags(&mut self, pos: usize, flags: u32) {
         let f = flags & (ACTIVE_MASK | INSIDE);
-        let f = if f & ACTIVE_MASK != 0 {
-            f & ACTIVE_MASK
-        } else {
-            f
-        };
+        let f = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
         self.activity[self.ids[pos] as usize] = f;
     }
 
@@ -142,10 +138,7 @@ impl TileGrid {
     ) -> Result<usize, GridError> {
         if let Some(&last) = self.coords.last() {
             if tile_coord <= last {
-                return Err(GridError::NotSorted {
-                    last,
-                    coord: tile_coord,
-                });
+                return Err(GridError::NotSorted { last, coord: tile_coord });
             }
         }
         if !tile_in_range(tile_coord) {
@@ -155,9 +148,7 @@ impl TileGrid {
         let mut t = *values;
         for (i, v) in t.0.iter_mut().enumerate() {
             if v.is_nan() {
-                return Err(GridError::NaN {
-                    coord: voxel_of(tile_coord, i),
-                });
+                return Err(GridError::NaN { coord: voxel_of(tile_coord, i) });
             }
             *v = v.clamp(-g, g);
         }
@@ -264,13 +255,7 @@ impl TileGrid {
         let g = self.gamma();
         self.ids
             .iter()
-            .map(|&id| {
-                self.arena[id as usize]
-                    .0
-                    .iter()
-                    .filter(|v| v.abs() < g)
-                    .count()
-            })
+            .map(|&id| self.arena[id as usize].0.iter().filter(|v| v.abs() < g).count())
             .sum()
     }
 
@@ -333,12 +318,7 @@ impl TileGrid {
         let (i, is) = vec_bytes(&self.ids);
         let (b, bs) = vec_bytes(&self.border);
         let (a, as_) = vec_bytes(&self.activity);
-        MemoryReport {
-            values: v,
-            indices: c + i,
-            flags: b + a,
-            slack: vs + cs + is + bs + as_,
-        }
+        MemoryReport { values: v, indices: c + i, flags: b + a, slack: vs + cs + is + bs + as_ }
     }
 
     /// Releases unused capacity.
@@ -489,10 +469,7 @@ impl TileGrid {
         }
         for w in self.coords.windows(2) {
             if w[0] >= w[1] {
-                return Err(format!(
-                    "list not strictly increasing at {:?} -> {:?}",
-                    w[0], w[1]
-                ));
+                return Err(format!("list not strictly increasing at {:?} -> {:?}", w[0], w[1]));
             }
         }
         if let Some(c) = self.coords.iter().find(|&&c| !tile_in_range(c)) {
@@ -516,11 +493,7 @@ impl TileGrid {
             return Err("malformed activity flags".into());
         }
         let g = self.gamma();
-        if self
-            .arena
-            .iter()
-            .any(|tile| tile.0.iter().any(|v| !(v.abs() <= g)))
-        {
+        if self.arena.iter().any(|tile| tile.0.iter().any(|v| !(v.abs() <= g))) {
             return Err("value not finite or outside [-γ, γ]".into());
         }
         Ok(())

@@ -5,16 +5,20 @@
 //! * [`NeighbourCursor`] walks the list with the 26-neighbour tracking of Algorithm 1
 //!   (Sec. 4.4) and can start at any list position (its pointers are seeded by binary
 //!   search, Sec. 5.8), which is what parallel chunks use.
+//! * [`PaddedBlock`] gathers a tile and an R-voxel halo from its neighbours: the stencil
+//!   window of a whole tile.
 //! * [`DilationStream`] is the streaming dilation of the sorted list (Algorithm 2,
 //!   Sec. 4.6.1); [`TileGrid::manage_tiles`] runs the tile update of Algorithm 3 on it.
 //!
 //! Tile coordinates are voxel coordinates divided by 4 with floor (`voxel >> 2`); inside a
 //! tile x is fastest: `local = lx + 4 ly + 16 lz`.
 
+mod block;
 mod flags;
 mod grid;
 mod stream;
 
+pub use block::PaddedBlock;
 pub use flags::{
     compute_activity, region_of_local, ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER,
 };
@@ -69,11 +73,7 @@ pub fn tile_of(voxel: Coord) -> (Coord, usize) {
 #[inline(always)]
 pub fn voxel_of(t: Coord, local: usize) -> Coord {
     let l = local as i32;
-    Coord::new(
-        4 * t.x + (l & 3),
-        4 * t.y + ((l >> 2) & 3),
-        4 * t.z + (l >> 4),
-    )
+    Coord::new(4 * t.x + (l & 3), 4 * t.y + ((l >> 2) & 3), 4 * t.z + (l >> 4))
 }
 
 /// Whether every voxel of tile coordinate `t` is representable in i32.

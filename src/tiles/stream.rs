@@ -47,10 +47,7 @@ impl<'a> NeighbourCursor<'a> {
     /// # Panics
     /// If `start > end` or `end > coords.len()`.
     pub fn new(coords: &'a [Coord], start: usize, end: usize) -> Self {
-        assert!(
-            start <= end && end <= coords.len(),
-            "cursor range {start}..{end} out of bounds"
-        );
+        assert!(start <= end && end <= coords.len(), "cursor range {start}..{end} out of bounds");
         let mut ptr = [start; 27];
         if start < end {
             let cur = coords[start];
@@ -60,12 +57,7 @@ impl<'a> NeighbourCursor<'a> {
                 *p = coords.partition_point(|&x| x < c);
             }
         }
-        NeighbourCursor {
-            coords,
-            ptr,
-            pos: start,
-            end,
-        }
+        NeighbourCursor { coords, ptr, pos: start, end }
     }
 
     /// The next entry and its neighbours, or `None` past `end`.
@@ -90,12 +82,7 @@ impl<'a> NeighbourCursor<'a> {
                 matched |= 1 << d;
             }
         }
-        let out = Neighbours {
-            pos: self.pos,
-            coord: cur,
-            matched,
-            ptr: self.ptr,
-        };
+        let out = Neighbours { pos: self.pos, coord: cur, matched, ptr: self.ptr };
         debug_assert!(out.matched & (1 << MID) != 0 && out.ptr[MID] == self.pos);
         self.pos += 1;
         Some(out)
@@ -121,10 +108,7 @@ pub struct DilationStream<'a> {
 impl<'a> DilationStream<'a> {
     /// A stream over the dilation of `coords` (strictly increasing).
     pub fn new(coords: &'a [Coord]) -> Self {
-        DilationStream {
-            coords,
-            ptr: [0; 27],
-        }
+        DilationStream { coords, ptr: [0; 27] }
     }
 
     /// The next coordinate of the dilated set. `matched` bit `d` says that the original
@@ -157,12 +141,7 @@ impl<'a> DilationStream<'a> {
                 matched |= 1 << d;
             }
         }
-        let out = Neighbours {
-            pos: usize::MAX,
-            coord: cur,
-            matched,
-            ptr: self.ptr,
-        };
+        let out = Neighbours { pos: usize::MAX, coord: cur, matched, ptr: self.ptr };
         // Line 22-26: advance the element past the matched entries.
         for d in 0..27 {
             self.ptr[d] += ((matched >> d) & 1) as usize;

@@ -19,11 +19,7 @@ impl RandomShape {
         let spheres = (0..ns)
             .map(|_| {
                 (
-                    [
-                        around[0] + r(-9.0, 9.0),
-                        around[1] + r(-9.0, 9.0),
-                        around[2] + r(-9.0, 9.0),
-                    ],
+                    [around[0] + r(-9.0, 9.0), around[1] + r(-9.0, 9.0), around[2] + r(-9.0, 9.0)],
                     r(2.5, 9.7),
                 )
             })
@@ -31,11 +27,7 @@ impl RandomShape {
         let boxes = (0..nb)
             .map(|_| {
                 (
-                    [
-                        around[0] + r(-8.0, 8.0),
-                        around[1] + r(-8.0, 8.0),
-                        around[2] + r(-8.0, 8.0),
-                    ],
+                    [around[0] + r(-8.0, 8.0), around[1] + r(-8.0, 8.0), around[2] + r(-8.0, 8.0)],
                     [r(1.5, 7.3), r(1.5, 6.1), r(1.5, 5.9)],
                 )
             })
@@ -104,11 +96,8 @@ fn cases(seed: u64, n: usize) -> Vec<Case> {
             let voxel_size = if i % 2 == 0 { 1.0 } else { 0.5 };
             let half_width = if i % 3 == 0 { 2.0 } else { 3.0 };
             let spec = GridSpec::new(voxel_size, [0.0; 3], half_width).unwrap();
-            let around = [
-                rng.f64() * 80.0 - 40.0,
-                rng.f64() * 80.0 - 40.0,
-                rng.f64() * 80.0 - 40.0,
-            ];
+            let around =
+                [rng.f64() * 80.0 - 40.0, rng.f64() * 80.0 - 40.0, rng.f64() * 80.0 - 40.0];
             let shape = RandomShape::new(&mut rng, around);
             // A voxel box that holds the band: shapes reach at most ~19 units from `around`.
             let reach = 20.0 + spec.gamma() as f64 + 2.0;
@@ -123,12 +112,7 @@ fn cases(seed: u64, n: usize) -> Vec<Case> {
                 to_v(around[1] + reach) + 1,
                 to_v(around[2] + reach) + 2,
             );
-            Case {
-                shape,
-                spec,
-                lo,
-                hi,
-            }
+            Case { shape, spec, lo, hi }
         })
         .collect()
 }
@@ -238,10 +222,7 @@ fn neighbour_tracking_equals_brute_force_from_any_start() {
 }
 
 fn brute_dilation(coords: &[Coord]) -> BTreeSet<Coord> {
-    coords
-        .iter()
-        .flat_map(|c| NEIGHBOURHOOD.iter().map(move |d| c.wrapping_add(*d)))
-        .collect()
+    coords.iter().flat_map(|c| NEIGHBOURHOOD.iter().map(move |d| c.wrapping_add(*d))).collect()
 }
 
 #[test]
@@ -274,10 +255,7 @@ fn dilate_equals_brute_force_with_signed_fill() {
         let want = brute_dilation(grid.tile_coords());
         let stats = grid.dilate().unwrap();
         grid.check_invariants().unwrap();
-        assert_eq!(
-            grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(),
-            want
-        );
+        assert_eq!(grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(), want);
         assert_eq!(stats.kept, before.len());
         assert_eq!(stats.created, want.len() - before.len());
         let g = case.spec.gamma();
@@ -362,17 +340,11 @@ fn management_hand_made_growth_removal_creation() {
     let g = spec.gamma();
     // One active tile at the origin, its +x neighbour outside and present, everything
     // else absent; the surroundings are outside except the tile at -x, which is inside.
-    let mut grid = grid_from(
-        spec,
-        &[(Coord::new(0, 0, 0), 0.5), (Coord::new(1, 0, 0), g)],
-        |t| t == Coord::new(-1, 0, 0),
-    );
+    let mut grid = grid_from(spec, &[(Coord::new(0, 0, 0), 0.5), (Coord::new(1, 0, 0), g)], |t| {
+        t == Coord::new(-1, 0, 0)
+    });
     assert_eq!(grid.value(Coord::new(-1, 0, 0)), -g);
-    assert_eq!(
-        grid.value(Coord::new(-9, 1, 1)),
-        -g,
-        "row gap before an inside-flagged border"
-    );
+    assert_eq!(grid.value(Coord::new(-9, 1, 1)), -g, "row gap before an inside-flagged border");
     assert_eq!(grid.value(Coord::new(9, 1, 1)), g);
     // Activity only in the centre region of tile 0 triggers nothing around it: the +x
     // tile (no activity) is removed and tells tile 0 it was outside.
@@ -380,37 +352,17 @@ fn management_hand_made_growth_removal_creation() {
     grid.set_activity_flags(0, centre_region);
     grid.set_activity_flags(1, 0);
     let s = grid.manage_tiles().unwrap();
-    assert_eq!(
-        s,
-        ManageStats {
-            kept: 1,
-            removed: 1,
-            created: 0
-        }
-    );
+    assert_eq!(s, ManageStats { kept: 1, removed: 1, created: 0 });
     assert_eq!(grid.tile_coords(), &[Coord::new(0, 0, 0)]);
-    assert_eq!(
-        grid.border_flags(0) & (1 << crate::coord::direction_index(1, 0, 0)),
-        0
-    );
+    assert_eq!(grid.border_flags(0) & (1 << crate::coord::direction_index(1, 0, 0)), 0);
     assert_eq!(grid.value(Coord::new(5, 2, 2)), g);
 
     // Growth: activity in the low-x face region of tile 0 creates the -x neighbours
     // (face, edges, corners: 9 tiles) and they are inside, from tile 0's border flags.
     grid.set_activity_flags(0, 1 << 12); // region (rx=0, ry=1, rz=1)
     let s = grid.manage_tiles().unwrap();
-    assert_eq!(
-        s,
-        ManageStats {
-            kept: 1,
-            removed: 0,
-            created: 1
-        }
-    );
-    assert_eq!(
-        grid.tile_coords(),
-        &[Coord::new(-1, 0, 0), Coord::new(0, 0, 0)]
-    );
+    assert_eq!(s, ManageStats { kept: 1, removed: 0, created: 1 });
+    assert_eq!(grid.tile_coords(), &[Coord::new(-1, 0, 0), Coord::new(0, 0, 0)]);
     assert_eq!(grid.tile(0), &Tile::splat(-g));
     assert_eq!(grid.activity_flags(0), INSIDE);
     assert_eq!(grid.border_flags(0), BORDER_MASK);
@@ -420,21 +372,9 @@ fn management_hand_made_growth_removal_creation() {
     grid.set_activity_flags(0, INSIDE);
     let s = grid.manage_tiles().unwrap();
     // The inside tile at -x has no activity and no trigger: removed, telling tile 0.
-    assert_eq!(
-        s,
-        ManageStats {
-            kept: 1,
-            removed: 1,
-            created: 7
-        }
-    );
-    let want: BTreeSet<Coord> = (0..8)
-        .map(|i| Coord::new(i & 1, (i >> 1) & 1, i >> 2))
-        .collect();
-    assert_eq!(
-        grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(),
-        want
-    );
+    assert_eq!(s, ManageStats { kept: 1, removed: 1, created: 7 });
+    let want: BTreeSet<Coord> = (0..8).map(|i| Coord::new(i & 1, (i >> 1) & 1, i >> 2)).collect();
+    assert_eq!(grid.tile_coords().iter().copied().collect::<BTreeSet<_>>(), want);
     // New tiles take their sign from the border flags their neighbours hold towards them
     // (Alg. 3 lines 22-27): those touching the inside tile at -x (whose flags all say
     // inside) are inside, the others outside. In a distance field a tile within one
@@ -447,15 +387,8 @@ fn management_hand_made_growth_removal_creation() {
         assert_eq!(grid.tile(p), &Tile::splat(want), "created tile {t:?}");
     }
     let origin = grid.find_tile(Coord::new(0, 0, 0)).unwrap();
-    assert_ne!(
-        grid.border_flags(origin) & (1 << crate::coord::direction_index(-1, 0, 0)),
-        0
-    );
-    assert_eq!(
-        grid.value(Coord::new(-1, 1, 1)),
-        -g,
-        "removed inside tile reads -γ"
-    );
+    assert_ne!(grid.border_flags(origin) & (1 << crate::coord::direction_index(-1, 0, 0)), 0);
+    assert_eq!(grid.value(Coord::new(-1, 1, 1)), -g, "removed inside tile reads -γ");
 
     // Everything inactive: the list empties and random access reads outside.
     for p in 0..grid.len() {
@@ -479,22 +412,12 @@ fn growth_past_the_i32_range_is_an_error_and_leaves_the_grid() {
     assert_eq!(grid.border_flags(0), before.border_flags(0));
     // Activity in the middle of the low-x face grows only towards -x, inside the range.
     grid.set_activity_flags(0, 1 << 12);
-    assert_eq!(
-        grid.manage_tiles().unwrap(),
-        ManageStats {
-            kept: 1,
-            removed: 0,
-            created: 1
-        }
-    );
+    assert_eq!(grid.manage_tiles().unwrap(), ManageStats { kept: 1, removed: 0, created: 1 });
     // Activity at the low-z face of the tile at z = TILE_MIN would leave the range.
     let p = grid.find_tile(edge).unwrap();
     grid.set_activity_flags(p, 1 << 4); // region (rx=1, ry=1, rz=0)
     let before = grid.clone();
-    assert!(matches!(
-        grid.manage_tiles(),
-        Err(GridError::OutOfRange { .. })
-    ));
+    assert!(matches!(grid.manage_tiles(), Err(GridError::OutOfRange { .. })));
     assert_eq!(grid.tile_coords(), before.tile_coords());
 }
 
@@ -503,8 +426,7 @@ fn append_rejects_bad_input() {
     let spec = GridSpec::default();
     let mut grid = TileGrid::new(spec);
     assert_eq!(grid.value(Coord::new(i32::MIN, i32::MAX, 0)), spec.gamma());
-    grid.append(Coord::new(0, 0, 0), &Tile::splat(10.0), 0)
-        .unwrap();
+    grid.append(Coord::new(0, 0, 0), &Tile::splat(10.0), 0).unwrap();
     assert_eq!(grid.tile(0), &Tile::splat(3.0), "values are clamped to γ");
     assert!(matches!(
         grid.append(Coord::new(0, 0, 0), &Tile::splat(0.0), 0),
@@ -522,9 +444,7 @@ fn append_rejects_bad_input() {
     nan.0[17] = f32::NAN;
     assert_eq!(
         grid.append(Coord::new(1, 0, 0), &nan, 0),
-        Err(GridError::NaN {
-            coord: Coord::new(5, 0, 1)
-        })
+        Err(GridError::NaN { coord: Coord::new(5, 0, 1) })
     );
     assert_eq!(grid.len(), 1);
     grid.check_invariants().unwrap();
@@ -536,10 +456,7 @@ fn trigger_masks_match_fig4() {
     for d in 0..27 {
         let o = NEIGHBOURHOOD[d];
         let axes_off = (o.x != 0) as u32 + (o.y != 0) as u32 + (o.z != 0) as u32;
-        assert_eq!(
-            NEIGHBOUR_TRIGGER[d].count_ones(),
-            [27, 9, 3, 1][axes_off as usize]
-        );
+        assert_eq!(NEIGHBOUR_TRIGGER[d].count_ones(), [27, 9, 3, 1][axes_off as usize]);
     }
     assert_eq!(NEIGHBOUR_TRIGGER[MID], ACTIVE_MASK);
     // Every local voxel maps to the region its coordinates say.
@@ -561,4 +478,37 @@ fn memory_reports_every_part() {
     assert_eq!(m.indices, grid.len() * 16);
     assert_eq!(m.flags, grid.len() * 8);
     assert_eq!(m.total(), m.values + m.indices + m.flags + m.slack);
+}
+
+fn check_block<const R: usize>(grid: &TileGrid) {
+    let mut block = PaddedBlock::<R>::new();
+    let mut cur = NeighbourCursor::new(grid.tile_coords(), 0, grid.len());
+    let r = R as i32;
+    while let Some(nb) = cur.next() {
+        block.gather(grid, &nb);
+        let base = voxel_of(nb.coord, 0);
+        for z in -r..4 + r {
+            for y in -r..4 + r {
+                for x in -r..4 + r {
+                    let v = base.wrapping_add(Coord::new(x, y, z));
+                    assert_eq!(
+                        block.get(x, y, z),
+                        grid.value(v),
+                        "tile {:?} voxel {v:?}",
+                        nb.coord
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn padded_block_equals_random_access() {
+    for case in cases(18, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        check_block::<1>(&grid);
+        check_block::<3>(&grid);
+        check_block::<4>(&grid);
+    }
 }
