@@ -209,7 +209,12 @@ impl TileGrid {
     /// search (Sec. 4.5), O(log N).
     #[inline]
     pub fn find_tile(&self, tile_coord: Coord) -> Result<usize, usize> {
-        self.coords.binary_search(&tile_coord)
+        let p = super::lower_bound(&self.coords, tile_coord);
+        if self.coords.get(p) == Some(&tile_coord) {
+            Ok(p)
+        } else {
+            Err(p)
+        }
     }
 
     /// Whether the absent tile `t`, whose insertion position in the list is `p`, is

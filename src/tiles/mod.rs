@@ -83,5 +83,34 @@ pub fn tile_in_range(t: Coord) -> bool {
     ok(t.x) && ok(t.y) && ok(t.z)
 }
 
+/// A `u128` whose unsigned order is the [`Coord`] order (z, then y, then x): each
+/// component biased to unsigned. Comparing two of these is two `u64` compares without
+/// branches, which makes the binary search below branch-free.
+#[inline(always)]
+fn order_key(c: Coord) -> u128 {
+    let u = |v: i32| (v as u32 ^ 0x8000_0000) as u128;
+    (u(c.z) << 64) | (u(c.y) << 32) | u(c.x)
+}
+
+/// First position in the sorted `coords` whose coordinate is not less than `c`
+/// (`coords.len()` if none): a branch-free binary search (tile paper Sec. 4.5).
+#[inline]
+pub fn lower_bound(coords: &[Coord], c: Coord) -> usize {
+    let k = order_key(c);
+    let mut base = 0usize;
+    let mut size = coords.len();
+    if size == 0 {
+        return 0;
+    }
+    while size > 1 {
+        let half = size / 2;
+        let mid = base + half;
+        let probe = order_key(coords[mid]);
+        base = if probe < k { mid } else { base };
+        size -= half;
+    }
+    base + (order_key(coords[base]) < k) as usize
+}
+
 #[cfg(test)]
 mod tests;

@@ -54,7 +54,7 @@ impl<'a> NeighbourCursor<'a> {
             for (d, p) in ptr.iter_mut().enumerate() {
                 // Tile coordinates stay within ±2^29, so ±1 never overflows.
                 let c = cur.wrapping_add(NEIGHBOURHOOD[d]);
-                *p = coords.partition_point(|&x| x < c);
+                *p = super::lower_bound(coords, c);
             }
         }
         NeighbourCursor { coords, ptr, pos: start, end }

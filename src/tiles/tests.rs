@@ -512,3 +512,28 @@ fn padded_block_equals_random_access() {
         check_block::<4>(&grid);
     }
 }
+
+#[test]
+fn lower_bound_equals_partition_point() {
+    let mut rng = fastrand::Rng::with_seed(3);
+    for n in [0usize, 1, 2, 3, 7, 64, 1000] {
+        let mut v: Vec<Coord> = (0..n)
+            .map(|_| {
+                let r = |rng: &mut fastrand::Rng| match rng.u8(0..4) {
+                    0 => TILE_MIN,
+                    1 => TILE_MAX,
+                    _ => rng.i32(-5..5),
+                };
+                Coord::new(r(&mut rng), r(&mut rng), r(&mut rng))
+            })
+            .collect();
+        v.sort();
+        v.dedup();
+        for _ in 0..200 {
+            let c = Coord::new(rng.i32(-6..6), rng.i32(-6..6), rng.i32(-6..6));
+            for q in [c, Coord::new(TILE_MIN, c.y, TILE_MAX), Coord::new(i32::MIN, i32::MAX, c.z)] {
+                assert_eq!(lower_bound(&v, q), v.partition_point(|&x| x < q), "{q:?} in {v:?}");
+            }
+        }
+    }
+}
