@@ -1,1 +1,68 @@
-fn main() {}
+//! Criterion benchmarks of the storage layer: stencil traversal, random access and band
+//! maintenance on the Sorted Tile List and on the DT-Grid, with identical arithmetic.
+//! Benchmark ids carry the voxel counts so times convert to throughput.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use sparse_levelset::bench::{dtgrid_smooth7, dtgrid_star19, tiles_smooth7, tiles_star19};
+use sparse_levelset::build::{dtgrid_from_tiles, tiles_from_shape};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::shapes::Shape;
+use sparse_levelset::Coord;
+
+fn grids(c: &mut Criterion) {
+    let spec = GridSpec::default();
+    for (name, shape) in [
+        ("sphere_r60", Shape::Sphere { center: [0.0; 3], radius: 60.0 }),
+        ("spiral_r50", Shape::spiral_default([0.0; 3], 50.0, 40.0)),
+    ] {
+        let tiles = tiles_from_shape(&shape, spec).unwrap();
+        let dt = dtgrid_from_tiles(&tiles);
+        let band = dt.len() as u64;
+        let tvox = tiles.stored_voxels() as u64;
+
+        let mut g = c.benchmark_group(format!("stencil/{name}"));
+        g.throughput(Throughput::Elements(band));
+        let (mut tout, mut dout) = (Vec::new(), Vec::new());
+        g.bench_function(BenchmarkId::new("dtgrid_smooth7", format!("{band}pts")), |b| {
+            b.iter(|| dtgrid_smooth7(&dt, &mut dout))
+        });
+        g.bench_function(BenchmarkId::new("tiles_smooth7", format!("{tvox}vox")), |b| {
+            b.iter(|| tiles_smooth7(&tiles, &mut tout))
+        });
+        g.bench_function(BenchmarkId::new("dtgrid_star19", format!("{band}pts")), |b| {
+            b.iter(|| dtgrid_star19(&dt, &mut dout))
+        });
+        g.bench_function(BenchmarkId::new("tiles_star19", format!("{tvox}vox")), |b| {
+            b.iter(|| tiles_star19(&tiles, &mut tout))
+        });
+        g.finish();
+
+        let probes: Vec<Coord> = dt.iter().step_by(7).map(|(c, _)| c).collect();
+        let mut g = c.benchmark_group(format!("random_access/{name}"));
+        g.throughput(Throughput::Elements(probes.len() as u64));
+        g.bench_function("dtgrid", |b| b.iter(|| probes.iter().map(|&p| dt.value(p)).sum::<f32>()));
+        g.bench_function("tiles", |b| {
+            b.iter(|| probes.iter().map(|&p| tiles.value(p)).sum::<f32>())
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group(format!("rebuild/{name}"));
+        g.throughput(Throughput::Elements(band));
+        g.bench_function("dtgrid_dilate1", |b| b.iter(|| dt.dilate(1).unwrap()));
+        g.bench_function("tiles_manage", |b| {
+            b.iter_batched(
+                || tiles.clone(),
+                |mut t| t.manage_tiles().unwrap(),
+                criterion::BatchSize::LargeInput,
+            )
+        });
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(500));
+    targets = grids
+}
+criterion_main!(benches);

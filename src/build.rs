@@ -1,1 +1,254 @@
-//! (being written)
+//! Construction of both grids — from an analytic shape or signed-distance closure, from a
+//! dense field — and conversion between the grids and to dense fields.
+//!
+//! Construction from a closure evaluates only near the band (tile paper Sec. 4.2, "compute
+//! the distance transform up to ±γ"): [`crate::sample::sample_band_tiles`] culls
+//! tile-aligned blocks with a Lipschitz bound, so the work scales with the surface, not the
+//! bounding box. Both grids are built from the same samples.
+
+use crate::coord::Coord;
+use crate::dense::DenseField;
+use crate::dtgrid::DtGrid;
+use crate::grid::{GridError, GridSpec, MemoryReport};
+use crate::sample::{sample_band_tiles, sample_shape_tiles};
+use crate::shapes::Shape;
+use crate::tiles::{tile_of, voxel_of, Tile, TileGrid};
+use rayon::prelude::*;
+
+/// What every sparse grid answers; lets tools and tests treat both grids alike.
+pub trait SparseGrid: Sync {
+    fn spec(&self) -> GridSpec;
+    /// Value at any voxel: stored, or ±γ outside the band.
+    fn value(&self, voxel: Coord) -> f32;
+    /// Inclusive voxel bounding box of the stored voxels.
+    fn bounding_box(&self) -> Option<(Coord, Coord)>;
+    /// Stored voxels with |φ| < γ.
+    fn band_voxels(&self) -> usize;
+    /// Stored voxels (tile padding included for tiles).
+    fn stored_voxels(&self) -> usize;
+    fn memory(&self) -> MemoryReport;
+}
+
+impl SparseGrid for TileGrid {
+    fn spec(&self) -> GridSpec {
+        *TileGrid::spec(self)
+    }
+    fn value(&self, voxel: Coord) -> f32 {
+        TileGrid::value(self, voxel)
+    }
+    fn bounding_box(&self) -> Option<(Coord, Coord)> {
+        TileGrid::bounding_box(self)
+    }
+    fn band_voxels(&self) -> usize {
+        TileGrid::band_voxels(self)
+    }
+    fn stored_voxels(&self) -> usize {
+        TileGrid::stored_voxels(self)
+    }
+    fn memory(&self) -> MemoryReport {
+        TileGrid::memory(self)
+    }
+}
+
+impl SparseGrid for DtGrid {
+    fn spec(&self) -> GridSpec {
+        DtGrid::spec(self)
+    }
+    fn value(&self, voxel: Coord) -> f32 {
+        DtGrid::value(self, voxel)
+    }
+    fn bounding_box(&self) -> Option<(Coord, Coord)> {
+        DtGrid::bounding_box(self)
+    }
+    fn band_voxels(&self) -> usize {
+        DtGrid::band_voxels(self)
+    }
+    fn stored_voxels(&self) -> usize {
+        DtGrid::len(self)
+    }
+    fn memory(&self) -> MemoryReport {
+        DtGrid::memory(self)
+    }
+}
+
+/// Tiles of the band of a signed distance closure `phi(world position)` (world units,
+/// φ < 0 inside) with Lipschitz constant `lipschitz`, over the voxel box `lo..=hi` which must
+/// hold the whole band. Border flags come from `phi` at one voxel of each absent neighbour
+/// tile (absent tiles hold no band voxel, so they are uniformly signed).
+pub fn tiles_from_sdf<F>(
+    phi: F,
+    lipschitz: f64,
+    lo: Coord,
+    hi: Coord,
+    spec: GridSpec,
+) -> Result<TileGrid, GridError>
+where
+    F: Fn([f64; 3]) -> f64 + Sync,
+{
+    let at_voxel = |c: Coord| phi(spec.world(c)) as f32;
+    let tiles = sample_band_tiles(at_voxel, lipschitz as f32, lo, hi, &spec)?;
+    TileGrid::from_sorted_tiles(spec, tiles.into_iter().map(|(c, v)| (c, Tile(v))), |t| {
+        at_voxel(voxel_of(t, 0)) < 0.0
+    })
+}
+
+/// The tile grid of an analytic shape (its parameters are validated first).
+pub fn tiles_from_shape(shape: &Shape, spec: GridSpec) -> Result<TileGrid, GridError> {
+    let tiles = sample_shape_tiles(shape, &spec)?;
+    TileGrid::from_sorted_tiles(spec, tiles.into_iter().map(|(c, v)| (c, Tile(v))), |t| {
+        shape.sdf(spec.world(voxel_of(t, 0))) < 0.0
+    })
+}
+
+/// The DT-Grid of an analytic shape: the band voxels of the same culled samples.
+pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridError> {
+    Ok(dtgrid_from_tiles(&tiles_from_shape(shape, spec)?))
+}
+
+/// Pushes the band voxels (|φ| < γ) of a tile grid into a DT-Grid, in lexicographic
+/// order. O(stored voxels).
+pub fn dtgrid_from_tiles(tiles: &TileGrid) -> DtGrid {
+    let spec = *tiles.spec();
+    let g = spec.gamma();
+    let mut dt = DtGrid::new(spec);
+    tiles.for_each_voxel_sorted(|c, v| {
+        if v.abs() < g {
+            dt.push(c, v).expect("tile voxels are visited in order and are finite");
+        }
+    });
+    dt
+}
+
+/// The tile grid holding every band voxel of a DT-Grid: the tiles that contain one, with
+/// the DT-Grid's values (±γ where it stores nothing) and border flags from its sign.
+pub fn tiles_from_dtgrid(dt: &DtGrid) -> TileGrid {
+    let mut coords: Vec<Coord> = Vec::new();
+    let g = dt.gamma();
+    for (c, v) in dt.iter() {
+        if v.abs() < g {
+            let t = tile_of(c).0;
+            if coords.last() != Some(&t) {
+                coords.push(t);
+            }
+        }
+    }
+    coords.par_sort_unstable();
+    coords.dedup();
+    let tiles: Vec<(Coord, Tile)> = coords
+        .par_iter()
+        .map(|&t| {
+            let mut tile = Tile::splat(0.0);
+            for (l, v) in tile.0.iter_mut().enumerate() {
+                *v = dt.value(voxel_of(t, l));
+            }
+            (t, tile)
+        })
+        .collect();
+    TileGrid::from_sorted_tiles(dt.spec(), tiles, |t| dt.value(voxel_of(t, 0)) < 0.0)
+        .expect("tiles of DT-Grid voxels are sorted, in range and finite")
+}
+
+/// Value of a dense field at a voxel, `+γ` (outside) beyond the array, clamped to ±γ.
+fn dense_value(field: &DenseField, c: Coord, g: f32) -> f32 {
+    field.get(c).map_or(g, |v| v.clamp(-g, g))
+}
+
+/// The tile grid of a dense level-set field (φ < 0 inside, world units, voxel size and
+/// origin from `spec`; the field's own `origin` places it on the voxel grid). Voxels
+/// beyond the array read as outside (`+γ`): a band or interior that touches the array's
+/// boundary is closed there (see [`DenseField::boundary_touches`]). NaN is an error;
+/// ±∞ clamp to ±γ.
+pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, GridError> {
+    let g = spec.gamma();
+    let (tlo, _) = tile_of(field.origin());
+    let (thi, _) = tile_of(field.max_coord());
+    if let Some((i, _)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
+        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    let slabs: Vec<Vec<(Coord, Tile)>> = (tlo.z..=thi.z)
+        .into_par_iter()
+        .map(|tz| {
+            let mut out = Vec::new();
+            for ty in tlo.y..=thi.y {
+                for tx in tlo.x..=thi.x {
+                    let t = Coord::new(tx, ty, tz);
+                    let mut tile = Tile::splat(0.0);
+                    let mut band = false;
+                    for (l, v) in tile.0.iter_mut().enumerate() {
+                        *v = dense_value(field, voxel_of(t, l), g);
+                        band |= v.abs() < g;
+                    }
+                    if band {
+                        out.push((t, tile));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flatten(), |t| {
+        dense_value(field, voxel_of(t, 0), g) < 0.0
+    })
+}
+
+/// The DT-Grid of a dense level-set field: its voxels with |φ| < γ, in order (same
+/// conventions as [`tiles_from_dense`]).
+pub fn dtgrid_from_dense(field: &DenseField, spec: GridSpec) -> Result<DtGrid, GridError> {
+    let g = spec.gamma();
+    let mut dt = DtGrid::new(spec);
+    for (c, v) in field.iter() {
+        if v.is_nan() {
+            return Err(GridError::NaN { coord: c });
+        }
+        if v.abs() < g {
+            dt.push(c, v)?;
+        }
+    }
+    Ok(dt)
+}
+
+/// Samples any grid on a dense box (`origin`, `dims = [nx, ny, nz]`) by random access:
+/// stored values inside the band, ±γ elsewhere.
+pub fn to_dense<G: SparseGrid + ?Sized>(
+    grid: &G,
+    origin: Coord,
+    dims: [usize; 3],
+) -> Result<DenseField, GridError> {
+    DenseField::from_fn(origin, dims, |c| grid.value(c))
+}
+
+/// The dense box around a grid's stored voxels grown by `margin` voxels on every side, or
+/// `None` for an empty grid.
+pub fn dense_box<G: SparseGrid + ?Sized>(grid: &G, margin: i32) -> Option<(Coord, [usize; 3])> {
+    let (lo, hi) = grid.bounding_box()?;
+    let m = Coord::new(margin, margin, margin);
+    let lo = lo.checked_add(Coord::new(-margin, -margin, -margin)).unwrap_or(lo);
+    let hi = hi.checked_add(m).unwrap_or(hi);
+    let n = |a: i32, b: i32| (b as i64 - a as i64 + 1) as usize;
+    Some((lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)]))
+}
+
+/// Counts neighbouring voxel pairs of a dense field whose signs differ while both lie
+/// outside the band (|φ| ≥ γ): such a field is not a distance field at that width, and
+/// its zero crossing there would be lost. Tools warn about it.
+pub fn dense_sign_jumps(field: &DenseField, gamma: f32) -> usize {
+    let [nx, ny, nz] = field.dims();
+    let d = field.data();
+    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let jump = |a: f32, b: f32| a.abs() >= gamma && b.abs() >= gamma && (a < 0.0) != (b < 0.0);
+    (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let mut n = 0;
+            for y in 0..ny {
+                for x in 0..nx {
+                    let v = d[idx(x, y, z)];
+                    n += (x + 1 < nx && jump(v, d[idx(x + 1, y, z)])) as usize;
+                    n += (y + 1 < ny && jump(v, d[idx(x, y + 1, z)])) as usize;
+                    n += (z + 1 < nz && jump(v, d[idx(x, y, z + 1)])) as usize;
+                }
+            }
+            n
+        })
+        .sum()
+}

@@ -104,11 +104,7 @@ pub const NEIGHBOURHOOD: [Coord; 27] = {
     let mut out = [Coord::new(0, 0, 0); 27];
     let mut d = 0;
     while d < 27 {
-        out[d] = Coord::new(
-            (d % 3) as i32 - 1,
-            ((d / 3) % 3) as i32 - 1,
-            (d / 9) as i32 - 1,
-        );
+        out[d] = Coord::new((d % 3) as i32 - 1, ((d / 3) % 3) as i32 - 1, (d / 9) as i32 - 1);
         d += 1;
     }
     out
@@ -159,9 +155,7 @@ mod tests {
 
     #[test]
     fn checked_add_reports_overflow() {
-        assert!(Coord::new(i32::MAX, 0, 0)
-            .checked_add(Coord::new(1, 0, 0))
-            .is_none());
+        assert!(Coord::new(i32::MAX, 0, 0).checked_add(Coord::new(1, 0, 0)).is_none());
         assert_eq!(
             Coord::new(-3, 4, 5).checked_add(Coord::new(1, 1, 1)),
             Some(Coord::new(-2, 5, 6))

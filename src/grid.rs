@@ -23,11 +23,7 @@ pub struct GridSpec {
 
 impl Default for GridSpec {
     fn default() -> Self {
-        GridSpec {
-            voxel_size: 1.0,
-            origin: [0.0; 3],
-            half_width: 3.0,
-        }
+        GridSpec { voxel_size: 1.0, origin: [0.0; 3], half_width: 3.0 }
     }
 }
 
@@ -49,11 +45,7 @@ impl GridSpec {
                 "origin must be finite, got {origin:?}"
             )));
         }
-        Ok(GridSpec {
-            voxel_size,
-            origin,
-            half_width,
-        })
+        Ok(GridSpec { voxel_size, origin, half_width })
     }
 
     /// γ = half-width × voxel size, in world units.

@@ -22,12 +22,16 @@
 //! assert_eq!(tiles.value(sparse_levelset::Coord::new(0, 0, 0)), -3.0);
 //! ```
 
+pub mod bench;
 pub mod build;
 pub mod coord;
 pub mod dense;
 pub mod dtgrid;
+pub mod fsutil;
 pub mod grid;
+pub mod info;
 pub mod npy;
+pub mod sample;
 pub mod shapes;
 pub mod tiles;
 

@@ -1,0 +1,183 @@
+//! The `levelset` command as a user meets it: `info` on shapes and `.npy` fields, JSON
+//! output, and clear errors with a non-zero exit on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn levelset(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn json(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "failed: {}", stderr(o));
+    serde_json::from_slice(&o.stdout).expect("valid JSON")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("levelset-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// A .npy v1.0 file with the given dtype descriptor, shape and raw little-endian data.
+fn write_npy(path: &Path, descr: &str, shape: &[usize], data: &[u8]) {
+    let shape_s = match shape.len() {
+        1 => format!("({},)", shape[0]),
+        _ => format!("({})", shape.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ")),
+    };
+    let mut header =
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_s}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.extend_from_slice(data);
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A sphere's signed distance sampled on an n³ array, radius r, centred.
+fn sphere_f32(n: usize, r: f32) -> Vec<u8> {
+    let c = (n as f32 - 1.0) / 2.0;
+    let mut out = Vec::with_capacity(n * n * n * 4);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let d = ((x as f32 - c).powi(2) + (y as f32 - c).powi(2) + (z as f32 - c).powi(2))
+                    .sqrt()
+                    - r;
+                out.extend_from_slice(&d.to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+fn grid<'a>(v: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    v["grids"].as_array().unwrap().iter().find(|g| g["grid"] == name).unwrap()
+}
+
+#[test]
+fn info_sphere_json_has_both_grids_and_every_part() {
+    let v = json(&levelset(&["info", "--shape", "sphere", "--radius", "40", "--json"]));
+    for name in ["dtgrid", "tiles"] {
+        let g = grid(&v, name);
+        let b = &g["bytes"];
+        let parts: u64 =
+            ["values", "indices", "flags", "slack"].iter().map(|k| b[k].as_u64().unwrap()).sum();
+        assert_eq!(parts, b["total"].as_u64().unwrap());
+        assert!(g["band_voxels"].as_u64().unwrap() > 0);
+        assert!(g["stored_voxels"].as_u64().unwrap() >= g["band_voxels"].as_u64().unwrap());
+    }
+    let dt = grid(&v, "dtgrid");
+    let tiles = grid(&v, "tiles");
+    // Both grids hold the same band.
+    assert_eq!(dt["band_voxels"], tiles["band_voxels"]);
+    assert_eq!(dt["band_voxels"], dt["stored_voxels"]);
+    assert_eq!(tiles["stored_voxels"].as_u64().unwrap(), 64 * tiles["tiles"].as_u64().unwrap());
+    // A sphere of radius 40 and γ = 3: about 4πr²·2γ band voxels.
+    let band = dt["band_voxels"].as_f64().unwrap();
+    let est = 4.0 * std::f64::consts::PI * 40.0 * 40.0 * 6.0;
+    assert!((band / est - 1.0).abs() < 0.05, "band {band} vs {est}");
+}
+
+#[test]
+fn info_every_shape_builds() {
+    for shape in ["sphere", "torus", "box", "ellipsoid", "spiral"] {
+        let v = json(&levelset(&["info", "--shape", shape, "--radius", "30", "--json"]));
+        assert!(grid(&v, "tiles")["band_voxels"].as_u64().unwrap() > 1000, "{shape}");
+        assert_eq!(grid(&v, "tiles")["band_voxels"], grid(&v, "dtgrid")["band_voxels"], "{shape}");
+    }
+    let text =
+        levelset(&["info", "--shape", "torus", "--major-radius", "30", "--minor-radius", "8"]);
+    assert!(text.status.success());
+    let s = String::from_utf8_lossy(&text.stdout);
+    assert!(s.contains("dtgrid") && s.contains("tiles") && s.contains("total / values"));
+}
+
+#[test]
+fn info_npy_matches_the_same_shape() {
+    let p = tmp("sphere.npy");
+    write_npy(&p, "<f4", &[40, 40, 40], &sphere_f32(40, 12.0));
+    let v = json(&levelset(&["info", p.to_str().unwrap(), "--voxel-size", "1", "--json"]));
+    let band = grid(&v, "dtgrid")["band_voxels"].as_f64().unwrap();
+    let est = 4.0 * std::f64::consts::PI * 12.0 * 12.0 * 6.0;
+    assert!((band / est - 1.0).abs() < 0.1, "band {band} vs {est}");
+    assert_eq!(grid(&v, "tiles")["band_voxels"], grid(&v, "dtgrid")["band_voxels"]);
+    assert!(v["warnings"].as_array().unwrap().is_empty(), "{v}");
+}
+
+#[test]
+fn bad_npy_files_give_clear_errors() {
+    let good = sphere_f32(8, 2.0);
+    let cases: Vec<(&str, Box<dyn Fn(&Path)>, &str)> = vec![
+        (
+            "f64.npy",
+            Box::new(|p: &Path| write_npy(p, "<f8", &[8, 8, 8], &[0u8; 8 * 512])),
+            "float32",
+        ),
+        (
+            "short.npy",
+            Box::new(|p: &Path| write_npy(p, "<f4", &[8, 8, 8], &good[..1000])),
+            "truncat",
+        ),
+        (
+            "nan.npy",
+            Box::new(|p: &Path| {
+                let mut d = good.clone();
+                d[4 * 77..4 * 78].copy_from_slice(&f32::NAN.to_le_bytes());
+                write_npy(p, "<f4", &[8, 8, 8], &d)
+            }),
+            "NaN",
+        ),
+        ("flat.npy", Box::new(|p: &Path| write_npy(p, "<f4", &[64], &good[..256])), "3"),
+        ("garbage.npy", Box::new(|p: &Path| std::fs::write(p, b"hello world").unwrap()), "npy"),
+        (
+            "huge.npy",
+            Box::new(|p: &Path| write_npy(p, "<f4", &[1 << 20, 1 << 20, 1 << 20], &good)),
+            "",
+        ),
+    ];
+    for (name, make, needle) in cases {
+        let p = tmp(name);
+        make(&p);
+        let o = levelset(&["info", p.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{name} was accepted");
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        assert!(e.starts_with("error:"), "{name}: {e}");
+        assert!(e.contains(needle), "{name}: expected '{needle}' in: {e}");
+        assert!(!e.contains("panicked"), "{name}: {e}");
+    }
+    let o = levelset(&["info", tmp("missing.npy").to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("missing.npy"));
+}
+
+#[test]
+fn nonsense_arguments_are_refused() {
+    let cases: &[&[&str]] = &[
+        &["info", "--shape", "sphere", "--radius", "-3"],
+        &["info", "--shape", "sphere", "--radius", "nan"],
+        &["info", "--shape", "sphere", "--half-width", "0"],
+        &["info", "--shape", "sphere", "--voxel-size", "0"],
+        &["info", "--shape", "torus", "--major-radius", "5", "--minor-radius", "9"],
+        &["info", "--shape", "sphere", "--radius", "1e12"],
+        &["info", "--shape", "sphere", "--center", "3e9,0,0", "--radius", "10"],
+        &["info", "--shape", "blob"],
+        &["info", "--shape", "ellipsoid", "--radii", "1,2"],
+        &["frobnicate"],
+    ];
+    for args in cases {
+        let o = levelset(args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(!e.contains("panicked"), "{args:?}: {e}");
+        assert!(e.contains("error"), "{args:?}: {e}");
+    }
+}
