@@ -7,19 +7,19 @@
 //!
 //! | constituent | its points | `value` holds | `ncoord` holds |
 //! |---|---|---|---|
-//! | 1D (`proj1D`) | z values that occur | [`IndexPair`] into the 2D constituent | z-runs |
-//! | 2D (`proj2D`) | (z, y) p-columns of the 3D grid | [`IndexPair`] into the 3D level | y-runs |
+//! | 1D (`proj1D`) | z values that occur | `IndexPair` into the 2D constituent | z-runs |
+//! | 2D (`proj2D`) | (z, y) p-columns of the 3D grid | `IndexPair` into the 3D level | y-runs |
 //! | 3D | stored voxels | `f32` level-set values | x-runs |
 //!
 //! Every constituent stores its points lexicographically in `value`, the start/end
 //! coordinate of each connected component (a maximal run of adjacent points inside one
 //! p-column) in `ncoord`, and in `acc` the value index of each component's first point.
-//! An [`IndexPair`] of a lower constituent points at the first value (`iv`) and the first
+//! An `IndexPair` of a lower constituent points at the first value (`iv`) and the first
 //! `ncoord` entry (`ic`) of its p-column one level up.
 //!
 //! Two sentinels (a choice of this implementation, not the paper's) remove every
 //! "is this the last column?" branch: `value` of the 1D and 2D constituents ends with an
-//! extra [`IndexPair`] holding the sizes of the level above, so a p-column always ends
+//! extra `IndexPair` holding the sizes of the level above, so a p-column always ends
 //! where the next pair starts (the paper uses `value[i+1].ic` the same way in Appendix D,
 //! step 1c, without saying what happens for the last column); and every `acc` ends with
 //! the number of points of its level, so component `k` holds `acc[k+1] - acc[k]` points.
@@ -399,7 +399,7 @@ impl DtGrid {
         }
     }
 
-    /// Bytes used: values = 4·len; indices = every `ncoord`, `acc` and [`IndexPair`]
+    /// Bytes used: values = 4·len; indices = every `ncoord`, `acc` and `IndexPair`
     /// array of the three levels (sentinels included); flags = 0; slack = unused vector
     /// capacity.
     pub fn memory(&self) -> MemoryReport {

@@ -168,7 +168,7 @@ fn dilate_mask(d: &Dense, keep: impl Fn(Coord) -> bool, h: i32) -> Vec<bool> {
 
 fn scenes() -> Vec<Dense> {
     let mut out = Vec::new();
-    let mut rng = Rng::with_seed(0x5eed_d7);
+    let mut rng = Rng::with_seed(0x005e_edd7);
     for spec in specs() {
         for _ in 0..2 {
             out.push(random_scene(&mut rng, spec));
@@ -427,7 +427,7 @@ fn oracle(points: &[(Coord, f32)], c: Coord, gamma: f32) -> f32 {
 }
 
 fn random_sparse(rng: &mut Rng, base: Coord) -> Vec<(Coord, f32)> {
-    let (nx, ny, nz) = (rng.i32(1..14), rng.i32(1..6), rng.i32(1..6));
+    let (nx, ny, nz) = (rng.i32(1..24), rng.i32(1..6), rng.i32(1..6));
     let density = rng.f32() * 0.9 + 0.05;
     let mut pts = Vec::new();
     for z in 0..nz {
@@ -441,7 +441,7 @@ fn random_sparse(rng: &mut Rng, base: Coord) -> Vec<(Coord, f32)> {
                         3 => -3.0,
                         _ => rng.f32() * 6.0 - 3.0,
                     };
-                    pts.push((Coord::new(base.x + x * 2, base.y + y, base.z + z * 3), v));
+                    pts.push((Coord::new(base.x + x, base.y + y, base.z + z * 3), v));
                 }
             }
         }
@@ -500,7 +500,8 @@ fn sparse_sets_follow_the_sign_rule() {
 fn empty_grid() {
     let g = DtGrid::default();
     g.check_invariants().unwrap();
-    assert!(g.is_empty() && g.len() == 0);
+    assert!(g.is_empty());
+    assert_eq!(g.len(), 0);
     assert_eq!(g.value(Coord::new(1, 2, 3)), 3.0);
     assert_eq!(g.find(Coord::new(0, 0, 0)), Err(false));
     assert!(g.locate(Coord::new(0, 0, 0)).is_none());
@@ -770,9 +771,9 @@ fn throughput() {
         g.len() as f64 / t / 1e6
     );
     let t = best(&mut || {
+        // A `for` loop drives `next`, not the nested-loop `fold`.
         let mut s = 0.0;
-        let mut it = g.iter();
-        while let Some((_, v)) = it.next() {
+        for (_, v) in g.iter() {
             s += v;
         }
         s
@@ -816,9 +817,11 @@ fn sweep_once() {
         Ok("weno5") => Stencil::weno5(),
         _ => Stencil::box27(),
     };
-    let mut it = StencilIter::new(&g, &st);
-    while it.advance() {
-        std::hint::black_box(it.values());
+    let reps: usize = std::env::var("DTGRID_REPS").ok().and_then(|r| r.parse().ok()).unwrap_or(1);
+    for _ in 0..reps {
+        let mut it = StencilIter::new(&g, &st);
+        while it.advance() {
+            std::hint::black_box(it.values());
+        }
     }
-    println!("calm {:?}", super::stencil::STATS);
 }
