@@ -17,8 +17,10 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// One explicit diffusion step of the 7-point Laplacian, clamped to the band.
+/// `v` is the 7-point star `[centre, -x, +x, -y, +y, -z, +z]`.
 #[inline(always)]
-fn smooth7(c: f32, xm: f32, xp: f32, ym: f32, yp: f32, zm: f32, zp: f32, g: f32) -> f32 {
+fn smooth7(v: [f32; 7], g: f32) -> f32 {
+    let [c, xm, xp, ym, yp, zm, zp] = v;
     (c + 0.1 * ((xm + xp) + (ym + yp) + (zm + zp) - 6.0 * c)).clamp(-g, g)
 }
 
@@ -51,16 +53,9 @@ pub fn tiles_smooth7(grid: &TileGrid, out: &mut Vec<Tile>) {
             for y in 0..4 {
                 for x in 0..4 {
                     let i = (x + 1) + W * (y + 1) + W * W * (z + 1);
-                    t.0[x + 4 * y + 16 * z] = smooth7(
-                        d[i],
-                        d[i - 1],
-                        d[i + 1],
-                        d[i - W],
-                        d[i + W],
-                        d[i - W * W],
-                        d[i + W * W],
-                        g,
-                    );
+                    let star =
+                        [d[i], d[i - 1], d[i + 1], d[i - W], d[i + W], d[i - W * W], d[i + W * W]];
+                    t.0[x + 4 * y + 16 * z] = smooth7(star, g);
                 }
             }
         }
@@ -76,7 +71,7 @@ pub fn dtgrid_smooth7(grid: &DtGrid, out: &mut Vec<f32>) {
     let mut it = StencilIter::new(grid, &Stencil::star7());
     while it.advance() {
         let v = it.values();
-        out[it.center_index()] = smooth7(v[0], v[1], v[2], v[3], v[4], v[5], v[6], g);
+        out[it.center_index()] = smooth7(v.try_into().expect("7-point star"), g);
     }
 }
 
@@ -267,7 +262,8 @@ pub fn run_scenario(
 ) -> Result<ScenarioResult, GridError> {
     let mut tiles = tiles_from_shape(shape, spec)?;
     tiles.shrink_to_fit();
-    let dt = dtgrid_from_tiles(&tiles);
+    let mut dt = dtgrid_from_tiles(&tiles);
+    dt.shrink_to_fit();
     let band = dt.band_voxels();
     let pts = dt.len() as f64;
     let tvox = (tiles.len() * 64) as f64;

@@ -121,7 +121,8 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     tiles.shrink_to_fit();
     let t_tiles = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let dt = dtgrid_from_tiles(&tiles);
+    let mut dt = dtgrid_from_tiles(&tiles);
+    dt.shrink_to_fit();
     // The DT-Grid is built from the tiles' samples: charge it the sampling time too.
     let t_dt = t1.elapsed().as_secs_f64() + t_tiles;
     let mut warnings = Vec::new();
@@ -151,7 +152,8 @@ pub fn info_from_dense(
     tiles.shrink_to_fit();
     let t_tiles = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let dt = dtgrid_from_dense(field, spec)?;
+    let mut dt = dtgrid_from_dense(field, spec)?;
+    dt.shrink_to_fit();
     let t_dt = t1.elapsed().as_secs_f64();
     let mut warnings = Vec::new();
     if field.boundary_touches(g) {

@@ -116,7 +116,8 @@ fn info_npy_matches_the_same_shape() {
 #[test]
 fn bad_npy_files_give_clear_errors() {
     let good = sphere_f32(8, 2.0);
-    let cases: Vec<(&str, Box<dyn Fn(&Path)>, &str)> = vec![
+    type MakeFile<'a> = Box<dyn Fn(&Path) + 'a>;
+    let cases: Vec<(&str, MakeFile, &str)> = vec![
         (
             "f64.npy",
             Box::new(|p: &Path| write_npy(p, "<f8", &[8, 8, 8], &[0u8; 8 * 512])),

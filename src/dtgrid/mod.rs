@@ -247,6 +247,19 @@ impl DtGrid {
         Ok(g)
     }
 
+    /// Releases unused capacity of every array (what `memory()` reports as slack).
+    pub fn shrink_to_fit(&mut self) {
+        for l in [&mut self.l1.ncoord, &mut self.l2.ncoord, &mut self.l3.ncoord] {
+            l.shrink_to_fit();
+        }
+        for a in [&mut self.l1.acc, &mut self.l2.acc, &mut self.l3.acc] {
+            a.shrink_to_fit();
+        }
+        self.l1.value.shrink_to_fit();
+        self.l2.value.shrink_to_fit();
+        self.l3.value.shrink_to_fit();
+    }
+
     /// Removes every point, keeping the allocations.
     pub fn clear(&mut self) {
         self.l1.clear();

@@ -498,7 +498,7 @@ impl TileGrid {
             return Err("malformed activity flags".into());
         }
         let g = self.gamma();
-        if self.arena.iter().any(|tile| tile.0.iter().any(|v| !(v.abs() <= g))) {
+        if self.arena.iter().any(|tile| tile.0.iter().any(|v| !v.is_finite() || v.abs() > g)) {
             return Err("value not finite or outside [-γ, γ]".into());
         }
         Ok(())

@@ -71,13 +71,13 @@ impl<'a> NeighbourCursor<'a> {
         let n = coords.len();
         let cur = coords[self.pos];
         let mut matched = 0u32;
-        for d in 0..27 {
-            let c = cur.wrapping_add(NEIGHBOURHOOD[d]);
-            let mut p = self.ptr[d];
+        for (d, (ptr, off)) in self.ptr.iter_mut().zip(&NEIGHBOURHOOD).enumerate() {
+            let c = cur.wrapping_add(*off);
+            let mut p = *ptr;
             while p < n && coords[p] < c {
                 p += 1;
             }
-            self.ptr[d] = p;
+            *ptr = p;
             if p < n && coords[p] == c {
                 matched |= 1 << d;
             }
@@ -122,10 +122,9 @@ impl<'a> DilationStream<'a> {
         // Line 5-11: the first coordinate, in order, that the element touches. Coordinates
         // of a valid list are within ±2^29, so subtracting an offset cannot overflow.
         let mut cur: Option<Coord> = None;
-        for d in 0..27 {
-            let p = self.ptr[d];
+        for (&p, off) in self.ptr.iter().zip(&NEIGHBOURHOOD) {
             if p < n {
-                let c = coords[p].wrapping_sub(NEIGHBOURHOOD[d]);
+                let c = coords[p].wrapping_sub(*off);
                 cur = Some(match cur {
                     Some(m) if m <= c => m,
                     _ => c,
@@ -135,13 +134,14 @@ impl<'a> DilationStream<'a> {
         let cur = cur?;
         // Line 15-20: which neighbours exist.
         let mut matched = 0u32;
-        for d in 0..27 {
-            let p = self.ptr[d];
-            if p < n && coords[p] == cur.wrapping_add(NEIGHBOURHOOD[d]) {
+        for (d, (&p, off)) in self.ptr.iter().zip(&NEIGHBOURHOOD).enumerate() {
+            if p < n && coords[p] == cur.wrapping_add(*off) {
                 matched |= 1 << d;
             }
         }
-        let out = Neighbours { pos: usize::MAX, coord: cur, matched, ptr: self.ptr };
+        // `pos` is the position of `cur` itself when it was in the list.
+        let pos = if matched & (1 << MID) != 0 { self.ptr[MID] } else { usize::MAX };
+        let out = Neighbours { pos, coord: cur, matched, ptr: self.ptr };
         // Line 22-26: advance the element past the matched entries.
         for d in 0..27 {
             self.ptr[d] += ((matched >> d) & 1) as usize;

@@ -211,8 +211,8 @@ fn neighbour_tracking_equals_brute_force_from_any_start() {
                 assert_eq!(nb.pos, a + visited);
                 let (m, ptr) = brute_neighbours(coords, nb.pos);
                 assert_eq!(nb.matched, m, "tile {}", nb.pos);
-                for d in 0..27 {
-                    assert_eq!(nb.get(d), (m & (1 << d) != 0).then_some(ptr[d]));
+                for (d, &p) in ptr.iter().enumerate() {
+                    assert_eq!(nb.get(d), (m & (1 << d) != 0).then_some(p));
                 }
                 visited += 1;
             }
@@ -235,8 +235,8 @@ fn dilation_stream_equals_brute_force() {
         assert_eq!(got.len(), want.len());
         for (nb, w) in got.iter().zip(&want) {
             assert_eq!(nb.coord, *w);
-            for d in 0..27 {
-                let there = coords.binary_search(&nb.coord.wrapping_add(NEIGHBOURHOOD[d]));
+            for (d, off) in NEIGHBOURHOOD.iter().enumerate() {
+                let there = coords.binary_search(&nb.coord.wrapping_add(*off));
                 assert_eq!(nb.matched & (1 << d) != 0, there.is_ok());
                 if let Ok(p) = there {
                     assert_eq!(nb.ptr[d], p);
@@ -280,8 +280,8 @@ fn dilate_equals_brute_force_with_signed_fill() {
 fn brute_triggered(grid: &TileGrid) -> BTreeSet<Coord> {
     let mut out = BTreeSet::new();
     for c in brute_dilation(grid.tile_coords()) {
-        for d in 0..27 {
-            if let Ok(p) = grid.find_tile(c.wrapping_add(NEIGHBOURHOOD[d])) {
+        for (d, off) in NEIGHBOURHOOD.iter().enumerate() {
+            if let Ok(p) = grid.find_tile(c.wrapping_add(*off)) {
                 if grid.activity_flags(p) & NEIGHBOUR_TRIGGER[d] != 0 {
                     out.insert(c);
                 }
