@@ -1,0 +1,191 @@
+//! Construction and conversion of both grids against each other and against the analytic
+//! field: shapes, dense fields, round trips, far coordinates.
+
+use sparse_levelset::build::{
+    dense_box, dtgrid_from_dense, dtgrid_from_shape, dtgrid_from_tiles, tiles_from_dense,
+    tiles_from_dtgrid, tiles_from_shape, to_dense, SparseGrid,
+};
+use sparse_levelset::dense::DenseField;
+use sparse_levelset::grid::{GridError, GridSpec};
+use sparse_levelset::shapes::Shape;
+use sparse_levelset::Coord;
+
+/// Every voxel of a box, visited in order.
+fn for_box(lo: Coord, hi: Coord, mut f: impl FnMut(Coord)) {
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                f(Coord::new(x, y, z));
+            }
+        }
+    }
+}
+
+/// Asserts that two grids read the same value at every voxel of their bounding box grown
+/// by `margin`.
+fn assert_same<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, margin: i32) {
+    let (lo, dims) = dense_box(a, margin).expect("non-empty");
+    let hi =
+        Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);
+    for_box(lo, hi, |c| assert_eq!(a.value(c), b.value(c), "at {c:?}"));
+}
+
+/// Asserts that a grid holds the analytic field: the clamped signed distance in the band,
+/// ±γ with the right sign outside, at every voxel of its box grown by 2.
+fn assert_analytic<G: SparseGrid>(g: &G, shape: &Shape) {
+    let spec = g.spec();
+    let gamma = spec.gamma();
+    let (lo, dims) = dense_box(g, 2).expect("non-empty");
+    let hi =
+        Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);
+    let mut band = 0;
+    for_box(lo, hi, |c| {
+        let want = (shape.sdf(spec.world(c)) as f32).clamp(-gamma, gamma);
+        let got = g.value(c);
+        if want.abs() < gamma {
+            assert_eq!(got, want, "band voxel {c:?}");
+            band += 1;
+        } else {
+            assert!(got.abs() == gamma && (got < 0.0) == (want < 0.0), "{c:?}: {got} vs {want}");
+        }
+    });
+    assert_eq!(band, g.band_voxels());
+}
+
+fn shapes() -> Vec<Shape> {
+    vec![
+        Shape::Sphere { center: [-13.3, 7.1, -40.2], radius: 11.7 },
+        Shape::Torus { center: [5.0, -9.0, 3.5], major_radius: 13.0, minor_radius: 4.1 },
+        Shape::Box { center: [-3.0, 2.5, 1.0], half_extents: [9.5, 6.2, 3.3] },
+        Shape::Ellipsoid { center: [1.0, 2.0, -3.0], radii: [14.0, 9.0, 6.5] },
+        Shape::spiral_default([-20.0, 30.0, -10.0], 25.0, 14.0),
+        Shape::Union(vec![
+            Shape::Sphere { center: [0.0, 0.0, 0.0], radius: 6.0 },
+            Shape::Box { center: [7.0, 1.0, -2.0], half_extents: [4.0, 3.0, 5.0] },
+        ]),
+    ]
+}
+
+#[test]
+fn shapes_build_both_grids_holding_the_analytic_field() {
+    for (i, shape) in shapes().iter().enumerate() {
+        let spec =
+            GridSpec::new([1.0, 0.5, 0.75][i % 3], [0.25 * i as f64, -3.0, 1.5], [3.0, 2.0][i % 2])
+                .unwrap();
+        let tiles = tiles_from_shape(shape, spec).unwrap();
+        let dt = dtgrid_from_shape(shape, spec).unwrap();
+        tiles.check_invariants().unwrap();
+        dt.check_invariants().unwrap();
+        assert!(tiles.band_voxels() > 500, "{shape:?}");
+        assert_eq!(tiles.band_voxels(), dt.len());
+        assert_analytic(&tiles, shape);
+        assert_analytic(&dt, shape);
+    }
+}
+
+#[test]
+fn conversions_round_trip() {
+    let spec = GridSpec::default();
+    for shape in shapes() {
+        let tiles = tiles_from_shape(&shape, spec).unwrap();
+        let dt = dtgrid_from_tiles(&tiles);
+        let back = tiles_from_dtgrid(&dt);
+        back.check_invariants().unwrap();
+        assert_eq!(back.tile_coords(), tiles.tile_coords());
+        for p in 0..tiles.len() {
+            assert_eq!(back.tile(p), tiles.tile(p));
+        }
+        assert_same(&tiles, &back, 3);
+        assert_same(&dt, &back, 3);
+        let dt2 = dtgrid_from_tiles(&back);
+        assert_eq!(dt2.values(), dt.values());
+    }
+}
+
+#[test]
+fn dense_fields_build_the_same_grids_and_export_back() {
+    let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+    for shape in shapes() {
+        let tiles = tiles_from_shape(&shape, spec).unwrap();
+        // A dense box that holds the band, with an origin that is not tile aligned.
+        let (lo, dims) = dense_box(&tiles, 3).unwrap();
+        let lo = Coord::new(lo.x - 1, lo.y - 2, lo.z - 3);
+        let dims = [dims[0] + 3, dims[1] + 5, dims[2] + 4];
+        let field = DenseField::from_fn(lo, dims, |c| shape.sdf(spec.world(c)) as f32).unwrap();
+        assert!(!field.boundary_touches(spec.gamma()));
+        let t2 = tiles_from_dense(&field, spec).unwrap();
+        let d2 = dtgrid_from_dense(&field, spec).unwrap();
+        assert_eq!(t2.tile_coords(), tiles.tile_coords());
+        assert_same(&tiles, &t2, 4);
+        assert_same(&tiles, &d2, 4);
+        // Export to dense equals the field clamped to ±γ.
+        let g = spec.gamma();
+        for grid in [&t2 as &dyn SparseGrid, &d2 as &dyn SparseGrid] {
+            let out = to_dense(grid, lo, dims).unwrap();
+            for (a, b) in out.data().iter().zip(field.data()) {
+                assert_eq!(*a, b.clamp(-g, g));
+            }
+        }
+    }
+}
+
+#[test]
+fn dense_input_nan_is_an_error_and_infinity_clamps() {
+    let spec = GridSpec::default();
+    let mut field = DenseField::from_fn(Coord::new(-5, -5, -5), [11, 11, 11], |c| {
+        ((c.x * c.x + c.y * c.y + c.z * c.z) as f32).sqrt() - 3.0
+    })
+    .unwrap();
+    field.set(Coord::new(5, 5, 5), f32::INFINITY).unwrap();
+    field.set(Coord::new(0, 0, 0), f32::NEG_INFINITY).unwrap();
+    let t = tiles_from_dense(&field, spec).unwrap();
+    let d = dtgrid_from_dense(&field, spec).unwrap();
+    assert_eq!(t.value(Coord::new(0, 0, 0)), -3.0);
+    assert_eq!(d.value(Coord::new(0, 0, 0)), -3.0);
+    assert_same(&t, &d, 2);
+    field.set(Coord::new(1, -2, 3), f32::NAN).unwrap();
+    let want = GridError::NaN { coord: Coord::new(1, -2, 3) };
+    assert_eq!(tiles_from_dense(&field, spec).unwrap_err(), want);
+    assert_eq!(dtgrid_from_dense(&field, spec).unwrap_err(), want);
+}
+
+#[test]
+fn far_coordinates_work_and_beyond_i32_is_an_error() {
+    let spec = GridSpec::default();
+    for c in [2_147_483_600.0, -2_147_483_600.0] {
+        let shape = Shape::Sphere { center: [c, -c, c], radius: 9.5 };
+        let tiles = tiles_from_shape(&shape, spec).unwrap();
+        let dt = dtgrid_from_tiles(&tiles);
+        assert!(tiles.band_voxels() > 1000);
+        assert_analytic(&tiles, &shape);
+        assert_analytic(&dt, &shape);
+        // Dilating the DT-Grid by a few voxels stays in range; the tile grid at the very
+        // edge cannot grow further and says so.
+        assert!(dt.dilate(2).is_ok());
+    }
+    let edge = Shape::Sphere { center: [2_147_483_640.0, 0.0, 0.0], radius: 4.0 };
+    match tiles_from_shape(&edge, spec) {
+        Err(GridError::InvalidParameter(_)) | Err(GridError::OutOfRange { .. }) => {}
+        other => panic!("a band past i32::MAX must be refused, got {other:?}"),
+    }
+    let beyond = Shape::Sphere { center: [3e9, 0.0, 0.0], radius: 4.0 };
+    assert!(tiles_from_shape(&beyond, spec).is_err());
+    assert!(dtgrid_from_shape(&beyond, spec).is_err());
+}
+
+#[test]
+fn empty_shapes_give_empty_grids() {
+    // A sphere smaller than a voxel between voxel centres still has band voxels; a grid
+    // of a shape far thinner than γ exists too. An empty dense field gives empty grids.
+    let spec = GridSpec::default();
+    let field = DenseField::new(Coord::new(0, 0, 0), [5, 6, 7], 10.0).unwrap();
+    let t = tiles_from_dense(&field, spec).unwrap();
+    let d = dtgrid_from_dense(&field, spec).unwrap();
+    assert!(t.is_empty() && d.is_empty());
+    assert_eq!(t.value(Coord::new(2, 2, 2)), 3.0);
+    assert_eq!(d.value(Coord::new(2, 2, 2)), 3.0);
+    assert!(dense_box(&t, 1).is_none());
+    let tiny = Shape::Sphere { center: [0.5, 0.5, 0.5], radius: 0.01 };
+    let tiles = tiles_from_shape(&tiny, spec).unwrap();
+    assert_analytic(&tiles, &tiny);
+}
