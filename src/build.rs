@@ -252,3 +252,29 @@ pub fn dense_sign_jumps(field: &DenseField, gamma: f32) -> usize {
         })
         .sum()
 }
+
+/// Errors of [`export_npy`].
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("the grid is empty: nothing to export")]
+    Empty,
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Npy(#[from] crate::npy::NpyError),
+}
+
+/// Writes a grid as a dense float32 `.npy` field (shape `(nz, ny, nx)`, φ < 0 inside,
+/// ±γ outside the band) covering its stored voxels plus `margin` voxels on every side.
+/// The file is written atomically (temporary file, then rename). Returns the voxel
+/// coordinate of element `[0, 0, 0]`, which `.npy` cannot store.
+pub fn export_npy<G: SparseGrid + ?Sized>(
+    grid: &G,
+    path: &std::path::Path,
+    margin: i32,
+) -> Result<Coord, ExportError> {
+    let (origin, dims) = dense_box(grid, margin).ok_or(ExportError::Empty)?;
+    let field = to_dense(grid, origin, dims)?;
+    crate::npy::write_npy(path, &field)?;
+    Ok(origin)
+}

@@ -189,3 +189,21 @@ fn empty_shapes_give_empty_grids() {
     let tiles = tiles_from_shape(&tiny, spec).unwrap();
     assert_analytic(&tiles, &tiny);
 }
+
+#[test]
+fn export_npy_round_trips_through_the_dense_reader() {
+    let spec = GridSpec::default();
+    let shape = Shape::Torus { center: [-4.0, 3.0, 2.0], major_radius: 9.0, minor_radius: 3.0 };
+    let tiles = tiles_from_shape(&shape, spec).unwrap();
+    let path = std::env::temp_dir().join(format!("levelset-export-{}.npy", std::process::id()));
+    let origin = sparse_levelset::build::export_npy(&tiles, &path, 2).unwrap();
+    let mut field = sparse_levelset::npy::read_npy(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    field = DenseField::from_vec(origin, field.dims(), field.into_data()).unwrap();
+    let back = tiles_from_dense(&field, spec).unwrap();
+    assert_eq!(back.tile_coords(), tiles.tile_coords());
+    assert_same(&tiles, &back, 3);
+    let empty = tiles_from_dense(&DenseField::new(origin, [2, 2, 2], 9.0).unwrap(), spec).unwrap();
+    assert!(sparse_levelset::build::export_npy(&empty, &path, 0).is_err());
+    assert!(!path.exists());
+}
