@@ -48,42 +48,50 @@ impl<const R: usize> PaddedBlock<R> {
 
     /// Fills the block for the tile described by `nb` (from a
     /// [`super::NeighbourCursor`] over `grid`'s list).
+    #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
-        let w = Self::W;
         let border = grid.border_flags(nb.pos);
         let gamma = grid.gamma();
         for d in 0..27usize {
-            let off = [(d % 3) as i32 - 1, ((d / 3) % 3) as i32 - 1, (d / 9) as i32 - 1];
-            // Per axis: (first source voxel in the neighbour, first destination, length).
-            let span = |o: i32| -> (usize, usize, usize) {
-                match o {
-                    -1 => (4 - R, 0, R),
-                    0 => (0, R, 4),
-                    _ => (0, R + 4, R),
-                }
-            };
-            let (sx, dx, nx) = span(off[0]);
-            let (sy, dy, ny) = span(off[1]);
-            let (sz, dz, nz) = span(off[2]);
-            match nb.get(d) {
-                Some(p) => {
-                    let src = &grid.tile(p).0;
-                    for z in 0..nz {
-                        for y in 0..ny {
-                            let s = (sx) + 4 * (sy + y) + 16 * (sz + z);
-                            let o = dx + w * (dy + y) + w * w * (dz + z);
-                            self.data[o..o + nx].copy_from_slice(&src[s..s + nx]);
-                        }
+            let src = nb.get(d).map(|p| &grid.tile(p).0);
+            let fill = if border & (1 << d) != 0 { -gamma } else { gamma };
+            // Dispatch on the x extent so every row copy has a compile-time length (a
+            // run-time `copy_from_slice` of 1..4 floats costs a call per row).
+            match d % 3 {
+                0 => self.copy_part::<R>(d, src, fill),
+                1 => self.copy_part::<4>(d, src, fill),
+                _ => self.copy_part::<R>(d, src, fill),
+            }
+        }
+    }
+
+    /// Copies the part of the halo (or the tile itself) that neighbour `d` covers: `NX`
+    /// voxels per row. Absent neighbours (`src == None`) fill it with `fill`.
+    #[inline(always)]
+    fn copy_part<const NX: usize>(&mut self, d: usize, src: Option<&[f32; 64]>, fill: f32) {
+        let w = Self::W;
+        // Per axis: (first source voxel in the neighbour, first destination, length).
+        let span = |o: usize| -> (usize, usize, usize) {
+            match o {
+                0 => (4 - R, 0, R),
+                1 => (0, R, 4),
+                _ => (0, R + 4, R),
+            }
+        };
+        let (sx, dx, _) = span(d % 3);
+        let (sy, dy, ny) = span((d / 3) % 3);
+        let (sz, dz, nz) = span(d / 9);
+        for z in 0..nz {
+            for y in 0..ny {
+                let o = dx + w * (dy + y) + w * w * (dz + z);
+                let dst: &mut [f32; NX] =
+                    (&mut self.data[o..o + NX]).try_into().expect("row inside the block");
+                match src {
+                    Some(t) => {
+                        let s = sx + 4 * (sy + y) + 16 * (sz + z);
+                        *dst = t[s..s + NX].try_into().expect("row inside the tile");
                     }
-                }
-                None => {
-                    let v = if border & (1 << d) != 0 { -gamma } else { gamma };
-                    for z in 0..nz {
-                        for y in 0..ny {
-                            let o = dx + w * (dy + y) + w * w * (dz + z);
-                            self.data[o..o + nx].fill(v);
-                        }
-                    }
+                    None => *dst = [fill; NX],
                 }
             }
         }
