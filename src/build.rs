@@ -217,13 +217,14 @@ pub fn to_dense<G: SparseGrid + ?Sized>(
     DenseField::from_fn(origin, dims, |c| grid.value(c))
 }
 
-/// The dense box around a grid's stored voxels grown by `margin` voxels on every side, or
-/// `None` for an empty grid.
-pub fn dense_box<G: SparseGrid + ?Sized>(grid: &G, margin: i32) -> Option<(Coord, [usize; 3])> {
+/// The dense box around a grid's stored voxels grown by `margin` voxels on every side
+/// (each side clamped to the i32 range), or `None` for an empty grid.
+pub fn dense_box<G: SparseGrid + ?Sized>(grid: &G, margin: u32) -> Option<(Coord, [usize; 3])> {
     let (lo, hi) = grid.bounding_box()?;
-    let m = Coord::new(margin, margin, margin);
-    let lo = lo.checked_add(Coord::new(-margin, -margin, -margin)).unwrap_or(lo);
-    let hi = hi.checked_add(m).unwrap_or(hi);
+    let m = margin as i64;
+    let clamp = |v: i64| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+    let lo = Coord::new(clamp(lo.x as i64 - m), clamp(lo.y as i64 - m), clamp(lo.z as i64 - m));
+    let hi = Coord::new(clamp(hi.x as i64 + m), clamp(hi.y as i64 + m), clamp(hi.z as i64 + m));
     let n = |a: i32, b: i32| (b as i64 - a as i64 + 1) as usize;
     Some((lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)]))
 }
@@ -271,7 +272,7 @@ pub enum ExportError {
 pub fn export_npy<G: SparseGrid + ?Sized>(
     grid: &G,
     path: &std::path::Path,
-    margin: i32,
+    margin: u32,
 ) -> Result<Coord, ExportError> {
     let (origin, dims) = dense_box(grid, margin).ok_or(ExportError::Empty)?;
     let field = to_dense(grid, origin, dims)?;

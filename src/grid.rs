@@ -17,7 +17,7 @@ pub struct GridSpec {
     pub voxel_size: f32,
     /// World position of voxel (0, 0, 0).
     pub origin: [f64; 3],
-    /// Half-width of the band in voxels (≥ 1, finite); the papers' default is 3.
+    /// Half-width of the band in voxels (> 1, finite); the papers' default is 3.
     pub half_width: f32,
 }
 
@@ -28,16 +28,22 @@ impl Default for GridSpec {
 }
 
 impl GridSpec {
-    /// A checked spec: voxel size finite and > 0, half-width finite and ≥ 1.
+    /// A checked spec: voxel size finite and > 0, half-width finite and > 1 voxel.
+    ///
+    /// The half-width must exceed one voxel so that a voxel next to the interface (within
+    /// one voxel of a zero crossing) is always in the band; then the band separates inside
+    /// from outside and every grid can tell the sign of a voxel it does not store. At
+    /// exactly one voxel a voxel with φ = 0 could neighbour an unstored voxel at −γ, and
+    /// the DT-Grid's sign rule could not tell the interior from a thin shell.
     pub fn new(voxel_size: f32, origin: [f64; 3], half_width: f32) -> Result<Self, GridError> {
         if !(voxel_size.is_finite() && voxel_size > 0.0) {
             return Err(GridError::InvalidParameter(format!(
                 "voxel size must be finite and > 0, got {voxel_size}"
             )));
         }
-        if !(half_width.is_finite() && half_width >= 1.0) {
+        if !(half_width.is_finite() && half_width > 1.0) {
             return Err(GridError::InvalidParameter(format!(
-                "half-width must be finite and >= 1 voxel, got {half_width}"
+                "half-width must be finite and > 1 voxel, got {half_width}"
             )));
         }
         if origin.iter().any(|o| !o.is_finite()) {

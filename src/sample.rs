@@ -376,7 +376,7 @@ mod tests {
         let mut rng = fastrand::Rng::with_seed(2024);
         for case in 0..40 {
             let voxel = [1.0f32, 0.5, 0.37, 1.7][case % 4];
-            let half_width = [3.0f32, 1.0, 2.5, 4.0][(case / 4) % 4];
+            let half_width = [3.0f32, 1.25, 2.5, 4.0][(case / 4) % 4];
             let origin = [rng.f64() * 10.0 - 5.0, rng.f64() * 10.0 - 5.0, rng.f64() * 10.0 - 5.0];
             let spec = GridSpec::new(voxel, origin, half_width).unwrap();
             // Centres at negative and positive coordinates.

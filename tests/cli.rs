@@ -166,6 +166,7 @@ fn nonsense_arguments_are_refused() {
         &["info", "--shape", "sphere", "--radius", "-3"],
         &["info", "--shape", "sphere", "--radius", "nan"],
         &["info", "--shape", "sphere", "--half-width", "0"],
+        &["info", "--shape", "sphere", "--half-width", "1"],
         &["info", "--shape", "sphere", "--voxel-size", "0"],
         &["info", "--shape", "torus", "--major-radius", "5", "--minor-radius", "9"],
         &["info", "--shape", "sphere", "--radius", "1e12"],

@@ -23,7 +23,7 @@ fn for_box(lo: Coord, hi: Coord, mut f: impl FnMut(Coord)) {
 
 /// Asserts that two grids read the same value at every voxel of their bounding box grown
 /// by `margin`.
-fn assert_same<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, margin: i32) {
+fn assert_same<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, margin: u32) {
     let (lo, dims) = dense_box(a, margin).expect("non-empty");
     let hi =
         Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);

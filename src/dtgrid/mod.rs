@@ -34,6 +34,8 @@
 //!    every column that crosses it, so an absent column cannot pass through the interior.
 //! 2. x before the column's first component → the sign of the column's first value.
 //! 3. x after the column's last component → the sign of the column's last value.
+//!    (Appendix D, step 2 returns `+γ` in both cases 2 and 3; that is the same on a valid
+//!    band of a bounded interior, and our rule stays right for any band.)
 //! 4. x in the gap between components k and k+1 → the sign of the **last** value of
 //!    component k. Appendix D, step 4b names the *first* value of component k instead;
 //!    for a column that enters the interior that value lies on the outer side of the band

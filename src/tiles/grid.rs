@@ -423,6 +423,12 @@ impl TileGrid {
             }
         }
 
+        if stats.removed == 0 && stats.created == 0 {
+            // Nothing changed: the list, the arena and the flags stay as they are.
+            self.debug_check();
+            return Ok(stats);
+        }
+
         // Compaction: gather the tiles in list order into a fresh arena.
         let g = self.gamma();
         let n = new_coords.len();

@@ -42,12 +42,18 @@ pub struct NeighbourCursor<'a> {
 }
 
 impl<'a> NeighbourCursor<'a> {
-    /// A cursor over entries `start..end` of `coords` (which must be strictly increasing).
+    /// A cursor over entries `start..end` of `coords`, which must be strictly increasing
+    /// tile coordinates within [`super::TILE_MIN`]..=[`super::TILE_MAX`] (as every
+    /// [`super::TileGrid`] list is), so that ±1 never wraps (checked in debug builds).
     ///
     /// # Panics
     /// If `start > end` or `end > coords.len()`.
     pub fn new(coords: &'a [Coord], start: usize, end: usize) -> Self {
         assert!(start <= end && end <= coords.len(), "cursor range {start}..{end} out of bounds");
+        debug_assert!(
+            coords.iter().all(|&c| super::tile_in_range(c)),
+            "tile coordinates out of range"
+        );
         let mut ptr = [start; 27];
         if start < end {
             let cur = coords[start];
@@ -106,8 +112,14 @@ pub struct DilationStream<'a> {
 }
 
 impl<'a> DilationStream<'a> {
-    /// A stream over the dilation of `coords` (strictly increasing).
+    /// A stream over the dilation of `coords`: strictly increasing tile coordinates within
+    /// [`super::TILE_MIN`]..=[`super::TILE_MAX`] (checked in debug builds), so that the
+    /// element's ±1 offsets never wrap.
     pub fn new(coords: &'a [Coord]) -> Self {
+        debug_assert!(
+            coords.iter().all(|&c| super::tile_in_range(c)),
+            "tile coordinates out of range"
+        );
         DilationStream { coords, ptr: [0; 27] }
     }
 
