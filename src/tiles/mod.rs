@@ -14,7 +14,7 @@
 //! tile x is fastest: `local = lx + 4 ly + 16 lz`.
 
 mod block;
-mod flags;
+pub mod flags;
 mod grid;
 mod stream;
 
