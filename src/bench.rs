@@ -165,7 +165,7 @@ pub struct ScenarioResult {
     pub ops: Vec<OpResult>,
 }
 
-/// The whole storage benchmark.
+/// The whole benchmark report: the storage operations and the pure-kernel throughput.
 #[derive(Clone, Debug, Serialize)]
 pub struct StorageBench {
     pub cpu: String,
@@ -174,6 +174,31 @@ pub struct StorageBench {
     pub threads: usize,
     pub repetitions: usize,
     pub scenarios: Vec<ScenarioResult>,
+    /// Voxel updates/s of the kernels on a dense in-cache block, per lane type.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub kernels: Vec<levelset_kernels::bench::KernelResult>,
+}
+
+/// The kernel section as text: one row per kernel, one column per lane type, with the
+/// speed-up over scalar `f32`.
+pub fn kernels_text(rows: &[levelset_kernels::bench::KernelResult]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "kernels on a dense in-cache 32³ block, one thread (Mvoxel-updates/s, speed-up over f32):"
+    );
+    for k in levelset_kernels::bench::KERNELS {
+        let scalar = rows.iter().find(|r| r.kernel == k && r.lanes == "f32");
+        let _ = write!(s, "  {k:<17}");
+        for r in rows.iter().filter(|r| r.kernel == k) {
+            let up = scalar.map_or(0.0, |b| r.voxel_updates_per_s / b.voxel_updates_per_s);
+            let _ =
+                write!(s, " {:>6}: {:>7.1} ({:>4.1}x)", r.lanes, r.voxel_updates_per_s / 1e6, up);
+        }
+        s.push('\n');
+    }
+    s
 }
 
 /// Minimum wall time of `reps` runs of `f` (after one warm-up run).
@@ -199,33 +224,6 @@ pub fn cpu_name() -> String {
                 .map(|s| s.trim().to_string())
         })
         .unwrap_or_else(|| "unknown".into())
-}
-
-/// The vector target features this binary was compiled with.
-pub fn target_features() -> Vec<&'static str> {
-    let mut v = Vec::new();
-    if cfg!(target_feature = "sse2") {
-        v.push("sse2");
-    }
-    if cfg!(target_feature = "sse4.1") {
-        v.push("sse4.1");
-    }
-    if cfg!(target_feature = "avx") {
-        v.push("avx");
-    }
-    if cfg!(target_feature = "avx2") {
-        v.push("avx2");
-    }
-    if cfg!(target_feature = "fma") {
-        v.push("fma");
-    }
-    if cfg!(target_feature = "avx512f") {
-        v.push("avx512f");
-    }
-    if cfg!(target_feature = "neon") {
-        v.push("neon");
-    }
-    v
 }
 
 /// Deterministic pseudo-random voxels around the band (splitmix64), for random access.
@@ -379,6 +377,10 @@ impl StorageBench {
                     o.max_abs_diff.map_or("-".into(), |d| format!("{d:.1e}"))
                 );
             }
+        }
+        if !self.kernels.is_empty() {
+            s.push('\n');
+            s.push_str(&kernels_text(&self.kernels));
         }
         s.push_str(
             "\nMvox/s counts updated voxels (DT-Grid points, tiles x 64); both grids run the same \

@@ -183,3 +183,38 @@ fn nonsense_arguments_are_refused() {
         assert!(e.contains("error"), "{args:?}: {e}");
     }
 }
+
+#[test]
+fn bench_quick_reports_both_grids_and_the_kernels() {
+    let k = tmp("kernels.json");
+    let o = levelset(&["bench", "--kernels", "--quick", "--json", k.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&k).unwrap()).unwrap();
+    let rows = v["kernels"].as_array().unwrap();
+    assert_eq!(rows.len(), 8);
+    for r in rows {
+        assert!(["upwind_curvature", "weno5_rk3"].contains(&r["kernel"].as_str().unwrap()));
+        assert!(["f32", "f32x4", "f32x8", "f32x16"].contains(&r["lanes"].as_str().unwrap()));
+        assert!(r["voxel_updates_per_s"].as_f64().unwrap() > 0.0);
+    }
+    assert!(v["target_features"].is_array());
+
+    let s = tmp("bench.json");
+    let o = levelset(&["bench", "--quick", "--json", s.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
+    let scenarios = v["scenarios"].as_array().unwrap();
+    assert_eq!(scenarios.len(), 2);
+    for sc in scenarios {
+        for op in sc["ops"].as_array().unwrap() {
+            assert!(op["speedup_vs_dtgrid"].as_f64().unwrap() > 0.0);
+            // Identical arithmetic on both grids gives identical band values.
+            if let Some(d) = op["max_abs_diff"].as_f64() {
+                assert_eq!(d, 0.0, "{}", op["op"]);
+            }
+        }
+    }
+    assert_eq!(v["kernels"].as_array().unwrap().len(), 8);
+    let o = levelset(&["bench", "--reps", "0"]);
+    assert!(!o.status.success());
+}

@@ -1,6 +1,161 @@
 //! # levelset-kernels
 //!
-//! Stencil arithmetic for sparse-levelset (upwind, curvature, HJ-WENO5, TVD-RK3,
-//! reinitialisation), written once over a sealed `Lane` type and instantiated for scalar
-//! `f32` and `wide` vectors. The kernels know no grid type. The kernels themselves arrive
-//! with the kernels issue; this crate currently holds only the workspace slot.
+//! The stencil arithmetic of sparse-levelset: upwind differences, curvature, HJ-WENO5,
+//! the speed of the tile paper's eq. (3), advection, TVD-RK3 and CFL limits. Every kernel
+//! is written once over the sealed [`Lane`] trait and instantiated for scalar `f32` and
+//! `wide`'s `f32x4`, `f32x8`, `f32x16`; it reads φ through a [`Window`] and knows no grid
+//! type, so the Sorted Tile List ([`TileBlock`]) and the DT-Grid (point windows
+//! [`BoxWindow`], [`StarWindow`], [`BoxStarWindow`], [`BoxFarWindow`]) run literally the
+//! same arithmetic — bit for bit, which the tests check.
+//!
+//! ```
+//! use levelset_kernels::{
+//!     box27_index, wide::f32x8, BoxWindow, DenseBlock, Eq3Rate, Euler, Upwind1, VoxelKernel,
+//! };
+//!
+//! // A sphere of radius 6 (φ < 0 inside) sampled on a 16³ block with a 1-voxel halo.
+//! const R: usize = 1;
+//! let dims = [16, 16, 16];
+//! let mut data = vec![0.0f32; DenseBlock::<R>::padded_len(dims).unwrap()];
+//! for z in -1..17 {
+//!     for y in -1..17 {
+//!         for x in -1..17 {
+//!             let p = [x as f32 - 7.5, y as f32 - 7.5, z as f32 - 7.5];
+//!             let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+//!             data[DenseBlock::<R>::index(dims, x, y, z)] = r - 6.0;
+//!         }
+//!     }
+//! }
+//! let block = DenseBlock::<R>::new(&data, dims)?;
+//!
+//! // One Euler step of eq. (3): speed F = 1 (outward), curvature weight ε = 0.1,
+//! // rescaling on, first-order upwind; voxel size 1, Δt = 0.1, band half-width γ = 3.
+//! let step = Euler { rate: Eq3Rate::<Upwind1, f32>::new(1.0, 1.0, 0.1, 1.0), dt: 0.1, gamma: 3.0 };
+//! let mut simd = vec![0.0; block.voxels()];
+//! let mut scalar = vec![0.0; block.voxels()];
+//! block.apply::<f32x8, _>(&step, &mut simd)?;
+//! block.apply::<f32, _>(&step, &mut scalar)?;
+//! assert_eq!(simd, scalar); // bit for bit: one kernel source, same arithmetic per lane
+//!
+//! // The DT-Grid path: the same kernel on one voxel's 3×3×3 stencil values.
+//! let (x, y, z) = (3, 9, 4);
+//! let mut stencil = [0.0f32; 27];
+//! for dz in -1..=1 {
+//!     for dy in -1..=1 {
+//!         for dx in -1..=1 {
+//!             stencil[box27_index(dx, dy, dz)] =
+//!                 data[DenseBlock::<R>::index(dims, (x + dx) as isize, (y + dy) as isize, (z + dz) as isize)];
+//!         }
+//!     }
+//! }
+//! let i = (x + 16 * (y + 16 * z)) as usize;
+//! assert_eq!(step.eval::<f32, _>(&BoxWindow::new(&stencil), i), scalar[i]);
+//! # Ok::<(), levelset_kernels::KernelError>(())
+//! ```
+//!
+//! # Layers
+//!
+//! * [`Lane`] (module [`lane`]): the arithmetic, with documented NaN, signed-zero and
+//!   fused-multiply-add semantics identical for every lane type; [`LaneKind`] and
+//!   [`with_lane!`] turn a run-time lane choice into a type once.
+//! * [`Window`] (module [`window`]): stencil access by const offsets; block windows for
+//!   tiles and dense blocks, point windows for the DT-Grid.
+//! * Stencil functions: [`diff`] (D⁻, D⁺, D⁰, ∇⁺/∇⁻), [`curvature`] (eq. (4)), [`weno`]
+//!   (HJ-WENO5), [`speed`] (eq. (3), advection, eq. (6)–(7)), [`rk`] (TVD-RK3, CFL).
+//! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], [`Euler`], [`Rk3`])
+//!   and the sweeps that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
+//! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind `levelset bench --kernels`.
+//!
+//! # Vector units and the `simd` feature
+//!
+//! `wide` selects instructions at compile time from the enabled target features. The
+//! workspace's `.cargo/config.toml` builds with `-C target-cpu=native`, which on the
+//! project's AVX-512 machine makes `f32x16` one AVX-512 register, `f32x8` one AVX register
+//! and `mul_add` a fused FMA. Without it (plain `x86_64`, SSE2 only) everything still
+//! builds and every lane type still gives the same bits as `f32` (then without fusing), but
+//! `f32x8`/`f32x16` run as two/four SSE vectors and the speed-ups shrink.
+//! [`target_features()`] lists what a binary was built with.
+//!
+//! All four instantiations are always compiled. The cargo feature `simd` (default on) only
+//! selects [`DefaultLane`], the lane type the library uses unless told otherwise: `f32x16`
+//! when AVX-512F is compiled in, `f32x8` otherwise; without `simd`, `f32`.
+//!
+//! # Decisions
+//!
+//! * **Bitwise agreement, not a tolerance.** Every [`Lane`] operation is the same IEEE
+//!   operation in every lane type, `mul_add` is fused in all of them or in none
+//!   ([`FUSED_MUL_ADD`]), `min`/`max` follow the x86 `minps`/`maxps` rule (NaN → second
+//!   operand) everywhere, and the delta function uses a polynomial cosine instead of
+//!   libm/wide `cos` (which differ). So SIMD equals scalar bit for bit.
+//! * **Offsets are const generics.** An offset a window cannot serve does not compile;
+//!   block bounds are checked once per block, then windows load unchecked.
+//! * **κ convention:** κ = ½∇·(∇φ/|∇φ|) as in the tile paper's eq. (2)/(4): 1/r on a
+//!   sphere. The curvature term of eq. (3) is computed as κ∇⁰ without a square root.
+//! * **Upwind norms:** ∇⁺/∇⁻ exactly as printed in the tile paper's Sec. 4.7 (both
+//!   one-sided squares of an axis summed), for first-order and for HJ-WENO5 derivatives
+//!   alike. This differs from the per-axis-max Godunov flux only at local extrema of φ
+//!   along an axis.
+//! * **HJ-WENO5 ε** = 10⁻⁶ max vₖ² (scale invariant); weights are formed with one
+//!   reciprocal and one division per derivative instead of four divisions.
+//! * **Smoothed sign** φ/√(φ² + h²) in the rescaling term (tile paper Sec. 3.2).
+//! * **Band clamp** to [−γ, γ] is part of the time-step kernels ([`Euler`], [`Rk3`]), so
+//!   both grids clamp identically.
+//! * **A scalar baseline that is scalar.** The `f32` sweeps hide each voxel's index from
+//!   LLVM's loop vectoriser (see [`block`]), so `f32` measures one-voxel-at-a-time
+//!   arithmetic, as a point-by-point grid runs it, not auto-vectorised code.
+
+pub mod bench;
+pub mod block;
+pub mod curvature;
+pub mod diff;
+pub mod error;
+pub mod kernel;
+pub mod lane;
+pub mod rk;
+pub mod speed;
+pub mod weno;
+pub mod window;
+
+pub use block::{DenseBlock, TileBlock};
+pub use diff::{Axis, X, Y, Z};
+pub use error::KernelError;
+pub use kernel::{
+    AdvectionRate, Eq3Rate, Euler, Rk3, ScalarField, Scheme, Upwind1, VectorField, VoxelKernel,
+    Weno5,
+};
+pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
+pub use window::{
+    box27_index, box_far39_index, star19_index, BoxFarWindow, BoxStarWindow, BoxWindow,
+    DenseWindow, StarWindow, TileWindow, Window, BOX27_OFFSETS, BOX_FAR39_OFFSETS, STAR19_OFFSETS,
+};
+
+/// The `wide` crate the lane types come from (re-exported so users name the same types).
+pub use wide;
+
+/// The lane type the library uses by default: `f32x16` with AVX-512F, else `f32x8`
+/// (feature `simd`, on by default).
+#[cfg(all(feature = "simd", target_feature = "avx512f"))]
+pub type DefaultLane = wide::f32x16;
+/// The lane type the library uses by default: `f32x16` with AVX-512F, else `f32x8`
+/// (feature `simd`, on by default).
+#[cfg(all(feature = "simd", not(target_feature = "avx512f")))]
+pub type DefaultLane = wide::f32x8;
+/// The lane type the library uses by default: scalar `f32` (feature `simd` is off).
+#[cfg(not(feature = "simd"))]
+pub type DefaultLane = f32;
+
+/// The vector-related target features this binary was compiled with (for benchmark
+/// output), e.g. `["sse2", ..., "avx2", "fma", "avx512f", ...]`.
+pub fn target_features() -> Vec<&'static str> {
+    let mut v = Vec::new();
+    macro_rules! probe {
+        ($($f:literal),*) => {
+            $(if cfg!(target_feature = $f) { v.push($f); })*
+        };
+    }
+    probe!(
+        "sse2", "sse3", "ssse3", "sse4.1", "sse4.2", "avx", "avx2", "fma", "avx512f", "avx512dq",
+        "avx512bw", "avx512vl", "neon", "simd128"
+    );
+    v
+}

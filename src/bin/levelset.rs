@@ -35,6 +35,10 @@ struct BenchArgs {
     /// Repetitions per operation; the best time is reported.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
+    /// Only the pure-kernel section: voxel updates/s of the PDE kernels on a dense in-cache
+    /// block for scalar f32 and every SIMD width.
+    #[arg(long)]
+    kernels: bool,
     /// Also write the results as JSON to this file.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -164,9 +168,42 @@ fn run_info(a: &InfoArgs) -> Result<InfoReport, String> {
     info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())
 }
 
+fn write_json<T: serde::Serialize>(path: &std::path::Path, value: &T) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(value).expect("report serialises");
+    sparse_levelset::fsutil::write_atomic(path, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())
+    })
+    .map_err(|e| format!("{}: {e}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+fn kernel_bench(quick: bool) -> Result<Vec<levelset_kernels::bench::KernelResult>, String> {
+    use levelset_kernels::bench::{run_kernel_bench, KernelBenchConfig};
+    let mut cfg = KernelBenchConfig::default();
+    if quick {
+        cfg.seconds = 0.05;
+        cfg.samples = 2;
+    }
+    run_kernel_bench(&cfg).map(|r| r.kernels).map_err(|e| e.to_string())
+}
+
 fn run_bench(a: &BenchArgs) -> Result<(), String> {
     use indicatif::{ProgressBar, ProgressStyle};
-    use sparse_levelset::bench::{cpu_name, run_scenario, target_features, StorageBench};
+    use sparse_levelset::bench::{cpu_name, kernels_text, run_scenario, StorageBench};
+    if a.kernels {
+        let report = levelset_kernels::bench::KernelBenchReport {
+            kernels: kernel_bench(a.quick)?,
+            target_features: levelset_kernels::target_features(),
+        };
+        println!("target features: {}", report.target_features.join(","));
+        print!("{}", kernels_text(&report.kernels));
+        if let Some(path) = &a.json {
+            write_json(path, &report)?;
+        }
+        return Ok(());
+    }
     let spec = GridSpec::default();
     let scale = if a.quick { 0.4 } else { 1.0 };
     let reps = if a.quick { 1 } else { a.reps as usize };
@@ -176,7 +213,7 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
         ("sphere", Shape::Sphere { center: [0.0; 3], radius: 100.0 * scale }),
         ("spiral", Shape::spiral_default([0.0; 3], 50.0 * scale, 40.0 * scale)),
     ];
-    let bar = ProgressBar::new((scenarios.len() * 4) as u64);
+    let bar = ProgressBar::new((scenarios.len() * 4 + 1) as u64);
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
             .expect("valid template"),
@@ -191,24 +228,21 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
         results.push(r);
     }
+    bar.set_message("kernels");
+    let kernels = kernel_bench(a.quick)?;
     bar.finish_and_clear();
     let report = StorageBench {
         cpu: cpu_name(),
-        target_features: target_features(),
+        target_features: levelset_kernels::target_features(),
         profile: if cfg!(debug_assertions) { "debug" } else { "release" },
         threads: 1,
         repetitions: reps,
         scenarios: results,
+        kernels,
     };
     print!("{}", report.to_text());
     if let Some(path) = &a.json {
-        let text = serde_json::to_string_pretty(&report).expect("report serialises");
-        sparse_levelset::fsutil::write_atomic(path, |w| {
-            use std::io::Write;
-            w.write_all(text.as_bytes())
-        })
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-        println!("wrote {}", path.display());
+        write_json(path, &report)?;
     }
     Ok(())
 }

@@ -1,0 +1,243 @@
+//! Padded blocks and the sweeps over them: the loops that feed windows to kernels.
+//!
+//! Bounds are checked once when a block is created; the windows then load without
+//! checks (see the `# Invariants` of [`TileWindow`] and [`DenseWindow`]).
+//!
+//! With `f32` lanes the sweeps pass each voxel's centre index through
+//! `core::hint::black_box`, so that LLVM cannot auto-vectorise the voxel loop: the `f32`
+//! instantiation is the one-voxel-at-a-time scalar reference (what the DT-Grid runs),
+//! and the benchmark's SIMD speed-up is measured against genuinely scalar code.
+
+use crate::error::KernelError;
+use crate::kernel::VoxelKernel;
+use crate::lane::Lane;
+use crate::window::{DenseWindow, TileWindow};
+
+/// The identity, but opaque to the optimiser when `L` is `f32`.
+///
+/// The `f32` instantiation of a kernel is the *scalar* reference: one voxel at a time, as
+/// a point-by-point grid (the DT-Grid) runs it. Left alone, LLVM's loop vectoriser turns
+/// the dense and tile sweeps of the cheaper kernels into SIMD code over consecutive
+/// voxels, which would make the scalar baseline of the benchmark a vector code path of
+/// its own. Hiding the centre index of each voxel from the optimiser prevents that at the
+/// cost of one register spill per voxel; SIMD lane types are untouched.
+#[inline(always)]
+fn scalar_barrier<L: Lane>(centre: usize) -> usize {
+    if L::LANES == 1 {
+        core::hint::black_box(centre)
+    } else {
+        centre
+    }
+}
+
+/// Compile-time check that windows of reach `r` serve kernel `K`.
+struct Fits<K, const R: usize>(K);
+impl<K: VoxelKernel, const R: usize> Fits<K, R> {
+    const OK: () = assert!(
+        K::AXIS_REACH <= R as i32 && K::BOX_REACH <= R as i32,
+        "the block's halo is smaller than the kernel's stencil"
+    );
+}
+
+/// A 4³ tile padded by an `R`-voxel halo, x fastest:
+/// `data[(x+R) + W (y+R) + W² (z+R)]` for local `x, y, z` in `-R..4+R`, `W = 4 + 2R`
+/// (the layout of the root crate's `PaddedBlock<R>`). `R = 1` serves first-order upwind
+/// and curvature (the 3×3×3 box with diagonals), `R = 3` HJ-WENO5 as well.
+///
+/// Sweeps visit lane groups in tile order; see [`TileWindow`] for the groups of each lane
+/// type. Voxel order for per-voxel inputs and outputs: tile order `x + 4y + 16z`.
+#[derive(Clone, Copy, Debug)]
+pub struct TileBlock<'a, const R: usize> {
+    data: &'a [f32],
+}
+
+impl<'a, const R: usize> TileBlock<'a, R> {
+    /// Edge length of the padded block.
+    pub const W: usize = 4 + 2 * R;
+    /// Number of values in the padded block.
+    pub const LEN: usize = Self::W * Self::W * Self::W;
+    const HALO_OK: () = assert!(R >= 1, "a tile block needs a halo of at least one voxel");
+
+    /// A view of `data`, which must hold exactly `(4 + 2R)³` values.
+    pub fn new(data: &'a [f32]) -> Result<Self, KernelError> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::HALO_OK;
+        if data.len() != Self::LEN {
+            return Err(KernelError::BlockLength { expected: Self::LEN, got: data.len() });
+        }
+        Ok(TileBlock { data })
+    }
+
+    /// Padded index of local coordinates (each in `-R..4+R`).
+    #[inline]
+    pub fn index(x: i32, y: i32, z: i32) -> usize {
+        let (r, w) = (R as i32, Self::W as i32);
+        ((x + r) + w * (y + r) + w * w * (z + r)) as usize
+    }
+
+    /// Calls `f(first, window)` for every lane group of `L`, in tile order; `first` is the
+    /// tile index of the group's first voxel.
+    #[inline(always)]
+    pub fn for_each<L: Lane>(&self, mut f: impl FnMut(usize, &TileWindow<'a, L, R>)) {
+        let w = Self::W;
+        for g in 0..64 / L::LANES {
+            let first = g * L::LANES;
+            let (x, y, z) = (first % 4, (first / 4) % 4, first / 16);
+            let centre = scalar_barrier::<L>((x + R) + w * (y + R) + w * w * (z + R));
+            // SAFETY: `data.len() == W³` (checked in `new`), and `first` starts a lane
+            // group of `L` (a voxel, a row, two rows or a slice of the tile).
+            let win = unsafe { TileWindow::new_unchecked(self.data, centre) };
+            f(first, &win);
+        }
+    }
+
+    /// Evaluates `kernel` for all 64 voxels into `out` (tile order), with lane type `L`.
+    #[inline]
+    pub fn apply<L: Lane, K: VoxelKernel>(
+        &self,
+        kernel: &K,
+        out: &mut [f32; 64],
+    ) -> Result<(), KernelError> {
+        #[allow(clippy::let_unit_value)]
+        let () = Fits::<K, R>::OK;
+        kernel.check(64)?;
+        self.for_each::<L>(|first, w| kernel.eval(w, first).store(&mut out[first..]));
+        Ok(())
+    }
+}
+
+/// A dense `nx × ny × nz` block padded by an `R`-voxel halo on every side, x fastest:
+/// `data[(x+R) + sy (y+R) + sz (z+R)]`, `sy = nx + 2R`, `sz = sy (ny + 2R)`, for `x` in
+/// `-R..nx+R` etc. Any dimensions (not only multiples of the lane width).
+///
+/// Lane groups are `L::LANES` consecutive voxels along x; the rest of a row that does not
+/// fill a group runs with `f32` lanes (the same kernel, the same arithmetic). Voxel order
+/// for per-voxel inputs and outputs: interior x fastest, `x + nx (y + ny z)`.
+#[derive(Clone, Copy, Debug)]
+pub struct DenseBlock<'a, const R: usize> {
+    data: &'a [f32],
+    dims: [usize; 3],
+}
+
+impl<'a, const R: usize> DenseBlock<'a, R> {
+    const HALO_OK: () = assert!(R >= 1, "a dense block needs a halo of at least one voxel");
+
+    /// The padded length for interior dimensions `dims`, `None` on overflow.
+    pub fn padded_len(dims: [usize; 3]) -> Option<usize> {
+        let p = |n: usize| n.checked_add(2 * R);
+        p(dims[0])?.checked_mul(p(dims[1])?)?.checked_mul(p(dims[2])?)
+    }
+
+    /// A view of `data` as a block with interior `dims` (`data.len()` must be
+    /// [`Self::padded_len`]).
+    pub fn new(data: &'a [f32], dims: [usize; 3]) -> Result<Self, KernelError> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::HALO_OK;
+        let expected = Self::padded_len(dims).ok_or(KernelError::BlockTooLarge)?;
+        if data.len() != expected {
+            return Err(KernelError::BlockLength { expected, got: data.len() });
+        }
+        Ok(DenseBlock { data, dims })
+    }
+
+    /// Interior dimensions.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Number of interior voxels.
+    pub fn voxels(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    /// Padded index of interior-relative coordinates (each in `-R..n+R`), for filling a
+    /// block; `dims` are the interior dimensions.
+    #[inline]
+    pub fn index(dims: [usize; 3], x: isize, y: isize, z: isize) -> usize {
+        let r = R as isize;
+        let sy = dims[0] as isize + 2 * r;
+        let sz = sy * (dims[1] as isize + 2 * r);
+        ((x + r) + sy * (y + r) + sz * (z + r)) as usize
+    }
+
+    /// Calls `f(row_first, row_centre, sy, sz)` for every interior row (y, z): the
+    /// interior index and the padded index of its voxel x = 0, and the strides.
+    #[inline(always)]
+    fn rows(&self, mut f: impl FnMut(usize, usize, usize, usize)) {
+        let [nx, ny, nz] = self.dims;
+        let sy = nx + 2 * R;
+        let sz = sy * (ny + 2 * R);
+        for z in 0..nz {
+            for y in 0..ny {
+                f(nx * (y + ny * z), R + sy * (y + R) + sz * (z + R), sy, sz);
+            }
+        }
+    }
+
+    /// Calls `full(first, window)` for every full lane group of `L` and
+    /// `rest(first, window)` for each voxel left over at the end of a row, row by row;
+    /// `first` is the interior index of the group's first voxel.
+    #[inline(always)]
+    pub fn for_each<L: Lane>(
+        &self,
+        mut full: impl FnMut(usize, &DenseWindow<'a, L, R>),
+        mut rest: impl FnMut(usize, &DenseWindow<'a, f32, R>),
+    ) {
+        let nx = self.dims[0];
+        let data = self.data;
+        self.rows(|row_first, row_centre, sy, sz| {
+            let mut x = 0;
+            while x + L::LANES <= nx {
+                // SAFETY: `data.len()` is the padded length (checked in `new`) and voxels
+                // x .. x + LANES of this row are interior.
+                let w = unsafe { DenseWindow::new_unchecked(data, row_centre + x, sy, sz) };
+                full(row_first + x, &w);
+                x += L::LANES;
+            }
+            while x < nx {
+                // SAFETY: as above, for the single interior voxel x.
+                let w = unsafe { DenseWindow::new_unchecked(data, row_centre + x, sy, sz) };
+                rest(row_first + x, &w);
+                x += 1;
+            }
+        });
+    }
+
+    /// Evaluates `kernel` for every interior voxel into `out` (interior order), with lane
+    /// type `L` (and `f32` for the ends of rows that do not fill a group).
+    #[inline]
+    pub fn apply<L: Lane, K: VoxelKernel>(
+        &self,
+        kernel: &K,
+        out: &mut [f32],
+    ) -> Result<(), KernelError> {
+        #[allow(clippy::let_unit_value)]
+        let () = Fits::<K, R>::OK;
+        let n = self.voxels();
+        if out.len() != n {
+            return Err(KernelError::OutputLength { expected: n, got: out.len() });
+        }
+        kernel.check(n)?;
+        let nx = self.dims[0];
+        let data = self.data;
+        self.rows(|row_first, row_centre, sy, sz| {
+            let out = &mut out[row_first..row_first + nx];
+            let mut x = 0;
+            while x + L::LANES <= nx {
+                let c = scalar_barrier::<L>(row_centre + x);
+                // SAFETY: as in `for_each`.
+                let w = unsafe { DenseWindow::<L, R>::new_unchecked(data, c, sy, sz) };
+                kernel.eval(&w, row_first + x).store(&mut out[x..]);
+                x += L::LANES;
+            }
+            while x < nx {
+                let c = scalar_barrier::<f32>(row_centre + x);
+                // SAFETY: as in `for_each`.
+                let w = unsafe { DenseWindow::<f32, R>::new_unchecked(data, c, sy, sz) };
+                out[x] = kernel.eval(&w, row_first + x);
+                x += 1;
+            }
+        });
+        Ok(())
+    }
+}

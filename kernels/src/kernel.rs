@@ -1,0 +1,319 @@
+//! Whole-voxel kernels: the objects the grid engines sweep over their blocks.
+//!
+//! A [`VoxelKernel`] turns a stencil [`Window`] into one value per lane. Settings that are
+//! fixed for a sweep are fields (the same for every voxel) or type parameters (scheme,
+//! RK stage, uniform vs. per-voxel speed), so nothing is decided per voxel. Rates
+//! ([`Eq3Rate`], [`AdvectionRate`]) compute 𝓛(φ); [`Euler`] and [`Rk3`] wrap a rate into
+//! a time step.
+
+use crate::curvature::curvature_speed;
+use crate::diff::{diff_minus, diff_plus, upwind_norms, Axis, X, Y, Z};
+use crate::error::KernelError;
+use crate::lane::Lane;
+use crate::rk::{clamp_band, euler, rk3_combine};
+use crate::speed::{advection_rate, eq3_speed, smoothed_sign};
+use crate::weno::weno5_one_sided;
+use crate::window::Window;
+use core::marker::PhantomData;
+
+/// A per-voxel computation over a stencil window.
+///
+/// `first` is the index of the lane group's first voxel in the voxel order of the block
+/// being swept (tile order for [`crate::TileBlock`], x-fastest interior order for
+/// [`crate::DenseBlock`], whatever the caller uses for point windows); per-voxel inputs
+/// (speed, velocity, φⁿ) are read at `first .. first + LANES` in that order.
+pub trait VoxelKernel: Sync {
+    /// Largest axis offset read (1: first order / curvature, 3: HJ-WENO5).
+    const AXIS_REACH: i32;
+    /// Largest max-norm of diagonal offsets read (1 with curvature, 0 without).
+    const BOX_REACH: i32;
+
+    /// Checks per-voxel inputs against a block of `voxels` voxels. Drivers call it once
+    /// per block, before the loop.
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        let _ = voxels;
+        Ok(())
+    }
+
+    /// The kernel's value for the lane group at the window's centre.
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L;
+}
+
+// ---------------------------------------------------------------------------------------
+// Spatial schemes for the hyperbolic terms.
+
+mod sealed {
+    pub trait Sealed {}
+}
+
+/// How one-sided derivatives are approximated: [`Upwind1`] or [`Weno5`]. Sealed; chosen
+/// once per sweep as a type parameter.
+pub trait Scheme: sealed::Sealed + Copy + Default + Send + Sync + 'static {
+    /// Axis offsets read.
+    const AXIS_REACH: i32;
+    /// Name for output (`"upwind1"`, `"weno5"`).
+    const NAME: &'static str;
+    /// `(φₐ⁻, φₐ⁺)`: the left- and right-biased derivatives along `A`.
+    fn one_sided<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> (L, L);
+
+    /// Left-biased and right-biased derivatives of all three axes.
+    #[inline(always)]
+    fn derivatives<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> ([L; 3], [L; 3]) {
+        let (xm, xp) = Self::one_sided::<L, W, X>(w, inv_h);
+        let (ym, yp) = Self::one_sided::<L, W, Y>(w, inv_h);
+        let (zm, zp) = Self::one_sided::<L, W, Z>(w, inv_h);
+        ([xm, ym, zm], [xp, yp, zp])
+    }
+
+    /// The upwind norms `(∇⁺, ∇⁻)` of the tile paper's Sec. 4.7 with this scheme's
+    /// derivatives ([`upwind_norms`]).
+    #[inline(always)]
+    fn norms<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> (L, L) {
+        let (dm, dp) = Self::derivatives(w, inv_h);
+        upwind_norms(dm, dp)
+    }
+}
+
+/// First-order one-sided differences D⁻, D⁺ (tile paper Sec. 4.7). Reads ±1.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Upwind1;
+
+/// HJ-WENO5 (Jiang & Peng; DT-Grid paper Sec. 4.1, tile paper Sec. 5.2). Reads ±3.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Weno5;
+
+impl sealed::Sealed for Upwind1 {}
+impl sealed::Sealed for Weno5 {}
+
+impl Scheme for Upwind1 {
+    const AXIS_REACH: i32 = 1;
+    const NAME: &'static str = "upwind1";
+    #[inline(always)]
+    fn one_sided<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> (L, L) {
+        (diff_minus::<L, W, A>(w, inv_h), diff_plus::<L, W, A>(w, inv_h))
+    }
+}
+
+impl Scheme for Weno5 {
+    const AXIS_REACH: i32 = 3;
+    const NAME: &'static str = "weno5";
+    #[inline(always)]
+    fn one_sided<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> (L, L) {
+        weno5_one_sided::<L, W, A>(w, inv_h)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Inputs that are either uniform or per voxel (decided by type, not per voxel).
+
+/// A scalar input: `f32` (the same everywhere) or `&[f32]` (one value per voxel, in the
+/// block's voxel order).
+pub trait ScalarField: Sync {
+    /// The field has values for `voxels` voxels.
+    fn check(&self, voxels: usize) -> Result<(), KernelError>;
+    /// Values for the lane group starting at `first`.
+    fn lanes<L: Lane>(&self, first: usize) -> L;
+}
+
+impl ScalarField for f32 {
+    #[inline(always)]
+    fn check(&self, _voxels: usize) -> Result<(), KernelError> {
+        Ok(())
+    }
+    #[inline(always)]
+    fn lanes<L: Lane>(&self, _first: usize) -> L {
+        L::splat(*self)
+    }
+}
+
+impl ScalarField for &[f32] {
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        if self.len() >= voxels {
+            Ok(())
+        } else {
+            Err(KernelError::FieldLength { expected: voxels, got: self.len() })
+        }
+    }
+    #[inline(always)]
+    fn lanes<L: Lane>(&self, first: usize) -> L {
+        L::load(&self[first..])
+    }
+}
+
+/// A vector input: `[f32; 3]` (uniform) or `[&[f32]; 3]` (three per-voxel components).
+pub trait VectorField: Sync {
+    /// Every component has values for `voxels` voxels.
+    fn check(&self, voxels: usize) -> Result<(), KernelError>;
+    /// Components for the lane group starting at `first`.
+    fn lanes<L: Lane>(&self, first: usize) -> [L; 3];
+}
+
+impl VectorField for [f32; 3] {
+    #[inline(always)]
+    fn check(&self, _voxels: usize) -> Result<(), KernelError> {
+        Ok(())
+    }
+    #[inline(always)]
+    fn lanes<L: Lane>(&self, _first: usize) -> [L; 3] {
+        self.map(L::splat)
+    }
+}
+
+impl VectorField for [&[f32]; 3] {
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.iter().try_for_each(|c| c.check(voxels))
+    }
+    #[inline(always)]
+    fn lanes<L: Lane>(&self, first: usize) -> [L; 3] {
+        [self[0].lanes(first), self[1].lanes(first), self[2].lanes(first)]
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Rates 𝓛(φ).
+
+/// The rate S of the tile paper's eq. (3) (Sec. 4.7 discretisation, see
+/// [`eq3_speed`]): data speed F, curvature weight ε, rescaling term with the smoothed sign
+/// φ/√(φ²+h²). The hyperbolic terms use the scheme `S` ([`Upwind1`]: Sec. 4.7;
+/// [`Weno5`]: Sec. 5.2), the curvature term always central differences (eq. (4)).
+/// Reads the 3×3×3 box and, with [`Weno5`], the ±3 star.
+#[derive(Clone, Copy, Debug)]
+pub struct Eq3Rate<S, F> {
+    /// F: `f32` (uniform) or `&[f32]` (per voxel).
+    pub speed: F,
+    /// ε, the weight of the curvature term.
+    pub curvature: f32,
+    /// Weight of the rescaling term sgn(φ)(1 − |∇φ|): 1 for eq. (3), 0 to drop it.
+    pub rescale: f32,
+    /// h, the voxel size in world units (φ is in world units).
+    pub voxel_size: f32,
+    scheme: PhantomData<S>,
+}
+
+impl<S: Scheme, F: ScalarField> Eq3Rate<S, F> {
+    /// Voxel size h, data speed F, curvature weight ε, rescaling weight (1 = eq. (3)).
+    pub fn new(voxel_size: f32, speed: F, curvature: f32, rescale: f32) -> Self {
+        Eq3Rate { speed, curvature, rescale, voxel_size, scheme: PhantomData }
+    }
+}
+
+impl<S: Scheme, F: ScalarField> VoxelKernel for Eq3Rate<S, F> {
+    const AXIS_REACH: i32 = if S::AXIS_REACH > 1 { S::AXIS_REACH } else { 1 };
+    const BOX_REACH: i32 = 1;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.speed.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let h = L::splat(self.voxel_size);
+        let inv_h = L::splat(1.0) / h;
+        let (grad_plus, grad_minus) = S::norms(w, inv_h);
+        let kappa_grad = curvature_speed(w, inv_h);
+        let sign = smoothed_sign(w.centre(), h);
+        eq3_speed(
+            self.speed.lanes::<L>(first),
+            L::splat(self.curvature),
+            L::splat(self.rescale),
+            sign,
+            grad_plus,
+            grad_minus,
+            kappa_grad,
+        )
+    }
+}
+
+/// The rate −u·∇φ of advection by an external velocity, upwinded per axis
+/// ([`advection_rate`]) with the scheme `S`. Reads the ±1 or ±3 star.
+#[derive(Clone, Copy, Debug)]
+pub struct AdvectionRate<S, V> {
+    /// u: `[f32; 3]` (uniform) or `[&[f32]; 3]` (per voxel), world units per time.
+    pub velocity: V,
+    /// h, the voxel size.
+    pub voxel_size: f32,
+    scheme: PhantomData<S>,
+}
+
+impl<S: Scheme, V: VectorField> AdvectionRate<S, V> {
+    /// Voxel size h and velocity u.
+    pub fn new(voxel_size: f32, velocity: V) -> Self {
+        AdvectionRate { velocity, voxel_size, scheme: PhantomData }
+    }
+}
+
+impl<S: Scheme, V: VectorField> VoxelKernel for AdvectionRate<S, V> {
+    const AXIS_REACH: i32 = S::AXIS_REACH;
+    const BOX_REACH: i32 = 0;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.velocity.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let inv_h = L::splat(1.0) / L::splat(self.voxel_size);
+        let (dm, dp) = S::derivatives(w, inv_h);
+        advection_rate(self.velocity.lanes::<L>(first), dm, dp)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Time steps.
+
+/// One forward-Euler step φ + Δt 𝓛(φ) of a rate `K`, clamped to [−γ, γ] (tile paper
+/// Sec. 4.7 and Sec. 3.1). `gamma = f32::INFINITY` disables the clamp.
+#[derive(Clone, Copy, Debug)]
+pub struct Euler<K> {
+    pub rate: K,
+    pub dt: f32,
+    pub gamma: f32,
+}
+
+impl<K: VoxelKernel> VoxelKernel for Euler<K> {
+    const AXIS_REACH: i32 = K::AXIS_REACH;
+    const BOX_REACH: i32 = K::BOX_REACH;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.rate.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let rate = self.rate.eval(w, first);
+        clamp_band(euler(w.centre(), L::splat(self.dt), rate), L::splat(self.gamma))
+    }
+}
+
+/// One TVD-RK3 stage (Shu & Osher; tile paper Sec. 5.2, DT-Grid paper Sec. 4.1) of a rate
+/// `K`: the window holds φᵏ (φⁿ, φ⁽¹⁾ or φ⁽²⁾), `phi_n` holds φⁿ per voxel (read in stages
+/// 2 and 3; may be empty for stage 1), the result is clamped to [−γ, γ]. See
+/// [`rk3_combine`].
+#[derive(Clone, Copy, Debug)]
+pub struct Rk3<'a, K, const STAGE: u8> {
+    pub rate: K,
+    pub dt: f32,
+    pub gamma: f32,
+    pub phi_n: &'a [f32],
+}
+
+impl<K: VoxelKernel, const STAGE: u8> VoxelKernel for Rk3<'_, K, STAGE> {
+    const AXIS_REACH: i32 = K::AXIS_REACH;
+    const BOX_REACH: i32 = K::BOX_REACH;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.rate.check(voxels)?;
+        if STAGE > 1 {
+            self.phi_n.check(voxels)?;
+        }
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let rate = self.rate.eval(w, first);
+        let phi_n = if STAGE > 1 { self.phi_n.lanes::<L>(first) } else { w.centre() };
+        let next = rk3_combine::<L, STAGE>(phi_n, w.centre(), L::splat(self.dt), rate);
+        clamp_band(next, L::splat(self.gamma))
+    }
+}

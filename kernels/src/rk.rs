@@ -1,0 +1,95 @@
+//! Time integration: forward Euler (tile paper Sec. 4.7), the third-order TVD Runge–Kutta
+//! scheme of Shu & Osher 1988 (tile paper Sec. 5.2; DT-Grid paper Sec. 4.1), and CFL
+//! time-step limits.
+//!
+//! TVD-RK3 for φ_t = 𝓛(φ), written as three Euler steps and convex combinations:
+//!
+//! ```text
+//! φ⁽¹⁾  = φⁿ + Δt 𝓛(φⁿ)                                   stage 1
+//! φ⁽²⁾  = ¾ φⁿ + ¼ (φ⁽¹⁾ + Δt 𝓛(φ⁽¹⁾))                    stage 2
+//! φⁿ⁺¹ = ⅓ φⁿ + ⅔ (φ⁽²⁾ + Δt 𝓛(φ⁽²⁾))                    stage 3
+//! ```
+//!
+//! A stage is a const generic (`STAGE` in 1..=3), decided once per sweep.
+
+use crate::lane::Lane;
+
+/// The TVD-RK3 stage combination (Shu & Osher 1988) for one lane group:
+/// `a φⁿ + b (φᵏ + Δt 𝓛(φᵏ))` with `(a, b)` = `(0, 1)`, `(¾, ¼)`, `(⅓, ⅔)` for stages
+/// 1, 2, 3. `phi_n` is ignored in stage 1 (that stage is the Euler step of Sec. 4.7).
+/// `STAGE` outside 1..=3 does not compile.
+#[inline(always)]
+pub fn rk3_combine<L: Lane, const STAGE: u8>(phi_n: L, phi_k: L, dt: L, rate: L) -> L {
+    let euler = dt.mul_add(rate, phi_k);
+    let (a, b) = const {
+        match STAGE {
+            1 => (0.0f32, 1.0f32),
+            2 => (0.75, 0.25),
+            3 => (1.0 / 3.0, 2.0 / 3.0),
+            _ => panic!("TVD-RK3 has stages 1, 2, 3"),
+        }
+    };
+    if STAGE == 1 {
+        euler
+    } else {
+        L::splat(b).mul_add(euler, L::splat(a) * phi_n)
+    }
+}
+
+/// Forward Euler `φ + Δt 𝓛` (tile paper Sec. 4.7: φⁿ⁺¹ = φⁿ + Δt S). Same bits as
+/// [`rk3_combine`] at stage 1.
+#[inline(always)]
+pub fn euler<L: Lane>(phi: L, dt: L, rate: L) -> L {
+    dt.mul_add(rate, phi)
+}
+
+/// Clamps to the band `[−γ, γ]` (tile paper Sec. 3.1: band values live in (−γ, γ)).
+/// NaN maps to −γ (see [`Lane::max`]); `gamma = +∞` disables the clamp (NaN then maps to
+/// −∞).
+#[inline(always)]
+pub fn clamp_band<L: Lane>(phi: L, gamma: L) -> L {
+    phi.max(-gamma).min(gamma)
+}
+
+// ---------------------------------------------------------------------------------------
+// CFL limits. Scalar functions: computed once per time step, outside every loop. Each
+// returns the largest stable Δt times `cfl` (use cfl ≤ 1; 0.5 is customary), or +∞ when
+// the term imposes no limit.
+
+/// Advection by a velocity field u (φ_t + u·∇φ = 0, upwind): Δt · max(|u|+|v|+|w|) / h ≤
+/// cfl, the CFL condition of upwind advection (Osher & Fedkiw ch. 3) with Δx = Δy = Δz = h.
+/// `max_abs_sum` is the maximum over the band of `|u| + |v| + |w|`.
+pub fn cfl_dt_advection(max_abs_sum: f32, h: f32, cfl: f32) -> f32 {
+    limit(cfl * h, max_abs_sum.abs())
+}
+
+/// Motion in the normal direction with speed F (the F|∇φ| and rescaling terms of
+/// eq. (3)): the Hamiltonian's partial derivatives are F·nₐ with Σ|nₐ| ≤ √3, so
+/// Δt · √3 max|F| / h ≤ cfl.
+pub fn cfl_dt_normal(max_abs_speed: f32, h: f32, cfl: f32) -> f32 {
+    limit(cfl * h, 3f32.sqrt() * max_abs_speed.abs())
+}
+
+/// The parabolic limit of the curvature term εκ|∇φ| of eq. (3) with κ = ½∇·n (so the
+/// diffusion coefficient is b = ε/2): Δt · 2b (1/h² + 1/h² + 1/h²) ≤ cfl, i.e.
+/// Δt ≤ cfl · h² / (3|ε|) (the explicit parabolic limit for φ_t = bκ|∇φ| with κ = ∇·n in
+/// Osher & Fedkiw ch. 4).
+pub fn cfl_dt_curvature(eps: f32, h: f32, cfl: f32) -> f32 {
+    limit(cfl * h * h, 3.0 * eps.abs())
+}
+
+/// All of eq. (3) at once: Δt (√3 (max|F| + |w_r|) / h + 3|ε| / h²) ≤ cfl, where `w_r` is
+/// the weight of the rescaling term (|sgn| ≤ 1). Smaller than each single limit.
+pub fn cfl_dt_eq3(max_abs_speed: f32, eps: f32, rescale_weight: f32, h: f32, cfl: f32) -> f32 {
+    let rate =
+        3f32.sqrt() * (max_abs_speed.abs() + rescale_weight.abs()) / h + 3.0 * eps.abs() / (h * h);
+    limit(cfl, rate)
+}
+
+fn limit(numerator: f32, rate: f32) -> f32 {
+    if rate > 0.0 {
+        numerator / rate
+    } else {
+        f32::INFINITY
+    }
+}
