@@ -1,5 +1,6 @@
 //! The [`TileGrid`] type: list, arena, flags, random access and tile management.
 
+use super::directory::RowDirectory;
 use super::flags::{compute_activity, ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
 use super::stream::{DilationStream, NeighbourCursor};
 use super::{tile_in_range, tile_of, voxel_of, Tile, TILE_LEN};
@@ -29,6 +30,8 @@ pub struct TileGrid {
     arena: Vec<Tile>,
     border: Vec<u32>,
     activity: Vec<u32>,
+    /// Row directory for random access; rebuilt with the list, dropped by `append`.
+    dir: Option<RowDirectory>,
 }
 
 /// What one tile-management step did.
@@ -52,6 +55,7 @@ impl TileGrid {
             arena: Vec::new(),
             border: Vec::new(),
             activity: Vec::new(),
+            dir: None,
         }
     }
 
@@ -158,6 +162,9 @@ impl TileGrid {
         self.arena.push(t);
         self.border.push(border & BORDER_MASK);
         self.coords.push(tile_coord);
+        // The directory no longer covers the list; lookups fall back to the plain search
+        // until the next rebuild (`from_sorted_tiles`, `manage_tiles`, `build_directory`).
+        self.dir = None;
         self.ids.push(id);
         Ok(self.coords.len() - 1)
     }
@@ -192,6 +199,7 @@ impl TileGrid {
             }
             g.border[g.ids[nb.pos] as usize] = flags;
         }
+        g.build_directory();
         g.debug_check();
         Ok(g)
     }
@@ -203,6 +211,36 @@ impl TileGrid {
         self.arena.reserve(additional);
         self.border.reserve(additional);
         self.activity.reserve(additional);
+    }
+
+    /// (Re)builds the row directory that speeds up random access (kept only when it is
+    /// small against the list). Done by every operation that rebuilds the list; call it
+    /// after a series of [`TileGrid::append`]s.
+    pub fn build_directory(&mut self) {
+        self.dir = RowDirectory::build(&self.coords);
+    }
+
+    /// Where a tile is: its list position, or that it is absent and whether it is inside.
+    /// With the row directory the search covers one tile row (O(1) to find the row, then
+    /// the few tiles of the row); without it, the whole list by binary search (Sec. 4.5).
+    #[inline]
+    fn locate(&self, t: Coord) -> Result<usize, bool> {
+        if let Some(dir) = &self.dir {
+            return match dir.row(t) {
+                Some((s, e)) => {
+                    let row = &self.coords[s..e];
+                    let p = s + row.partition_point(|c| c.x < t.x);
+                    if p < e && self.coords[p].x == t.x {
+                        Ok(p)
+                    } else {
+                        Err(self.absent_tile_inside(t, p))
+                    }
+                }
+                // No tile in this row: outside (see `absent_tile_inside`).
+                None => Err(false),
+            };
+        }
+        self.find_tile(t).map_err(|p| self.absent_tile_inside(t, p))
     }
 
     /// List position of a tile coordinate (`Err` = insertion position), by binary
@@ -240,18 +278,18 @@ impl TileGrid {
     #[inline]
     pub fn value(&self, voxel: Coord) -> f32 {
         let (t, l) = tile_of(voxel);
-        match self.find_tile(t) {
+        match self.locate(t) {
             Ok(p) => self.arena[self.ids[p] as usize].0[l],
-            Err(p) => self.spec.background(self.absent_tile_inside(t, p)),
+            Err(inside) => self.spec.background(inside),
         }
     }
 
     /// Whether tile coordinate `t` is inside, present or not: for a present tile, whether
     /// its first voxel is negative.
     pub fn tile_inside(&self, t: Coord) -> bool {
-        match self.find_tile(t) {
+        match self.locate(t) {
             Ok(p) => self.tile(p).0[0] < 0.0,
-            Err(p) => self.absent_tile_inside(t, p),
+            Err(inside) => inside,
         }
     }
 
@@ -323,7 +361,13 @@ impl TileGrid {
         let (i, is) = vec_bytes(&self.ids);
         let (b, bs) = vec_bytes(&self.border);
         let (a, as_) = vec_bytes(&self.activity);
-        MemoryReport { values: v, indices: c + i, flags: b + a, slack: vs + cs + is + bs + as_ }
+        let (d, ds) = self.dir.as_ref().map_or((0, 0), RowDirectory::bytes);
+        MemoryReport {
+            values: v,
+            indices: c + i + d,
+            flags: b + a,
+            slack: vs + cs + is + bs + as_ + ds,
+        }
     }
 
     /// Releases unused capacity.
@@ -453,6 +497,7 @@ impl TileGrid {
         self.arena = arena;
         self.border = new_border;
         self.activity = activity;
+        self.build_directory();
         self.debug_check();
         Ok(stats)
     }
@@ -502,6 +547,19 @@ impl TileGrid {
             .any(|&a| a & !(ACTIVE_MASK | INSIDE) != 0 || (a & INSIDE != 0 && a & ACTIVE_MASK != 0))
         {
             return Err("malformed activity flags".into());
+        }
+        if let Some(dir) = &self.dir {
+            for (p, &c) in self.coords.iter().enumerate() {
+                match dir.row(c) {
+                    Some((s, e))
+                        if s <= p
+                            && p < e
+                            && self.coords[s..e].iter().all(|r| r.z == c.z && r.y == c.y) => {}
+                    other => {
+                        return Err(format!("row directory gives {other:?} for tile {p} at {c:?}"))
+                    }
+                }
+            }
         }
         let g = self.gamma();
         if self.arena.iter().any(|tile| tile.0.iter().any(|v| !v.is_finite() || v.abs() > g)) {

@@ -14,6 +14,7 @@
 //! tile x is fastest: `local = lx + 4 ly + 16 lz`.
 
 mod block;
+mod directory;
 pub mod flags;
 mod grid;
 mod stream;

@@ -475,7 +475,8 @@ fn memory_reports_every_part() {
     let grid = build(&case.shape, case.spec, case.lo, case.hi);
     let m = grid.memory();
     assert_eq!(m.values, grid.len() * 256);
-    assert_eq!(m.indices, grid.len() * 16);
+    // The list (12-byte coordinate + 4-byte id per tile) plus the row directory.
+    assert!(m.indices >= grid.len() * 16 && m.indices < grid.len() * 16 + grid.len() * 8 + 4096);
     assert_eq!(m.flags, grid.len() * 8);
     assert_eq!(m.total(), m.values + m.indices + m.flags + m.slack);
 }
@@ -536,4 +537,36 @@ fn lower_bound_equals_partition_point() {
             }
         }
     }
+}
+
+#[test]
+fn row_directory_and_plain_search_agree() {
+    for case in cases(19, 4) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        // Appending drops the directory: the copy answers by the plain binary search.
+        let mut plain = grid.clone();
+        let far = Coord::new(0, 0, TILE_MAX);
+        plain.append(far, &Tile::splat(case.spec.gamma()), 0).unwrap();
+        let (blo, bhi) = grid.bounding_box().unwrap();
+        let m = Coord::new(5, 5, 5);
+        for_box(blo.wrapping_sub(m), bhi.wrapping_add(m), |v| {
+            assert_eq!(grid.value(v), plain.value(v), "{v:?}");
+            let t = tile_of(v).0;
+            assert_eq!(grid.tile_inside(t), plain.tile_inside(t), "{t:?}");
+        });
+        plain.build_directory();
+        plain.check_invariants().unwrap();
+        assert_eq!(plain.value(voxel_of(far, 5)), case.spec.gamma());
+    }
+    // A sparse layout (two tiles far apart) keeps no directory and still answers.
+    let spec = GridSpec::default();
+    let g = grid_from(
+        spec,
+        &[(Coord::new(0, 0, -1000), -1.0), (Coord::new(7, 900, 1000), 1.0)],
+        |_| false,
+    );
+    g.check_invariants().unwrap();
+    assert_eq!(g.value(Coord::new(1, 1, -3999)), -1.0);
+    assert_eq!(g.value(Coord::new(29, 3601, 4001)), 1.0);
+    assert_eq!(g.value(Coord::new(29, 3601, 0)), 3.0);
 }
