@@ -246,7 +246,7 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
 }
 
 /// `read_exact` with end-of-file reported as [`NpyError::Truncated`] (callers that know
-/// the sizes replace the placeholder numbers) and other failures as [`NpyError::Io`].
+/// the expected and found sizes fill them in) and other failures as [`NpyError::Io`].
 fn read_exact(r: &mut impl Read, buf: &mut [u8], path: &Path) -> Result<(), NpyError> {
     r.read_exact(buf).map_err(|source| {
         if source.kind() == io::ErrorKind::UnexpectedEof {
