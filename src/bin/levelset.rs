@@ -33,7 +33,7 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// Repetitions per operation; the best time is reported.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Only the pure-kernel section: voxel updates/s of the PDE kernels on a dense in-cache
     /// block for scalar f32 and every SIMD width.
@@ -258,7 +258,7 @@ fn main() -> ExitCode {
             }
         }),
         Some(Command::Bench(a)) => run_bench(&a),
-        None => run_bench(&BenchArgs { reps: 5, ..Default::default() }),
+        None => run_bench(&BenchArgs { reps: 9, ..Default::default() }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
