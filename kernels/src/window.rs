@@ -142,77 +142,57 @@ pub const BOX_FAR39_OFFSETS: [[i32; 3]; 39] = offsets(2, 3, 1);
 // ---------------------------------------------------------------------------------------
 // Point windows (DT-Grid): one voxel, lane type f32.
 
-/// The 3×3×3 box around one voxel, in [`box27_index`] order (centre at 13): first-order
-/// upwind differences and curvature (tile paper Sec. 4.7, eq. (4)). Lane type `f32`.
-#[derive(Clone, Copy, Debug)]
-pub struct BoxWindow<'a> {
-    v: &'a [f32; 27],
+/// A point window over one stencil array of `$n` values in the order of `$index`.
+macro_rules! point_window {
+    ($(#[$doc:meta])* $name:ident, $n:literal, axis $ar:literal, box $br:literal, $index:ident, $what:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug)]
+        pub struct $name<'a> {
+            v: &'a [f32; $n],
+        }
+
+        impl<'a> $name<'a> {
+            #[inline(always)]
+            pub fn new(values: &'a [f32; $n]) -> Self {
+                $name { v: values }
+            }
+
+            #[doc = concat!("From a slice of exactly ", stringify!($n), " values.")]
+            #[inline]
+            pub fn from_slice(values: &'a [f32]) -> Result<Self, KernelError> {
+                let v = values
+                    .try_into()
+                    .map_err(|_| KernelError::StencilLength { expected: $n, got: values.len() })?;
+                Ok($name { v })
+            }
+        }
+
+        impl Window<f32> for $name<'_> {
+            const AXIS_REACH: i32 = $ar;
+            const BOX_REACH: i32 = $br;
+            #[inline(always)]
+            fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
+                let i = const {
+                    assert!(serves($ar, $br, DX, DY, DZ), $what);
+                    $index(DX, DY, DZ)
+                };
+                self.v[i]
+            }
+        }
+    };
 }
 
-impl<'a> BoxWindow<'a> {
-    #[inline(always)]
-    pub fn new(values: &'a [f32; 27]) -> Self {
-        BoxWindow { v: values }
-    }
+point_window!(
+    /// The 3×3×3 box around one voxel, in [`box27_index`] order (centre at 13): first-order
+    /// upwind differences and curvature (tile paper Sec. 4.7, eq. (4)). Lane type `f32`.
+    BoxWindow, 27, axis 1, box 1, box27_index, "offset outside the 3x3x3 box"
+);
 
-    /// From a slice of exactly 27 values.
-    #[inline]
-    pub fn from_slice(values: &'a [f32]) -> Result<Self, KernelError> {
-        let v = values
-            .try_into()
-            .map_err(|_| KernelError::StencilLength { expected: 27, got: values.len() })?;
-        Ok(BoxWindow { v })
-    }
-}
-
-impl Window<f32> for BoxWindow<'_> {
-    const AXIS_REACH: i32 = 1;
-    const BOX_REACH: i32 = 1;
-    #[inline(always)]
-    fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
-        let i = const {
-            assert!(serves(1, 1, DX, DY, DZ), "offset outside the 3x3x3 box");
-            box27_index(DX, DY, DZ)
-        };
-        self.v[i]
-    }
-}
-
-/// The 19-point WENO5 star around one voxel, in [`star19_index`] order (centre at 0):
-/// HJ-WENO5 one-sided derivatives (DT-Grid paper Sec. 4.1). Lane type `f32`.
-#[derive(Clone, Copy, Debug)]
-pub struct StarWindow<'a> {
-    v: &'a [f32; 19],
-}
-
-impl<'a> StarWindow<'a> {
-    #[inline(always)]
-    pub fn new(values: &'a [f32; 19]) -> Self {
-        StarWindow { v: values }
-    }
-
-    /// From a slice of exactly 19 values.
-    #[inline]
-    pub fn from_slice(values: &'a [f32]) -> Result<Self, KernelError> {
-        let v = values
-            .try_into()
-            .map_err(|_| KernelError::StencilLength { expected: 19, got: values.len() })?;
-        Ok(StarWindow { v })
-    }
-}
-
-impl Window<f32> for StarWindow<'_> {
-    const AXIS_REACH: i32 = 3;
-    const BOX_REACH: i32 = 0;
-    #[inline(always)]
-    fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
-        let i = const {
-            assert!(serves(3, 0, DX, DY, DZ), "offset outside the 19-point WENO5 star");
-            star19_index(DX, DY, DZ)
-        };
-        self.v[i]
-    }
-}
+point_window!(
+    /// The 19-point WENO5 star around one voxel, in [`star19_index`] order (centre at 0):
+    /// HJ-WENO5 one-sided derivatives (DT-Grid paper Sec. 4.1). Lane type `f32`.
+    StarWindow, 19, axis 3, box 0, star19_index, "offset outside the 19-point WENO5 star"
+);
 
 /// The box and the star of one voxel together: what a kernel with HJ-WENO5 hyperbolic
 /// terms *and* a central curvature term reads (tile paper Sec. 5.2, eq. (5); DT-Grid paper
@@ -288,42 +268,12 @@ pub const fn box_far39_index(dx: i32, dy: i32, dz: i32) -> usize {
     27 + 4 * a + k
 }
 
-/// The 39-point stencil of one voxel in [`box_far39_index`] order: the 3×3×3 box plus the
-/// ±2, ±3 axis points, i.e. box and WENO5 star in one array (what [`BoxStarWindow`] reads
-/// from two). Lane type `f32`.
-#[derive(Clone, Copy, Debug)]
-pub struct BoxFarWindow<'a> {
-    v: &'a [f32; 39],
-}
-
-impl<'a> BoxFarWindow<'a> {
-    #[inline(always)]
-    pub fn new(values: &'a [f32; 39]) -> Self {
-        BoxFarWindow { v: values }
-    }
-
-    /// From a slice of exactly 39 values.
-    #[inline]
-    pub fn from_slice(values: &'a [f32]) -> Result<Self, KernelError> {
-        let v = values
-            .try_into()
-            .map_err(|_| KernelError::StencilLength { expected: 39, got: values.len() })?;
-        Ok(BoxFarWindow { v })
-    }
-}
-
-impl Window<f32> for BoxFarWindow<'_> {
-    const AXIS_REACH: i32 = 3;
-    const BOX_REACH: i32 = 1;
-    #[inline(always)]
-    fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
-        let i = const {
-            assert!(serves(3, 1, DX, DY, DZ), "offset outside box27 + far star");
-            box_far39_index(DX, DY, DZ)
-        };
-        self.v[i]
-    }
-}
+point_window!(
+    /// The 39-point stencil of one voxel in [`box_far39_index`] order: the 3×3×3 box plus
+    /// the ±2, ±3 axis points, i.e. box and WENO5 star in one array (what
+    /// [`BoxStarWindow`] reads from two). Lane type `f32`.
+    BoxFarWindow, 39, axis 3, box 1, box_far39_index, "offset outside box27 + far star"
+);
 
 // ---------------------------------------------------------------------------------------
 // Block windows: created only by `TileBlock` / `DenseBlock`, which check bounds once.

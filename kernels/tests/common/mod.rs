@@ -1,29 +1,6 @@
 //! Shared test helpers: the every-width macro, a deterministic RNG, comparisons, fills.
 #![allow(dead_code, unused_macros, unused_imports)]
 
-/// Runs `$body` once per lane type with `$L` bound to it, like wide's `for_simd_types!`.
-macro_rules! for_lanes {
-    (|$L:ident| $body:block) => {{
-        {
-            type $L = f32;
-            $body
-        }
-        {
-            type $L = ::levelset_kernels::wide::f32x4;
-            $body
-        }
-        {
-            type $L = ::levelset_kernels::wide::f32x8;
-            $body
-        }
-        {
-            type $L = ::levelset_kernels::wide::f32x16;
-            $body
-        }
-    }};
-}
-pub(crate) use for_lanes;
-
 /// Runs `$body` once per SIMD lane type (not `f32`).
 macro_rules! for_simd_lanes {
     (|$L:ident| $body:block) => {{
@@ -42,6 +19,18 @@ macro_rules! for_simd_lanes {
     }};
 }
 pub(crate) use for_simd_lanes;
+
+/// Runs `$body` once per lane type with `$L` bound to it, like wide's `for_simd_types!`.
+macro_rules! for_lanes {
+    (|$L:ident| $body:block) => {{
+        {
+            type $L = f32;
+            $body
+        }
+        $crate::common::for_simd_lanes!(|$L| $body);
+    }};
+}
+pub(crate) use for_lanes;
 
 /// SplitMix64: small, deterministic, good enough for test data.
 pub struct Rng(pub u64);
