@@ -11,6 +11,7 @@ use crate::build::{dtgrid_from_tiles, tiles_from_shape};
 use crate::coord::Coord;
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::grid::{GridError, GridSpec};
+use crate::info::human_bytes;
 use crate::shapes::Shape;
 use crate::tiles::{tile_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};
 use serde::Serialize;
@@ -381,14 +382,14 @@ impl StorageBench {
         for sc in &self.scenarios {
             let _ = writeln!(
                 s,
-                "\n{}: {} band voxels; DT-Grid {} points, {:.1} MiB; tiles {} ({} voxels), {:.1} MiB ({:.2}x)",
+                "\n{}: {} band voxels; DT-Grid {} points, {}; tiles {} ({} voxels), {} ({:.2}x)",
                 sc.name,
                 sc.band_voxels,
                 sc.dtgrid_points,
-                sc.dtgrid_bytes as f64 / 1048576.0,
+                human_bytes(sc.dtgrid_bytes),
                 sc.tiles,
                 sc.tiles * 64,
-                sc.tiles_bytes as f64 / 1048576.0,
+                human_bytes(sc.tiles_bytes),
                 sc.tiles_bytes as f64 / sc.dtgrid_bytes.max(1) as f64
             );
             let _ = writeln!(

@@ -184,7 +184,8 @@ pub fn info_from_dense(
     ))
 }
 
-fn human(bytes: usize) -> String {
+/// Bytes for people: B, KiB, MiB or GiB.
+pub(crate) fn human_bytes(bytes: usize) -> String {
     let b = bytes as f64;
     if b >= 1024.0 * 1024.0 * 1024.0 {
         format!("{:.2} GiB", b / (1024.0 * 1024.0 * 1024.0))
@@ -232,11 +233,11 @@ impl InfoReport {
                 g.band_voxels,
                 g.stored_voxels,
                 g.tiles,
-                human(g.bytes.values),
-                human(g.bytes.indices),
-                human(g.bytes.flags),
-                human(g.bytes.slack),
-                human(g.bytes.total),
+                human_bytes(g.bytes.values),
+                human_bytes(g.bytes.indices),
+                human_bytes(g.bytes.flags),
+                human_bytes(g.bytes.slack),
+                human_bytes(g.bytes.total),
                 g.bytes_per_band_voxel,
                 g.build_seconds
             );

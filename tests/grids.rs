@@ -207,3 +207,19 @@ fn export_npy_round_trips_through_the_dense_reader() {
     assert!(sparse_levelset::build::export_npy(&empty, &path, 0).is_err());
     assert!(!path.exists());
 }
+
+#[test]
+fn closures_build_the_same_tiles_as_shapes() {
+    let spec = GridSpec::new(0.5, [1.0, -2.0, 0.25], 3.0).unwrap();
+    let shape = Shape::Ellipsoid { center: [-3.0, 4.0, 1.0], radii: [9.0, 6.0, 4.5] };
+    let from_shape = tiles_from_shape(&shape, spec).unwrap();
+    let (lo, dims) = dense_box(&from_shape, 4).unwrap();
+    let hi =
+        Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);
+    let from_closure =
+        sparse_levelset::build::tiles_from_sdf(|p| shape.sdf(p), 1.0, lo, hi, spec).unwrap();
+    assert_eq!(from_closure.tile_coords(), from_shape.tile_coords());
+    assert_same(&from_shape, &from_closure, 3);
+    let nan = sparse_levelset::build::tiles_from_sdf(|_| f64::NAN, 1.0, lo, hi, spec);
+    assert!(matches!(nan, Err(GridError::NaN { .. })));
+}
