@@ -27,6 +27,7 @@ pub mod build;
 pub mod coord;
 pub mod dense;
 pub mod dtgrid;
+pub mod evolve;
 pub mod fsutil;
 pub mod grid;
 pub mod info;

@@ -317,3 +317,92 @@ impl<K: VoxelKernel, const STAGE: u8> VoxelKernel for Rk3<'_, K, STAGE> {
         clamp_band(next, L::splat(self.gamma))
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Composition and the band mask.
+
+/// The sum of two rates, 𝓛 = 𝓛ₐ + 𝓛ᵦ: how weighted terms combine into one flow (for
+/// example the normal-speed, curvature and rescaling terms of [`Eq3Rate`] plus the
+/// advection of [`AdvectionRate`], the combination ITK's level-set filters offer).
+#[derive(Clone, Copy, Debug)]
+pub struct Sum<A, B>(pub A, pub B);
+
+const fn max_i32(a: i32, b: i32) -> i32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+impl<A: VoxelKernel, B: VoxelKernel> VoxelKernel for Sum<A, B> {
+    const AXIS_REACH: i32 = max_i32(A::AXIS_REACH, B::AXIS_REACH);
+    const BOX_REACH: i32 = max_i32(A::BOX_REACH, B::BOX_REACH);
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.0.check(voxels)?;
+        self.1.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        self.0.eval(w, first) + self.1.eval(w, first)
+    }
+}
+
+/// min |φ| over the 3×3×3 box around each voxel: a voxel whose box holds a band voxel
+/// (|φ| < γ) has a box minimum below γ. The band mask of [`BandMasked`] is this value
+/// of φⁿ.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BoxMinAbs;
+
+impl VoxelKernel for BoxMinAbs {
+    const AXIS_REACH: i32 = 1;
+    const BOX_REACH: i32 = 1;
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
+        macro_rules! row {
+            ($dy:literal, $dz:literal) => {
+                w.at::<-1, $dy, $dz>().abs().min(w.at::<0, $dy, $dz>().abs()).min(w.at::<1, $dy, $dz>().abs())
+            };
+        }
+        let a = row!(-1, -1).min(row!(0, -1)).min(row!(1, -1));
+        let b = row!(-1, 0).min(row!(0, 0)).min(row!(1, 0));
+        let c = row!(-1, 1).min(row!(0, 1)).min(row!(1, 1));
+        a.min(b).min(c)
+    }
+}
+
+/// A time step restricted to the computational band of φⁿ: the step `K` where the 3×3×3
+/// box of φⁿ around the voxel holds a band voxel (`box_min[i] < γ`, see [`BoxMinAbs`]),
+/// the window's centre (φᵏ, which is ±γ there) elsewhere.
+///
+/// This is the one band rule every representation follows: a step computes exactly the
+/// voxels within one voxel (26-neighbourhood) of a band voxel of φⁿ, and every other
+/// voxel keeps ±γ. A grid that stores exactly that set (the DT-Grid after its rebuild)
+/// needs no mask; grids that store more (tiles, dense arrays) apply it.
+#[derive(Clone, Copy, Debug)]
+pub struct BandMasked<'a, K> {
+    pub step: K,
+    /// min |φⁿ| over each voxel's box, per voxel in the block's order.
+    pub box_min: &'a [f32],
+    pub gamma: f32,
+}
+
+impl<K: VoxelKernel> VoxelKernel for BandMasked<'_, K> {
+    const AXIS_REACH: i32 = K::AXIS_REACH;
+    const BOX_REACH: i32 = K::BOX_REACH;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.step.check(voxels)?;
+        self.box_min.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let computed = self.step.eval(w, first);
+        let m = self.box_min.lanes::<L>(first);
+        L::splat(self.gamma).select_gt(m, computed, w.centre())
+    }
+}

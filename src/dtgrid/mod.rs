@@ -309,6 +309,23 @@ impl DtGrid {
         &mut self.l3.value
     }
 
+    /// Swaps the values of all points with `values` (same length, same order as
+    /// [`DtGrid::values`]): the double buffer of a time step. The caller keeps values
+    /// finite and in `[-γ, γ]` as for [`DtGrid::values_mut`] (checked in debug builds); a
+    /// length mismatch is an error and leaves the grid as it was.
+    pub fn swap_values(&mut self, values: &mut Vec<f32>) -> Result<(), GridError> {
+        if values.len() != self.len() {
+            return Err(GridError::InvalidParameter(format!(
+                "{} values for a grid of {} points",
+                values.len(),
+                self.len()
+            )));
+        }
+        debug_assert!(values.iter().all(|v| v.abs() <= self.gamma), "value NaN or beyond γ");
+        std::mem::swap(&mut self.l3.value, values);
+        Ok(())
+    }
+
     /// Stored points with `|φ| < γ` (the band voxels of [`GridSpec`]).
     pub fn band_voxels(&self) -> usize {
         let g = self.gamma;

@@ -50,10 +50,11 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
+        let values = grid.values();
         let border = grid.border_flags(nb.pos);
         let gamma = grid.gamma();
         for d in 0..27usize {
-            let src = nb.get(d).map(|p| &grid.tile(p).0);
+            let src = nb.get(d).map(|p| &values[p].0);
             let fill = if border & (1 << d) != 0 { -gamma } else { gamma };
             // Dispatch on the x extent so every row copy has a compile-time length (a
             // run-time `copy_from_slice` of 1..4 floats costs a call per row).

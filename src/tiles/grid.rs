@@ -100,6 +100,43 @@ impl TileGrid {
         &mut self.arena[self.ids[pos] as usize]
     }
 
+    /// The values of every tile in list order: entry `pos` belongs to list position `pos`
+    /// (every operation keeps the arena in list order, so `ids` is the identity).
+    #[inline]
+    pub fn values(&self) -> &[Tile] {
+        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
+        &self.arena
+    }
+
+    /// Replaces the values of every tile at once (the double-buffered time step of
+    /// Sec. 4.7): `values` (one tile per list position, in list order) is swapped with the
+    /// arena, so afterwards it holds the previous values; `activity` holds the new activity
+    /// flags (as computed while the step wrote the tiles). Values are clamped to
+    /// `[-γ, γ]` and finite by the caller (the time-step kernels clamp; checked in debug
+    /// builds); a length mismatch is an error and leaves the grid as it was.
+    pub fn swap_values(
+        &mut self,
+        values: &mut Vec<Tile>,
+        activity: &[u32],
+    ) -> Result<(), GridError> {
+        let n = self.coords.len();
+        if values.len() != n || activity.len() != n {
+            return Err(GridError::InvalidParameter(format!(
+                "{} tiles and {} activity flags for a list of {n}",
+                values.len(),
+                activity.len()
+            )));
+        }
+        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
+        std::mem::swap(&mut self.arena, values);
+        for (a, &f) in self.activity.iter_mut().zip(activity) {
+            let f = f & (ACTIVE_MASK | INSIDE);
+            *a = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
+        }
+        self.debug_check();
+        Ok(())
+    }
+
     /// Border flags of the tile at list position `pos` (see [`super::flags`]).
     #[inline]
     pub fn border_flags(&self, pos: usize) -> u32 {

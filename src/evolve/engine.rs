@@ -1,0 +1,887 @@
+//! The three representations the evolution runs on — Sorted Tile List, DT-Grid, dense
+//! reference — behind one set of operations, and the dispatch that turns the run-time
+//! choices (scheme, stage, advection on/off) into one kernel type per sweep.
+//!
+//! Every representation stores its values as one flat array (tiles: list position × 64 +
+//! local index; DT-Grid: point order; dense: x-fastest box order). Per-voxel inputs (F,
+//! u, φⁿ, the band mask) are flat arrays in the same order, so a kernel reads them with
+//! the index of its voxel.
+
+use super::exact::ExactSum;
+use super::field::{ScalarFn, VectorFn};
+use super::{EvolveError, Lanes, SpatialScheme};
+use crate::coord::Coord;
+use crate::dense::DenseField;
+use crate::dtgrid::{DtGrid, Stencil, StencilIter};
+use crate::grid::GridSpec;
+use crate::tiles::{compute_activity, voxel_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};
+use levelset_kernels::speed::kappa_bar_integrands;
+use levelset_kernels::{
+    AdvectionRate, BandMasked, BoxFarWindow, BoxMinAbs, BoxWindow, DefaultLane, DenseBlock,
+    Eq3Rate, Lane, Rk3, Sum, TileBlock, Upwind1, VoxelKernel, Weno5, Window,
+    BOX27_OFFSETS, BOX_FAR39_OFFSETS,
+};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Tiles per parallel task. Results do not depend on it: every tile is computed on its
+/// own and reductions are exact (see [`ExactSum`]).
+const TILE_CHUNK: usize = 64;
+
+/// Inputs of one Runge–Kutta stage (or one Euler step, which is stage 1 alone).
+#[derive(Clone, Copy)]
+pub(crate) struct StageParams<'a> {
+    /// 1, 2 or 3 (TVD-RK3 stage; forward Euler is stage 1).
+    pub stage: u8,
+    pub dt: f32,
+    pub gamma: f32,
+    pub h: f32,
+    /// ε, the curvature weight.
+    pub eps: f32,
+    /// Weight of the rescaling term of eq. (3).
+    pub rescale: f32,
+    /// F per voxel (flat order).
+    pub speed: &'a [f32],
+    /// u per voxel (flat order), if the flow advects.
+    pub velocity: Option<[&'a [f32]; 3]>,
+    /// φⁿ per voxel (flat order), read in stages 2 and 3 (empty in stage 1); set by the
+    /// representation, which keeps φⁿ.
+    pub phi_n: &'a [f32],
+}
+
+impl<'a> StageParams<'a> {
+    /// φⁿ of the voxels `r` (empty in stage 1).
+    #[inline]
+    fn phi_n(&self, r: Range<usize>) -> &'a [f32] {
+        if self.phi_n.is_empty() {
+            &[]
+        } else {
+            &self.phi_n[r]
+        }
+    }
+}
+
+/// A sweep that runs kernels of any type over a representation: the visitor the dispatch
+/// hands the chosen kernel to. `make(range)` builds the kernel for the voxels `range` of
+/// the flat order (their per-voxel inputs sliced to start at the block's first voxel).
+/// `R` is the halo the kernel needs.
+pub(crate) trait Sweep {
+    /// Kernels that read the 3×3×3 box (first-order upwind, curvature).
+    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync;
+    /// Kernels that also read ±3 along the axes (HJ-WENO5).
+    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync;
+}
+
+macro_rules! stage_kernel {
+    ($p:expr, $S:ty, $stage:literal, adv) => {
+        move |r: Range<usize>| Rk3::<_, $stage> {
+            rate: Sum(
+                Eq3Rate::<$S, &[f32]>::new($p.h, &$p.speed[r.clone()], $p.eps, $p.rescale),
+                AdvectionRate::<$S, [&[f32]; 3]>::new(
+                    $p.h,
+                    $p.velocity.map(|v| [&v[0][r.clone()], &v[1][r.clone()], &v[2][r.clone()]]).unwrap(),
+                ),
+            ),
+            dt: $p.dt,
+            gamma: $p.gamma,
+            phi_n: $p.phi_n(r),
+        }
+    };
+    ($p:expr, $S:ty, $stage:literal, none) => {
+        move |r: Range<usize>| Rk3::<_, $stage> {
+            rate: Eq3Rate::<$S, &[f32]>::new($p.h, &$p.speed[r.clone()], $p.eps, $p.rescale),
+            dt: $p.dt,
+            gamma: $p.gamma,
+            phi_n: $p.phi_n(r),
+        }
+    };
+}
+
+/// Decides scheme, stage and advection once and runs the sweep with that kernel type
+/// (STYLE: decide once, outside the loop).
+pub(crate) fn dispatch<V: Sweep>(
+    p: &StageParams,
+    scheme: SpatialScheme,
+    sweep: V,
+) -> Result<(), EvolveError> {
+    macro_rules! go {
+        ($S:ty, $run:ident, $adv:ident) => {
+            match p.stage {
+                1 => sweep.$run(stage_kernel!(p, $S, 1, $adv)),
+                2 => sweep.$run(stage_kernel!(p, $S, 2, $adv)),
+                _ => sweep.$run(stage_kernel!(p, $S, 3, $adv)),
+            }
+        };
+    }
+    match (scheme, p.velocity.is_some()) {
+        (SpatialScheme::Upwind1, false) => go!(Upwind1, run1, none),
+        (SpatialScheme::Upwind1, true) => go!(Upwind1, run1, adv),
+        (SpatialScheme::Weno5, false) => go!(Weno5, run3, none),
+        (SpatialScheme::Weno5, true) => go!(Weno5, run3, adv),
+    }
+}
+
+/// The integrands of κ̄ (eq. (6)) with the smoothed delta of eq. (7): `NUM` selects
+/// κ δ(φ)|∇φ| (numerator) or δ(φ)|∇φ| (denominator, which summed times h³ is the
+/// interface area).
+#[derive(Clone, Copy)]
+pub(crate) struct KappaBarTerm<const NUM: bool> {
+    pub inv_h: f32,
+    pub width: f32,
+}
+
+impl<const NUM: bool> VoxelKernel for KappaBarTerm<NUM> {
+    const AXIS_REACH: i32 = 1;
+    const BOX_REACH: i32 = 1;
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
+        let (num, den) = kappa_bar_integrands(w, L::splat(self.inv_h), L::splat(self.width));
+        if NUM {
+            num
+        } else {
+            den
+        }
+    }
+}
+
+/// What every representation does for the evolution.
+pub(crate) trait Representation: Send + Sync {
+    fn spec(&self) -> GridSpec;
+    /// The current values in flat order.
+    fn flat(&self) -> &[f32];
+    /// Samples a scalar field at every stored voxel (flat order).
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]);
+    /// Samples a vector field at every stored voxel (flat order).
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
+    /// Runs one stage: the current values become the stage's result; in stages 2 and 3
+    /// the kernel reads φⁿ, kept from stage 1. `last` marks the step's final stage.
+    fn stage(&mut self, p: &StageParams, scheme: SpatialScheme, last: bool)
+        -> Result<(), EvolveError>;
+    /// (Σ κδ|∇φ|, Σ δ|∇φ|) over the current values (eq. (6) without the h³ that cancels).
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError>;
+    /// Band maintenance after a step: tile management, DT-Grid rebuild, dense bounds.
+    fn finish_step(&mut self) -> Result<(), EvolveError>;
+    /// Interior voxels the representation does not store (each counts fully inside).
+    fn unstored_inside(&self) -> u64;
+    /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32));
+    /// Value at any voxel (±γ where nothing is stored).
+    fn value(&self, c: Coord) -> f32;
+    /// Tiles (tiles), points (DT-Grid) or voxels (dense) stored.
+    fn units(&self) -> usize;
+    /// Bytes of the representation itself.
+    fn bytes(&self) -> usize;
+    /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask).
+    fn work_bytes(&self) -> usize;
+}
+
+fn vec_bytes<T>(v: &Vec<T>) -> usize {
+    v.capacity() * std::mem::size_of::<T>()
+}
+
+// ---------------------------------------------------------------------------------------
+// Sorted Tile List.
+
+/// The tile engine: the grid holds the current values; `out` is the double buffer the
+/// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.
+pub(crate) struct TilesRep {
+    pub grid: TileGrid,
+    pub lanes: Lanes,
+    phi_n: Vec<Tile>,
+    out: Vec<Tile>,
+    box_min: Vec<f32>,
+    activity: Vec<u32>,
+}
+
+impl TilesRep {
+    pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
+        TilesRep {
+            grid,
+            lanes,
+            phi_n: Vec::new(),
+            out: Vec::new(),
+            box_min: Vec::new(),
+            activity: Vec::new(),
+        }
+    }
+}
+
+struct TileSweep<'a> {
+    grid: &'a TileGrid,
+    lanes: Lanes,
+    out: &'a mut [Tile],
+    box_min: &'a mut [f32],
+    /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
+    compute_mask: bool,
+    activity: &'a mut [u32],
+}
+
+impl Sweep for TileSweep<'_> {
+    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run::<K, M, 1>(make)
+    }
+    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run::<K, M, 3>(make)
+    }
+}
+
+impl TileSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        match self.lanes {
+            Lanes::Scalar => self.run_lanes::<f32, K, M, R>(make),
+            Lanes::Simd => self.run_lanes::<DefaultLane, K, M, R>(make),
+        }
+    }
+
+    fn run_lanes<L: Lane, K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        let TileSweep { grid, out, box_min, compute_mask, activity, .. } = self;
+        let coords = grid.tile_coords();
+        let gamma = grid.gamma();
+        out.par_chunks_mut(TILE_CHUNK)
+            .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
+            .zip(activity.par_chunks_mut(TILE_CHUNK))
+            .enumerate()
+            .try_for_each(|(c, ((out, mask), act))| {
+                let start = c * TILE_CHUNK;
+                let mut block = PaddedBlock::<R>::new();
+                let mut cur = NeighbourCursor::new(coords, start, start + out.len());
+                while let Some(nb) = cur.next() {
+                    let i = nb.pos - start;
+                    block.gather(grid, &nb);
+                    let tb = TileBlock::<R>::new(block.data())?;
+                    let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
+                        .try_into()
+                        .expect("64 mask values per tile");
+                    if compute_mask {
+                        tb.apply::<L, _>(&BoxMinAbs, m)?;
+                    }
+                    let k = BandMasked {
+                        step: make(64 * nb.pos..64 * nb.pos + 64),
+                        box_min: &m[..],
+                        gamma,
+                    };
+                    tb.apply::<L, _>(&k, &mut out[i].0)?;
+                    act[i] = compute_activity(&out[i], gamma);
+                }
+                Ok::<(), EvolveError>(())
+            })
+    }
+}
+
+fn tile_flat(t: &[Tile]) -> &[f32] {
+    bytemuck::cast_slice(t)
+}
+
+impl Representation for TilesRep {
+    fn spec(&self) -> GridSpec {
+        *self.grid.spec()
+    }
+
+    fn flat(&self) -> &[f32] {
+        tile_flat(self.grid.values())
+    }
+
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+        let spec = self.spec();
+        let coords = self.grid.tile_coords();
+        out.par_chunks_mut(64).zip(coords.par_iter()).for_each(|(o, &tc)| {
+            for (row, o) in o.chunks_mut(4).enumerate() {
+                let start = voxel_of(tc, 4 * row);
+                f.fill_run(&spec, start, t, o);
+            }
+        });
+    }
+
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
+        let spec = self.spec();
+        let coords = self.grid.tile_coords();
+        let [u, v, w] = out;
+        u.par_chunks_mut(64)
+            .zip(v.par_chunks_mut(64))
+            .zip(w.par_chunks_mut(64))
+            .zip(coords.par_iter())
+            .for_each(|(((u, v), w), &tc)| {
+                for row in 0..16 {
+                    let start = voxel_of(tc, 4 * row);
+                    let r = 4 * row..4 * row + 4;
+                    f.fill_run(&spec, start, t, [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]]);
+                }
+            });
+    }
+
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError> {
+        let n = self.grid.len();
+        self.out.resize(n, Tile::splat(0.0));
+        self.box_min.resize(64 * n, 0.0);
+        self.activity.resize(n, 0);
+        let p = StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.phi_n) }, ..*p };
+        let sweep = TileSweep {
+            grid: &self.grid,
+            lanes: self.lanes,
+            out: &mut self.out,
+            box_min: &mut self.box_min,
+            compute_mask: p.stage == 1,
+            activity: &mut self.activity,
+        };
+        dispatch(&p, scheme, sweep)?;
+        self.grid.swap_values(&mut self.out, &self.activity)?;
+        if p.stage == 1 && !last {
+            // `out` now holds φⁿ: keep it for stages 2 and 3.
+            std::mem::swap(&mut self.phi_n, &mut self.out);
+        }
+        Ok(())
+    }
+
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
+        let inv_h = 1.0 / self.grid.spec().voxel_size;
+        let coords = self.grid.tile_coords();
+        let n = self.grid.len();
+        let lanes = self.lanes;
+        let grid = &self.grid;
+        let chunks: Vec<usize> = (0..n.div_ceil(TILE_CHUNK)).collect();
+        let sums = chunks
+            .par_iter()
+            .map(|&c| {
+                let start = c * TILE_CHUNK;
+                let end = (start + TILE_CHUNK).min(n);
+                let mut block = PaddedBlock::<1>::new();
+                let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+                let mut cur = NeighbourCursor::new(coords, start, end);
+                let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
+                while let Some(nb) = cur.next() {
+                    block.gather(grid, &nb);
+                    let tb = TileBlock::<1>::new(block.data())?;
+                    match lanes {
+                        Lanes::Scalar => {
+                            tb.apply::<f32, _>(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
+                            tb.apply::<f32, _>(&KappaBarTerm::<false> { inv_h, width }, &mut b)?;
+                        }
+                        Lanes::Simd => {
+                            tb.apply::<DefaultLane, _>(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
+                            tb.apply::<DefaultLane, _>(
+                                &KappaBarTerm::<false> { inv_h, width },
+                                &mut b,
+                            )?;
+                        }
+                    }
+                    num.add_all(&a);
+                    den.add_all(&b);
+                }
+                Ok::<_, EvolveError>((num, den))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(sums.into_iter().fold((ExactSum::default(), ExactSum::default()), |(a, b), (c, d)| {
+            (a.merge(c), b.merge(d))
+        }))
+    }
+
+    fn finish_step(&mut self) -> Result<(), EvolveError> {
+        self.grid.manage_tiles()?;
+        Ok(())
+    }
+
+    fn unstored_inside(&self) -> u64 {
+        const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
+        let coords = self.grid.tile_coords();
+        let mut n = 0u64;
+        for p in 1..coords.len() {
+            let (a, b) = (coords[p - 1], coords[p]);
+            if a.z == b.z && a.y == b.y && b.x > a.x + 1 && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0 {
+                n += 64 * (b.x - a.x - 1) as u64;
+            }
+        }
+        n
+    }
+
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        let g = self.grid.gamma();
+        self.grid.for_each_voxel_sorted(|c, v| {
+            if v.abs() < g {
+                f(c, v)
+            }
+        });
+    }
+
+    fn value(&self, c: Coord) -> f32 {
+        self.grid.value(c)
+    }
+
+    fn units(&self) -> usize {
+        self.grid.len()
+    }
+
+    fn bytes(&self) -> usize {
+        self.grid.memory().total()
+    }
+
+    fn work_bytes(&self) -> usize {
+        vec_bytes(&self.phi_n) + vec_bytes(&self.out) + vec_bytes(&self.box_min) + vec_bytes(&self.activity)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// DT-Grid.
+
+/// The DT-Grid engine: the stencil iterator (DT-Grid paper Sec. 3.3) feeds the kernels
+/// point by point, scalar and on one thread; after each step the grid is rebuilt
+/// (Sec. 3.6.2) to the voxels within one voxel of the band, so it needs no band mask.
+pub(crate) struct DtRep {
+    pub grid: DtGrid,
+    phi_n: Vec<f32>,
+    out: Vec<f32>,
+    kept: DtGrid,
+    next: DtGrid,
+    box27: Stencil,
+    box_far39: Stencil,
+}
+
+fn stencil_of(offsets: &[[i32; 3]]) -> Stencil {
+    Stencil::new(offsets.iter().map(|o| Coord::new(o[0], o[1], o[2])).collect())
+        .expect("non-empty stencil")
+}
+
+impl DtRep {
+    pub fn new(grid: DtGrid) -> Self {
+        let spec = grid.spec();
+        DtRep {
+            grid,
+            phi_n: Vec::new(),
+            out: Vec::new(),
+            kept: DtGrid::new(spec),
+            next: DtGrid::new(spec),
+            box27: stencil_of(&BOX27_OFFSETS),
+            box_far39: stencil_of(&BOX_FAR39_OFFSETS),
+        }
+    }
+
+    /// Calls `f(point index, stencil values)` for every point with the box stencil
+    /// (`R = 1`) or the box + far-star stencil (`R = 3`).
+    #[inline(always)]
+    fn for_each_stencil<const R: usize>(&self, mut f: impl FnMut(usize, &[f32])) {
+        let st = if R == 1 { &self.box27 } else { &self.box_far39 };
+        let mut it = StencilIter::new(&self.grid, st);
+        while it.advance() {
+            f(it.center_index(), it.values());
+        }
+    }
+}
+
+struct DtSweep<'a> {
+    rep: &'a DtRep,
+    out: &'a mut Vec<f32>,
+}
+
+impl DtSweep<'_> {
+    /// Evaluates the kernel at every point: `eval(kernel, stencil values, point index)`
+    /// sees the stencil iterator's values through a point window.
+    #[inline(always)]
+    fn run_with<K, M, const R: usize>(
+        self,
+        make: M,
+        eval: impl Fn(&K, &[f32], usize) -> f32,
+    ) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        let n = self.rep.grid.len();
+        let k = make(0..n);
+        k.check(n)?;
+        self.out.clear();
+        self.out.resize(n, 0.0);
+        let out = &mut self.out[..];
+        self.rep.for_each_stencil::<R>(|i, v| out[i] = eval(&k, v, i));
+        Ok(())
+    }
+}
+
+impl Sweep for DtSweep<'_> {
+    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run_with::<K, M, 1>(make, |k, v, i| {
+            k.eval::<f32, _>(&BoxWindow::new(v.try_into().expect("27 values")), i)
+        })
+    }
+    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run_with::<K, M, 3>(make, |k, v, i| {
+            k.eval::<f32, _>(&BoxFarWindow::new(v.try_into().expect("39 values")), i)
+        })
+    }
+}
+
+impl Representation for DtRep {
+    fn spec(&self) -> GridSpec {
+        self.grid.spec()
+    }
+
+    fn flat(&self) -> &[f32] {
+        self.grid.values()
+    }
+
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+        let spec = self.spec();
+        for_each_run(&self.grid, |i, start, len| f.fill_run(&spec, start, t, &mut out[i..i + len]));
+    }
+
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
+        let spec = self.spec();
+        let [u, v, w] = out;
+        for_each_run(&self.grid, |i, start, len| {
+            let r = i..i + len;
+            f.fill_run(&spec, start, t, [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]]);
+        });
+    }
+
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError> {
+        let mut out = std::mem::take(&mut self.out);
+        let phi_n = std::mem::take(&mut self.phi_n);
+        let stage = p.stage;
+        let p = StageParams { phi_n: if stage == 1 { &[] } else { &phi_n }, ..*p };
+        let r = dispatch(&p, scheme, DtSweep { rep: self, out: &mut out });
+        self.phi_n = phi_n;
+        r?;
+        self.grid.swap_values(&mut out)?;
+        if stage == 1 && !last {
+            std::mem::swap(&mut self.phi_n, &mut out);
+        }
+        self.out = out;
+        Ok(())
+    }
+
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
+        let inv_h = 1.0 / self.grid.spec().voxel_size;
+        let (kn, kd) = (KappaBarTerm::<true> { inv_h, width }, KappaBarTerm::<false> { inv_h, width });
+        let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+        self.for_each_stencil::<1>(|i, v| {
+            let w = BoxWindow::new(v.try_into().expect("27 values"));
+            num.add(kn.eval::<f32, _>(&w, i));
+            den.add(kd.eval::<f32, _>(&w, i));
+        });
+        Ok((num, den))
+    }
+
+    fn finish_step(&mut self) -> Result<(), EvolveError> {
+        // Sec. 3.6.2: keep the band (|φ| < γ), dilate it by one voxel; new points read ±γ.
+        self.grid.rebuild_into(self.grid.gamma(), 1, &mut self.kept, &mut self.next)?;
+        std::mem::swap(&mut self.grid, &mut self.next);
+        Ok(())
+    }
+
+    fn unstored_inside(&self) -> u64 {
+        let mut n = 0u64;
+        let mut prev: Option<(Coord, f32)> = None;
+        for (c, v) in self.grid.iter() {
+            if let Some((p, pv)) = prev {
+                if p.z == c.z && p.y == c.y && c.x > p.x + 1 && pv < 0.0 {
+                    n += (c.x - p.x - 1) as u64;
+                }
+            }
+            prev = Some((c, v));
+        }
+        n
+    }
+
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        let g = self.grid.gamma();
+        for (c, v) in self.grid.iter() {
+            if v.abs() < g {
+                f(c, v);
+            }
+        }
+    }
+
+    fn value(&self, c: Coord) -> f32 {
+        self.grid.value(c)
+    }
+
+    fn units(&self) -> usize {
+        self.grid.len()
+    }
+
+    fn bytes(&self) -> usize {
+        self.grid.memory().total()
+    }
+
+    fn work_bytes(&self) -> usize {
+        vec_bytes(&self.phi_n)
+            + vec_bytes(&self.out)
+            + self.kept.memory().total()
+            + self.next.memory().total()
+    }
+}
+
+/// Calls `f(first point index, first voxel, length)` for every x-run of consecutive
+/// points of a DT-Grid (its connected components, Sec. 2.1).
+fn for_each_run(g: &DtGrid, mut f: impl FnMut(usize, Coord, usize)) {
+    let mut run: Option<(usize, Coord, usize)> = None;
+    for (i, (c, _)) in g.iter().enumerate() {
+        match &mut run {
+            Some((_, s, len)) if s.z == c.z && s.y == c.y && s.x as i64 + *len as i64 == c.x as i64 => {
+                *len += 1
+            }
+            _ => {
+                if let Some((i0, s, len)) = run {
+                    f(i0, s, len);
+                }
+                run = Some((i, c, 1));
+            }
+        }
+    }
+    if let Some((i0, s, len)) = run {
+        f(i0, s, len);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Dense reference.
+
+/// The dense reference: every voxel of a box, the same kernels over a padded copy, the
+/// band mask of [`BandMasked`]. For tests on small grids. The box must keep a margin of
+/// four voxels around the band ([`EvolveError::DenseBoxTooSmall`] otherwise).
+pub(crate) struct DenseRep {
+    pub field: DenseField,
+    pub spec: GridSpec,
+    phi_n: Vec<f32>,
+    out: Vec<f32>,
+    box_min: Vec<f32>,
+    padded: Vec<f32>,
+}
+
+/// Band voxels must stay this far from the dense box's faces.
+const DENSE_MARGIN: usize = 4;
+
+impl DenseRep {
+    pub fn new(field: DenseField, spec: GridSpec) -> Result<Self, EvolveError> {
+        let rep = DenseRep {
+            field,
+            spec,
+            phi_n: Vec::new(),
+            out: Vec::new(),
+            box_min: Vec::new(),
+            padded: Vec::new(),
+        };
+        rep.check_margin()?;
+        Ok(rep)
+    }
+
+    fn check_margin(&self) -> Result<(), EvolveError> {
+        let g = self.spec.gamma();
+        let [nx, ny, nz] = self.field.dims();
+        let o = self.field.origin();
+        let near = |v: usize, n: usize| v < DENSE_MARGIN || v + DENSE_MARGIN >= n;
+        for (i, &v) in self.field.data().iter().enumerate() {
+            if v.abs() < g {
+                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+                if near(x, nx) || near(y, ny) || near(z, nz) {
+                    return Err(EvolveError::DenseBoxTooSmall {
+                        voxel: Coord::new(o.x + x as i32, o.y + y as i32, o.z + z as i32),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+}
+
+/// Copies `field` into `padded` with an `R`-voxel halo that repeats the faces (the far
+/// field beyond the box keeps the sign and value of the box's face).
+fn pad_into<const R: usize>(field: &DenseField, padded: &mut Vec<f32>) {
+    let [nx, ny, nz] = field.dims();
+    let len = DenseBlock::<R>::padded_len([nx, ny, nz]).expect("the dense field fits in memory");
+    padded.resize(len, 0.0);
+    let d = field.data();
+    let r = R as isize;
+    let clamp = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
+    for z in -r..nz as isize + r {
+        for y in -r..ny as isize + r {
+            for x in -r..nx as isize + r {
+                let src = clamp(x, nx) + nx * (clamp(y, ny) + ny * clamp(z, nz));
+                padded[DenseBlock::<R>::index([nx, ny, nz], x, y, z)] = d[src];
+            }
+        }
+    }
+}
+
+struct DenseSweep<'a> {
+    rep: &'a mut DenseRep,
+    compute_mask: bool,
+}
+
+impl Sweep for DenseSweep<'_> {
+    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run::<K, M, 1>(make)
+    }
+    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        self.run::<K, M, 3>(make)
+    }
+}
+
+impl DenseSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        let rep = self.rep;
+        let dims = rep.field.dims();
+        let n = rep.field.data().len();
+        if self.compute_mask {
+            pad_into::<1>(&rep.field, &mut rep.padded);
+            rep.box_min.resize(n, 0.0);
+            DenseBlock::<1>::new(&rep.padded, dims)?.apply::<f32, _>(&BoxMinAbs, &mut rep.box_min)?;
+        }
+        pad_into::<R>(&rep.field, &mut rep.padded);
+        let k = BandMasked { step: make(0..n), box_min: &rep.box_min, gamma: rep.spec.gamma() };
+        rep.out.resize(n, 0.0);
+        DenseBlock::<R>::new(&rep.padded, dims)?.apply::<f32, _>(&k, &mut rep.out)?;
+        Ok(())
+    }
+}
+
+impl Representation for DenseRep {
+    fn spec(&self) -> GridSpec {
+        self.spec
+    }
+
+    fn flat(&self) -> &[f32] {
+        self.field.data()
+    }
+
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+        let nx = self.field.dims()[0];
+        let o = self.field.origin();
+        for (row, chunk) in out.chunks_mut(nx).enumerate() {
+            let c = self.field.coord_of(row * nx).expect("row inside the box");
+            debug_assert_eq!(c.x, o.x);
+            f.fill_run(&self.spec, c, t, chunk);
+        }
+    }
+
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
+        let nx = self.field.dims()[0];
+        let [u, v, w] = out;
+        for (row, ((u, v), w)) in
+            u.chunks_mut(nx).zip(v.chunks_mut(nx)).zip(w.chunks_mut(nx)).enumerate()
+        {
+            let c = self.field.coord_of(row * nx).expect("row inside the box");
+            f.fill_run(&self.spec, c, t, [u, v, w]);
+        }
+    }
+
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError> {
+        let phi_n = std::mem::take(&mut self.phi_n);
+        let stage = p.stage;
+        let p = StageParams { phi_n: if stage == 1 { &[] } else { &phi_n }, ..*p };
+        let r = dispatch(&p, scheme, DenseSweep { rep: self, compute_mask: stage == 1 });
+        self.phi_n = phi_n;
+        r?;
+        let data = self.field.data_mut();
+        if stage == 1 && !last {
+            self.phi_n.clear();
+            self.phi_n.extend_from_slice(data);
+        }
+        data.copy_from_slice(&self.out);
+        Ok(())
+    }
+
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
+        let inv_h = 1.0 / self.spec.voxel_size;
+        let mut padded = Vec::new();
+        pad_into::<1>(&self.field, &mut padded);
+        let block = DenseBlock::<1>::new(&padded, self.field.dims())?;
+        let mut a = vec![0.0; self.field.data().len()];
+        let mut b = a.clone();
+        block.apply::<f32, _>(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
+        block.apply::<f32, _>(&KappaBarTerm::<false> { inv_h, width }, &mut b)?;
+        let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+        num.add_all(&a);
+        den.add_all(&b);
+        Ok((num, den))
+    }
+
+    fn finish_step(&mut self) -> Result<(), EvolveError> {
+        self.check_margin()
+    }
+
+    fn unstored_inside(&self) -> u64 {
+        0
+    }
+
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        let g = self.spec.gamma();
+        self.field.for_each(|c, v| {
+            if v.abs() < g {
+                f(c, v)
+            }
+        });
+    }
+
+    fn value(&self, c: Coord) -> f32 {
+        self.field.get(c).unwrap_or(self.spec.gamma())
+    }
+
+    fn units(&self) -> usize {
+        self.field.data().len()
+    }
+
+    fn bytes(&self) -> usize {
+        self.field.data().len() * 4
+    }
+
+    fn work_bytes(&self) -> usize {
+        vec_bytes(&self.phi_n) + vec_bytes(&self.out) + vec_bytes(&self.box_min) + vec_bytes(&self.padded)
+    }
+}

@@ -1,0 +1,820 @@
+//! Evolution of a level set under a PDE, with one API over the Sorted Tile List (scalar
+//! or SIMD lanes), the DT-Grid and a dense reference.
+//!
+//! The PDE is eq. (3) of the tile paper with an advection term added,
+//!
+//! ```text
+//! φ_t = −F(x, t)|∇φ| + ε κ |∇φ| + w sgn(φ)(1 − |∇φ|) − u(x, t)·∇φ
+//! ```
+//!
+//! discretised as in its Sec. 4.7 (first-order upwind, [`SpatialScheme::Upwind1`]) or with
+//! HJ-WENO5 for the hyperbolic terms (Sec. 5.2, [`SpatialScheme::Weno5`]), the curvature
+//! term always with central differences (eq. (4)), integrated with forward Euler or
+//! TVD-RK3 ([`Integrator`]). A [`Flow`] chooses the terms:
+//!
+//! * mean curvature flow: ε > 0 ([`Flow::mean_curvature`]; tile paper Sec. 5.1);
+//! * volume-conserving mean curvature flow, eq. (5): F = ε κ̄ with κ̄ from eq. (6)–(7),
+//!   recomputed from the current φ in every stage ([`Flow::volume_conserving`]; Sec. 5.2);
+//! * normal speed F(x, t), constant or a field ([`Speed`]);
+//! * advection by u(x, t) ([`Velocity`]; Enright's test, Sec. 5.4);
+//! * morphing toward a target ([`Speed::MorphTo`], H-RLE paper eq. (1));
+//! * the rescaling term of eq. (3) with weight w (Sec. 3.2).
+//!
+//! # The band rule (the same for every representation)
+//! Values live in `[−γ, γ]`; a voxel with |φ| < γ is a band voxel; a voxel nobody stores
+//! reads −γ inside and +γ outside. A step computes exactly the voxels whose 3×3×3 box
+//! holds a band voxel of φⁿ (the band dilated by one voxel), in every stage; every other
+//! voxel keeps ±γ. The DT-Grid stores exactly that set (rebuilt after every step, DT-Grid
+//! paper Sec. 3.6.2: keep |φ| < γ, dilate by one, new points at ±γ); tiles (tile
+//! management of Alg. 2–3 from the guard-band activity flags of Fig. 5 keeps every voxel
+//! within one voxel of the band in a tile) and the dense reference store more and mask
+//! with [`levelset_kernels::BandMasked`]. Reductions (κ̄, volume, area) are exact sums
+//! ([`exact`]) and the time step comes from maxima over the band voxels. So all three
+//! representations, every lane type and every thread count compute the same numbers,
+//! bit for bit; the tests check it.
+//!
+//! ```
+//! use sparse_levelset::{build, evolve::{Flow, Settings, Simulation, GridKind, Lanes}, grid::GridSpec, shapes::Shape};
+//!
+//! let spec = GridSpec::default();
+//! let shape = Shape::Sphere { center: [0.0; 3], radius: 12.0 };
+//! let flow = Flow::mean_curvature(1.0);
+//! let mut tiles = Simulation::from_shape(GridKind::Tiles(Lanes::Simd), &shape, spec, flow.clone(), Settings::default())?;
+//! let mut dt = Simulation::from_shape(GridKind::DtGrid, &shape, spec, flow, Settings::default())?;
+//! for _ in 0..20 {
+//!     tiles.step()?;
+//!     dt.step()?;
+//! }
+//! assert_eq!(tiles.checksum(), dt.checksum()); // the same band, bit for bit
+//! let r = (3.0 * tiles.measure().volume / (4.0 * std::f64::consts::PI)).cbrt();
+//! let exact = (12.0f64 * 12.0 - 2.0 * tiles.time()).sqrt(); // r² = r₀² − 2εt
+//! assert!((r - exact).abs() < 0.1);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod engine;
+pub mod exact;
+pub mod field;
+
+pub use field::{
+    EnrightVelocity, ScalarClosure, ScalarFn, Speed, StaticSdf, VectorClosure, VectorFn, Velocity,
+};
+
+use crate::coord::Coord;
+use crate::dense::DenseField;
+use crate::dtgrid::DtGrid;
+use crate::grid::{GridError, GridSpec};
+use crate::shapes::Shape;
+use crate::tiles::TileGrid;
+use engine::{DenseRep, DtRep, Representation, StageParams, TilesRep};
+use exact::ExactSum;
+use levelset_kernels::KernelError;
+use serde::Serialize;
+use std::sync::Arc;
+
+/// Spatial discretisation of the hyperbolic terms (normal speed, rescaling, advection).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SpatialScheme {
+    /// First-order one-sided differences (tile paper Sec. 4.7).
+    Upwind1,
+    /// Fifth-order HJ-WENO (tile paper Sec. 5.2, DT-Grid paper Sec. 4.1).
+    Weno5,
+}
+
+/// Time integration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Forward Euler (tile paper Sec. 4.7).
+    Euler,
+    /// Third-order TVD Runge–Kutta of Shu & Osher (tile paper Sec. 5.2).
+    Rk3,
+}
+
+/// Lane type of the tile engine's kernels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Lanes {
+    /// One voxel at a time (`f32`): the same code path as the DT-Grid's arithmetic.
+    Scalar,
+    /// The widest vector the build supports ([`levelset_kernels::DefaultLane`]).
+    Simd,
+}
+
+/// Which representation a simulation runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridKind {
+    Tiles(Lanes),
+    DtGrid,
+    /// A dense box: the reference for tests on small grids.
+    Dense,
+}
+
+impl GridKind {
+    /// `"tiles"`, `"dtgrid"` or `"dense"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            GridKind::Tiles(_) => "tiles",
+            GridKind::DtGrid => "dtgrid",
+            GridKind::Dense => "dense",
+        }
+    }
+}
+
+/// The terms of the PDE (see the [module docs](self)).
+#[derive(Clone, Debug)]
+pub struct Flow {
+    /// F of eq. (3): φ_t = −F|∇φ| (F > 0 moves the interface outward).
+    pub speed: Speed,
+    /// ε ≥ 0, the weight of the curvature term εκ|∇φ| (κ = ½∇·(∇φ/|∇φ|), 1/r on a sphere).
+    pub curvature: f32,
+    /// Adds F = ε κ̄ (eq. (5)–(7)): the curvature flow conserves the enclosed volume.
+    pub volume_conserving: bool,
+    /// u of the advection term −u·∇φ.
+    pub velocity: Option<Velocity>,
+    /// w ≥ 0, the weight of the rescaling term sgn(φ)(1 − |∇φ|) of eq. (3) (Sec. 3.2);
+    /// 1 keeps φ close to a signed distance, 0 drops the term.
+    pub rescale: f32,
+}
+
+impl Flow {
+    /// Nothing moves: F = 0, ε = 0, no advection, rescaling on (w = 1).
+    pub fn rest() -> Flow {
+        Flow {
+            speed: Speed::Constant(0.0),
+            curvature: 0.0,
+            volume_conserving: false,
+            velocity: None,
+            rescale: 1.0,
+        }
+    }
+
+    /// Motion by mean curvature with weight ε (eq. (3) with F = 0; tile paper Sec. 5.1).
+    pub fn mean_curvature(eps: f32) -> Flow {
+        Flow { curvature: eps, ..Flow::rest() }
+    }
+
+    /// Volume-conserving mean curvature flow φ_t = ε(κ − κ̄)|∇φ| (eq. (5)).
+    pub fn volume_conserving(eps: f32) -> Flow {
+        Flow { curvature: eps, volume_conserving: true, ..Flow::rest() }
+    }
+
+    /// Motion in the normal direction with speed F.
+    pub fn normal_speed(speed: Speed) -> Flow {
+        Flow { speed, ..Flow::rest() }
+    }
+
+    /// Advection by a velocity field.
+    pub fn advection(velocity: Velocity) -> Flow {
+        Flow { velocity: Some(velocity), ..Flow::rest() }
+    }
+
+    /// Morphing toward the level set `target` (H-RLE paper eq. (1)).
+    pub fn morph(target: Arc<dyn ScalarFn>) -> Flow {
+        Flow::normal_speed(Speed::MorphTo(target))
+    }
+
+    /// The same flow with curvature weight ε.
+    pub fn with_curvature(mut self, eps: f32) -> Flow {
+        self.curvature = eps;
+        self
+    }
+
+    /// The same flow with rescaling weight w.
+    pub fn with_rescale(mut self, w: f32) -> Flow {
+        self.rescale = w;
+        self
+    }
+
+    /// The same flow with normal speed F.
+    pub fn with_speed(mut self, speed: Speed) -> Flow {
+        self.speed = speed;
+        self
+    }
+
+    /// The same flow with an advection velocity.
+    pub fn with_velocity(mut self, velocity: Velocity) -> Flow {
+        self.velocity = Some(velocity);
+        self
+    }
+
+    fn validate(&self) -> Result<(), EvolveError> {
+        let bad = |what: &str, v: f32| {
+            Err(EvolveError::InvalidParameter(format!("{what} must be finite and >= 0, got {v}")))
+        };
+        if !(self.curvature.is_finite() && self.curvature >= 0.0) {
+            return bad("curvature weight ε", self.curvature);
+        }
+        if !(self.rescale.is_finite() && self.rescale >= 0.0) {
+            return bad("rescaling weight", self.rescale);
+        }
+        if let Speed::Constant(f) = self.speed {
+            if !f.is_finite() {
+                return Err(EvolveError::InvalidParameter(format!("speed F must be finite, got {f}")));
+            }
+        }
+        if let Some(Velocity::Constant(u)) = self.velocity {
+            if u.iter().any(|c| !c.is_finite()) {
+                return Err(EvolveError::InvalidParameter(format!("velocity must be finite, got {u:?}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How the time step is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TimeStep {
+    /// The largest stable step times this CFL number (in (0, 1]) in every step.
+    Cfl(f32),
+    /// This Δt in every step; a step where it exceeds the stability limit (CFL number 1)
+    /// is rejected with [`EvolveError::CflViolated`] before anything changes.
+    Fixed(f32),
+}
+
+/// Numerical settings of a simulation.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub scheme: SpatialScheme,
+    pub integrator: Integrator,
+    pub time_step: TimeStep,
+    /// Width of the smoothed delta function of eq. (7), in voxels (κ̄ and area).
+    pub delta_width: f32,
+    /// The thread pool for the tile engine (the global rayon pool when `None`). The
+    /// DT-Grid and dense references run on the calling thread.
+    pub pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+impl Default for Settings {
+    /// First-order upwind, forward Euler, CFL 0.5, δ width 1.5 voxels.
+    fn default() -> Self {
+        Settings {
+            scheme: SpatialScheme::Upwind1,
+            integrator: Integrator::Euler,
+            time_step: TimeStep::Cfl(0.5),
+            delta_width: 1.5,
+            pool: None,
+        }
+    }
+}
+
+impl Settings {
+    /// HJ-WENO5 with TVD-RK3 (the tile paper's Sec. 5.2 scheme), CFL 0.5.
+    pub fn weno5_rk3() -> Settings {
+        Settings { scheme: SpatialScheme::Weno5, integrator: Integrator::Rk3, ..Settings::default() }
+    }
+
+    fn validate(&self) -> Result<(), EvolveError> {
+        match self.time_step {
+            TimeStep::Cfl(c) if !(c > 0.0 && c <= 1.0) => Err(EvolveError::InvalidParameter(
+                format!("CFL number must be in (0, 1], got {c}"),
+            )),
+            TimeStep::Fixed(dt) if !(dt.is_finite() && dt > 0.0) => Err(
+                EvolveError::InvalidParameter(format!("time step must be finite and > 0, got {dt}")),
+            ),
+            _ if !(self.delta_width.is_finite() && self.delta_width > 0.0) => {
+                Err(EvolveError::InvalidParameter(format!(
+                    "delta width must be finite and > 0, got {}",
+                    self.delta_width
+                )))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Why a simulation could not start or step.
+#[derive(Debug, thiserror::Error)]
+pub enum EvolveError {
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error("kernel: {0}")]
+    Kernel(#[from] KernelError),
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    /// The initial level set has no band voxel: there is no interface to move.
+    #[error("the level set is empty: no voxel has |φ| < γ, so there is no interface to evolve")]
+    EmptyLevelSet,
+    /// The interior vanished (for example a shape collapsed under curvature flow).
+    #[error("the interface collapsed at step {step}, t = {time}: no voxel is inside any more")]
+    Collapsed { step: u64, time: f64 },
+    #[error(
+        "time step {dt} exceeds the stability limit {limit} (CFL number 1) at step {step}; \
+         use a smaller step or the CFL-limited step"
+    )]
+    CflViolated { dt: f32, limit: f32, step: u64 },
+    #[error("a speed or velocity sample is not finite at step {step}")]
+    NonFiniteField { step: u64 },
+    #[error(
+        "the band reached voxel {voxel}, within 4 voxels of the dense reference box's face; \
+         use a larger box"
+    )]
+    DenseBoxTooSmall { voxel: Coord },
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct StepReport {
+    pub step: u64,
+    /// Time after the step.
+    pub time: f64,
+    pub dt: f32,
+    /// κ̄ of stage 1 (volume-conserving flow only).
+    pub kappa_bar: Option<f64>,
+    /// No voxel is inside any more.
+    pub collapsed: bool,
+}
+
+/// Measurements of the current state.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Measures {
+    /// Voxels with |φ| < γ.
+    pub band_voxels: usize,
+    /// Tiles (tile engine), points (DT-Grid) or voxels (dense) stored.
+    pub stored: usize,
+    /// Enclosed volume, world units: h³ Σ clamp(½ − φ/h, 0, 1) over stored voxels plus h³
+    /// per interior voxel that is not stored.
+    pub volume: f64,
+    /// Interface area, world units: h³ Σ δ(φ)|∇φ| with the δ of eq. (7).
+    pub area: f64,
+    /// Bytes of the representation.
+    pub bytes: usize,
+    /// Bytes of the evolution's buffers.
+    pub work_bytes: usize,
+}
+
+enum Rep {
+    Tiles(TilesRep),
+    DtGrid(DtRep),
+    Dense(DenseRep),
+}
+
+macro_rules! with_rep {
+    ($rep:expr, $r:ident => $body:expr) => {
+        match $rep {
+            Rep::Tiles($r) => $body,
+            Rep::DtGrid($r) => $body,
+            Rep::Dense($r) => $body,
+        }
+    };
+}
+
+/// A level set evolving under a [`Flow`] on one representation.
+pub struct Simulation {
+    rep: Rep,
+    kind: GridKind,
+    flow: Flow,
+    settings: Settings,
+    time: f64,
+    steps: u64,
+    collapsed: bool,
+    /// Per-voxel F (flat order), u, and the morph target.
+    speed: Vec<f32>,
+    velocity: [Vec<f32>; 3],
+    target: Vec<f32>,
+}
+
+impl Simulation {
+    /// A simulation of the band of an analytic shape on representation `kind` (the dense
+    /// reference gets the shape's bounding box with a margin of 8 voxels + γ).
+    pub fn from_shape(
+        kind: GridKind,
+        shape: &Shape,
+        spec: GridSpec,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        let tiles = crate::build::tiles_from_shape(shape, spec)?;
+        Simulation::from_tile_grid(kind, tiles, flow, settings)
+    }
+
+    /// A simulation starting from a tile grid, converted to representation `kind` (the
+    /// dense reference gets the grid's bounding box with a margin of 8 voxels).
+    pub fn from_tile_grid(
+        kind: GridKind,
+        tiles: TileGrid,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        let spec = *tiles.spec();
+        let rep = match kind {
+            GridKind::Tiles(lanes) => Rep::Tiles(TilesRep::new(tiles, lanes)),
+            GridKind::DtGrid => Rep::DtGrid(DtRep::new(crate::build::dtgrid_from_tiles(&tiles))),
+            GridKind::Dense => {
+                let (origin, dims) =
+                    crate::build::dense_box(&tiles, 8).ok_or(EvolveError::EmptyLevelSet)?;
+                let field = crate::build::to_dense(&tiles, origin, dims)?;
+                Rep::Dense(DenseRep::new(field, spec)?)
+            }
+        };
+        Simulation::start(rep, kind, flow, settings)
+    }
+
+    /// A simulation starting from a DT-Grid (kept as a DT-Grid).
+    pub fn from_dtgrid(grid: DtGrid, flow: Flow, settings: Settings) -> Result<Simulation, EvolveError> {
+        Simulation::start(Rep::DtGrid(DtRep::new(grid)), GridKind::DtGrid, flow, settings)
+    }
+
+    /// A simulation starting from a dense field (φ < 0 inside, world units, values
+    /// clamped to ±γ), on representation `kind`. Non-finite values are an error.
+    pub fn from_dense(
+        kind: GridKind,
+        field: &DenseField,
+        spec: GridSpec,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        if let Some(i) = field.data().iter().position(|v| !v.is_finite()) {
+            let c = field.coord_of(i).unwrap_or_default();
+            return Err(EvolveError::InvalidParameter(format!(
+                "the initial field is not finite at voxel {c} (value {})",
+                field.data()[i]
+            )));
+        }
+        match kind {
+            GridKind::Dense => {
+                let g = spec.gamma();
+                let mut f = field.clone();
+                f.data_mut().iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                Simulation::start(Rep::Dense(DenseRep::new(f, spec)?), kind, flow, settings)
+            }
+            _ => {
+                let tiles = crate::build::tiles_from_dense(field, spec)?;
+                Simulation::from_tile_grid(kind, tiles, flow, settings)
+            }
+        }
+    }
+
+    fn start(rep: Rep, kind: GridKind, flow: Flow, settings: Settings) -> Result<Simulation, EvolveError> {
+        flow.validate()?;
+        settings.validate()?;
+        let mut sim = Simulation {
+            rep,
+            kind,
+            flow,
+            settings,
+            time: 0.0,
+            steps: 0,
+            collapsed: false,
+            speed: Vec::new(),
+            velocity: Default::default(),
+            target: Vec::new(),
+        };
+        let g = sim.spec().gamma();
+        if !with_rep!(&sim.rep, r => r.flat().iter().any(|v| v.abs() < g)) {
+            return Err(EvolveError::EmptyLevelSet);
+        }
+        // Bring the initial band to the band rule: every voxel within one voxel of the
+        // band stored (tile management, DT-Grid rebuild).
+        sim.install(|r| r.finish_step())?;
+        Ok(sim)
+    }
+
+    /// Runs `f` on the representation inside the simulation's thread pool.
+    fn install<T: Send>(
+        &mut self,
+        f: impl FnOnce(&mut dyn Representation) -> T + Send,
+    ) -> T {
+        let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
+        match &self.settings.pool {
+            Some(pool) => pool.install(|| f(rep)),
+            None => f(rep),
+        }
+    }
+
+    fn spec(&self) -> GridSpec {
+        with_rep!(&self.rep, r => r.spec())
+    }
+
+    /// The representation this simulation runs on.
+    pub fn kind(&self) -> GridKind {
+        self.kind
+    }
+
+    pub fn flow(&self) -> &Flow {
+        &self.flow
+    }
+
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Simulated time.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Whether the interior has vanished.
+    pub fn collapsed(&self) -> bool {
+        self.collapsed
+    }
+
+    /// The tile grid, when running on tiles.
+    pub fn tiles(&self) -> Option<&TileGrid> {
+        match &self.rep {
+            Rep::Tiles(t) => Some(&t.grid),
+            _ => None,
+        }
+    }
+
+    /// The DT-Grid, when running on a DT-Grid.
+    pub fn dtgrid(&self) -> Option<&DtGrid> {
+        match &self.rep {
+            Rep::DtGrid(t) => Some(&t.grid),
+            _ => None,
+        }
+    }
+
+    /// Value at any voxel.
+    pub fn value(&self, c: Coord) -> f32 {
+        with_rep!(&self.rep, r => r.value(c))
+    }
+
+    /// The current values as a dense field over `origin .. origin + dims`.
+    pub fn to_dense(&self, origin: Coord, dims: [usize; 3]) -> Result<DenseField, GridError> {
+        DenseField::from_fn(origin, dims, |c| self.value(c))
+    }
+
+    /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
+    pub fn for_each_band_voxel(&self, mut f: impl FnMut(Coord, f32)) {
+        with_rep!(&self.rep, r => r.for_each_band_voxel(&mut f))
+    }
+
+    /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
+    /// band contents give equal checksums, whatever the representation.
+    pub fn checksum(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bytes: [u8; 4]| {
+            for b in bytes {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        self.for_each_band_voxel(|c, v| {
+            eat(c.x.to_le_bytes());
+            eat(c.y.to_le_bytes());
+            eat(c.z.to_le_bytes());
+            eat(v.to_bits().to_le_bytes());
+        });
+        h
+    }
+
+    /// Band voxels, storage, volume and area of the current state.
+    pub fn measure(&self) -> Measures {
+        let spec = self.spec();
+        let h = spec.voxel_size;
+        let g = spec.gamma();
+        let width = self.settings.delta_width * h;
+        let (flat_inside, band) = with_rep!(&self.rep, r => {
+            let mut s = ExactSum::default();
+            let mut band = 0usize;
+            for &v in r.flat() {
+                s.add((0.5 - v / h).clamp(0.0, 1.0));
+                band += (v.abs() < g) as usize;
+            }
+            (s, band)
+        });
+        let unstored = with_rep!(&self.rep, r => r.unstored_inside());
+        let area_sum = match &self.settings.pool {
+            Some(pool) => pool.install(|| with_rep!(&self.rep, r => r.kappa_bar_sums(width))),
+            None => with_rep!(&self.rep, r => r.kappa_bar_sums(width)),
+        };
+        let h3 = (h as f64).powi(3);
+        Measures {
+            band_voxels: band,
+            stored: with_rep!(&self.rep, r => r.units()),
+            volume: h3 * (flat_inside.value() + unstored as f64),
+            area: area_sum.map_or(f64::NAN, |(_, den)| h3 * den.value()),
+            bytes: with_rep!(&self.rep, r => r.bytes()),
+            work_bytes: with_rep!(&self.rep, r => r.work_bytes()),
+        }
+    }
+
+    /// The largest stable Δt for the current state (CFL number 1), given the largest |F|
+    /// and |u|₁ over the band voxels: Δt (√3 (max|F| + w)/h + 3ε/h² + max|u|₁/h) ≤ 1
+    /// (see [`levelset_kernels::rk`]).
+    fn stability_limit(&self, max_f: f32, max_u: f32) -> f32 {
+        let h = self.spec().voxel_size;
+        let rate = 3f32.sqrt() * (max_f + self.flow.rescale) / h
+            + 3.0 * self.flow.curvature / (h * h)
+            + max_u / h;
+        if rate > 0.0 {
+            1.0 / rate
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    /// One time step. Fails cleanly (the state unchanged) when the flow gives non-finite
+    /// speeds, a fixed Δt violates the CFL limit, or the interface has collapsed.
+    pub fn step(&mut self) -> Result<StepReport, EvolveError> {
+        self.step_capped(f32::INFINITY)
+    }
+
+    /// Steps until `time` is reached (the last step shortened to land on it), the
+    /// interface collapses, or `max_steps` steps were taken; calls `each` after every
+    /// step.
+    pub fn run_until(
+        &mut self,
+        time: f64,
+        max_steps: u64,
+        mut each: impl FnMut(&Simulation, &StepReport),
+    ) -> Result<(), EvolveError> {
+        let mut n = 0;
+        while self.time < time && n < max_steps && !self.collapsed {
+            let rest = (time - self.time) as f32;
+            let r = self.step_capped(rest)?;
+            each(self, &r);
+            n += 1;
+        }
+        Ok(())
+    }
+
+    /// One step with Δt at most `max_dt`.
+    pub fn step_capped(&mut self, max_dt: f32) -> Result<StepReport, EvolveError> {
+        if self.collapsed {
+            return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
+        }
+        let spec = self.spec();
+        let (h, g) = (spec.voxel_size, spec.gamma());
+        let n = with_rep!(&self.rep, r => r.flat().len());
+        let stages: &[(u8, f64)] = match self.settings.integrator {
+            Integrator::Euler => &[(1, 0.0)],
+            Integrator::Rk3 => &[(1, 0.0), (2, 1.0), (3, 0.5)],
+        };
+        let t0 = self.time;
+        let mut dt = 0.0f32;
+        let mut kappa_bar_1 = None;
+        for (si, &(stage, c)) in stages.iter().enumerate() {
+            let t = t0 + c * dt as f64;
+            let kappa_bar = self.prepare_fields(n, t, stage == 1)?;
+            if stage == 1 {
+                kappa_bar_1 = kappa_bar;
+                let (max_f, max_u) = self.band_maxima(g)?;
+                let limit = self.stability_limit(max_f, max_u);
+                dt = match self.settings.time_step {
+                    TimeStep::Cfl(cfl) => cfl * limit,
+                    TimeStep::Fixed(d) if d > limit => {
+                        return Err(EvolveError::CflViolated { dt: d, limit, step: self.steps })
+                    }
+                    TimeStep::Fixed(d) => d,
+                }
+                .min(max_dt);
+                if !(dt.is_finite() && dt > 0.0) {
+                    return Err(EvolveError::InvalidParameter(format!(
+                        "no finite time step (Δt = {dt}): the flow moves nothing"
+                    )));
+                }
+            }
+            let p = StageParams {
+                stage,
+                dt,
+                gamma: g,
+                h,
+                eps: self.flow.curvature,
+                rescale: self.flow.rescale,
+                speed: &self.speed,
+                velocity: self
+                    .flow
+                    .velocity
+                    .as_ref()
+                    .map(|_| [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]),
+                phi_n: &[],
+            };
+            let last = si + 1 == stages.len();
+            let scheme = self.settings.scheme;
+            let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
+            match &self.settings.pool {
+                Some(pool) => pool.install(|| rep.stage(&p, scheme, last))?,
+                None => rep.stage(&p, scheme, last)?,
+            }
+        }
+        self.install(|r| r.finish_step())?;
+        self.time = t0 + dt as f64;
+        self.steps += 1;
+        self.collapsed = with_rep!(&self.rep, r => r.unstored_inside() == 0 && !r.flat().iter().any(|&v| v < 0.0));
+        Ok(StepReport {
+            step: self.steps,
+            time: self.time,
+            dt,
+            kappa_bar: kappa_bar_1,
+            collapsed: self.collapsed,
+        })
+    }
+
+    /// Fills the per-voxel F and u for a stage at time `t`; returns κ̄ when the flow is
+    /// volume-conserving. `first` marks stage 1 (the layout may have changed since the
+    /// last step, so everything is sampled anew).
+    fn prepare_fields(&mut self, n: usize, t: f64, first: bool) -> Result<Option<f64>, EvolveError> {
+        let rep: &dyn Representation = with_rep!(&self.rep, r => r);
+        let install = |f: &mut (dyn FnMut() + Send)| match &self.settings.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        };
+        // Normal speed.
+        self.speed.resize(n, 0.0);
+        let mut uniform = 0.0f32;
+        match &self.flow.speed {
+            Speed::Constant(f) => {
+                if first {
+                    self.speed.fill(*f);
+                }
+                uniform = *f;
+            }
+            Speed::Field(f) => {
+                if first || f.time_dependent() {
+                    let speed = &mut self.speed;
+                    install(&mut || rep.fill_scalar(f.as_ref(), t, speed));
+                }
+            }
+            Speed::MorphTo(target) => {
+                if first {
+                    self.target.resize(n, 0.0);
+                    let tg = &mut self.target;
+                    install(&mut || rep.fill_scalar(target.as_ref(), t, tg));
+                    let g = rep.spec().gamma();
+                    self.target.iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                }
+                for ((s, &phi), &psi) in self.speed.iter_mut().zip(rep.flat()).zip(&self.target) {
+                    *s = phi - psi;
+                }
+            }
+        }
+        // Volume conservation: F += ε κ̄ of the current stage's φ.
+        let mut kappa_bar = None;
+        if self.flow.volume_conserving {
+            let width = self.settings.delta_width * rep.spec().voxel_size;
+            let (num, den) = match &self.settings.pool {
+                Some(pool) => pool.install(|| rep.kappa_bar_sums(width))?,
+                None => rep.kappa_bar_sums(width)?,
+            };
+            let kb = if den.value() > 0.0 { num.value() / den.value() } else { 0.0 };
+            kappa_bar = Some(kb);
+            let add = (self.flow.curvature as f64 * kb) as f32;
+            match &self.flow.speed {
+                Speed::Constant(_) => self.speed.fill(uniform + add),
+                _ => {
+                    // Field and morph speeds were (re)written above for this stage.
+                    self.speed.iter_mut().for_each(|s| *s += add)
+                }
+            }
+        }
+        // Advection velocity.
+        if let Some(vel) = &self.flow.velocity {
+            for c in &mut self.velocity {
+                c.resize(n, 0.0);
+            }
+            match vel {
+                Velocity::Constant(u) => {
+                    if first {
+                        for (c, &v) in self.velocity.iter_mut().zip(u) {
+                            c.fill(v);
+                        }
+                    }
+                }
+                Velocity::Field(f) => {
+                    if first || f.time_dependent() {
+                        let [a, b, c] = &mut self.velocity;
+                        install(&mut || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                    }
+                }
+            }
+        }
+        Ok(kappa_bar)
+    }
+
+    /// max |F| and max (|u|+|v|+|w|) over the band voxels of the current values.
+    fn band_maxima(&self, g: f32) -> Result<(f32, f32), EvolveError> {
+        let flat = with_rep!(&self.rep, r => r.flat());
+        let mut max_f = 0.0f32;
+        let mut finite = true;
+        for (&v, &f) in flat.iter().zip(&self.speed) {
+            if v.abs() < g {
+                finite &= f.is_finite();
+                max_f = max_f.max(f.abs());
+            }
+        }
+        let mut max_u = 0.0f32;
+        if self.flow.velocity.is_some() {
+            let [a, b, c] = &self.velocity;
+            for (i, &v) in flat.iter().enumerate() {
+                if v.abs() < g {
+                    let s = a[i].abs() + b[i].abs() + c[i].abs();
+                    finite &= s.is_finite();
+                    max_u = max_u.max(s);
+                }
+            }
+        }
+        if !finite {
+            return Err(EvolveError::NonFiniteField { step: self.steps });
+        }
+        Ok((max_f, max_u))
+    }
+}
