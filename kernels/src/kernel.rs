@@ -364,7 +364,10 @@ impl VoxelKernel for BoxMinAbs {
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
         macro_rules! row {
             ($dy:literal, $dz:literal) => {
-                w.at::<-1, $dy, $dz>().abs().min(w.at::<0, $dy, $dz>().abs()).min(w.at::<1, $dy, $dz>().abs())
+                w.at::<-1, $dy, $dz>()
+                    .abs()
+                    .min(w.at::<0, $dy, $dz>().abs())
+                    .min(w.at::<1, $dy, $dz>().abs())
             };
         }
         let a = row!(-1, -1).min(row!(0, -1)).min(row!(1, -1));

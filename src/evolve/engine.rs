@@ -18,8 +18,8 @@ use crate::tiles::{compute_activity, voxel_of, NeighbourCursor, PaddedBlock, Til
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{
     AdvectionRate, BandMasked, BoxFarWindow, BoxMinAbs, BoxWindow, DefaultLane, DenseBlock,
-    Eq3Rate, Lane, Rk3, Sum, TileBlock, Upwind1, VoxelKernel, Weno5, Window,
-    BOX27_OFFSETS, BOX_FAR39_OFFSETS,
+    Eq3Rate, Lane, Rk3, Sum, TileBlock, Upwind1, VoxelKernel, Weno5, Window, BOX27_OFFSETS,
+    BOX_FAR39_OFFSETS,
 };
 use rayon::prelude::*;
 use std::ops::Range;
@@ -85,7 +85,9 @@ macro_rules! stage_kernel {
                 Eq3Rate::<$S, &[f32]>::new($p.h, &$p.speed[r.clone()], $p.eps, $p.rescale),
                 AdvectionRate::<$S, [&[f32]; 3]>::new(
                     $p.h,
-                    $p.velocity.map(|v| [&v[0][r.clone()], &v[1][r.clone()], &v[2][r.clone()]]).unwrap(),
+                    $p.velocity
+                        .map(|v| [&v[0][r.clone()], &v[1][r.clone()], &v[2][r.clone()]])
+                        .unwrap(),
                 ),
             ),
             dt: $p.dt,
@@ -161,8 +163,12 @@ pub(crate) trait Representation: Send + Sync {
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
     /// Runs one stage: the current values become the stage's result; in stages 2 and 3
     /// the kernel reads φⁿ, kept from stage 1. `last` marks the step's final stage.
-    fn stage(&mut self, p: &StageParams, scheme: SpatialScheme, last: bool)
-        -> Result<(), EvolveError>;
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError>;
     /// (Σ κδ|∇φ|, Σ δ|∇φ|) over the current values (eq. (6) without the h³ that cancels).
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError>;
     /// Band maintenance after a step: tile management, DT-Grid rebuild, dense bounds.
@@ -341,7 +347,8 @@ impl Representation for TilesRep {
         self.out.resize(n, Tile::splat(0.0));
         self.box_min.resize(64 * n, 0.0);
         self.activity.resize(n, 0);
-        let p = StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.phi_n) }, ..*p };
+        let p =
+            StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.phi_n) }, ..*p };
         let sweep = TileSweep {
             grid: &self.grid,
             lanes: self.lanes,
@@ -384,7 +391,10 @@ impl Representation for TilesRep {
                             tb.apply::<f32, _>(&KappaBarTerm::<false> { inv_h, width }, &mut b)?;
                         }
                         Lanes::Simd => {
-                            tb.apply::<DefaultLane, _>(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
+                            tb.apply::<DefaultLane, _>(
+                                &KappaBarTerm::<true> { inv_h, width },
+                                &mut a,
+                            )?;
                             tb.apply::<DefaultLane, _>(
                                 &KappaBarTerm::<false> { inv_h, width },
                                 &mut b,
@@ -413,7 +423,11 @@ impl Representation for TilesRep {
         let mut n = 0u64;
         for p in 1..coords.len() {
             let (a, b) = (coords[p - 1], coords[p]);
-            if a.z == b.z && a.y == b.y && b.x > a.x + 1 && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0 {
+            if a.z == b.z
+                && a.y == b.y
+                && b.x > a.x + 1
+                && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
+            {
                 n += 64 * (b.x - a.x - 1) as u64;
             }
         }
@@ -442,7 +456,10 @@ impl Representation for TilesRep {
     }
 
     fn work_bytes(&self) -> usize {
-        vec_bytes(&self.phi_n) + vec_bytes(&self.out) + vec_bytes(&self.box_min) + vec_bytes(&self.activity)
+        vec_bytes(&self.phi_n)
+            + vec_bytes(&self.out)
+            + vec_bytes(&self.box_min)
+            + vec_bytes(&self.activity)
     }
 }
 
@@ -589,7 +606,8 @@ impl Representation for DtRep {
 
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
-        let (kn, kd) = (KappaBarTerm::<true> { inv_h, width }, KappaBarTerm::<false> { inv_h, width });
+        let (kn, kd) =
+            (KappaBarTerm::<true> { inv_h, width }, KappaBarTerm::<false> { inv_h, width });
         let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
         self.for_each_stencil::<1>(|i, v| {
             let w = BoxWindow::new(v.try_into().expect("27 values"));
@@ -655,7 +673,9 @@ fn for_each_run(g: &DtGrid, mut f: impl FnMut(usize, Coord, usize)) {
     let mut run: Option<(usize, Coord, usize)> = None;
     for (i, (c, _)) in g.iter().enumerate() {
         match &mut run {
-            Some((_, s, len)) if s.z == c.z && s.y == c.y && s.x as i64 + *len as i64 == c.x as i64 => {
+            Some((_, s, len))
+                if s.z == c.z && s.y == c.y && s.x as i64 + *len as i64 == c.x as i64 =>
+            {
                 *len += 1
             }
             _ => {
@@ -720,7 +740,6 @@ impl DenseRep {
         }
         Ok(())
     }
-
 }
 
 /// Copies `field` into `padded` with an `R`-voxel halo that repeats the faces (the far
@@ -776,7 +795,8 @@ impl DenseSweep<'_> {
         if self.compute_mask {
             pad_into::<1>(&rep.field, &mut rep.padded);
             rep.box_min.resize(n, 0.0);
-            DenseBlock::<1>::new(&rep.padded, dims)?.apply::<f32, _>(&BoxMinAbs, &mut rep.box_min)?;
+            DenseBlock::<1>::new(&rep.padded, dims)?
+                .apply::<f32, _>(&BoxMinAbs, &mut rep.box_min)?;
         }
         pad_into::<R>(&rep.field, &mut rep.padded);
         let k = BandMasked { step: make(0..n), box_min: &rep.box_min, gamma: rep.spec.gamma() };
@@ -882,6 +902,9 @@ impl Representation for DenseRep {
     }
 
     fn work_bytes(&self) -> usize {
-        vec_bytes(&self.phi_n) + vec_bytes(&self.out) + vec_bytes(&self.box_min) + vec_bytes(&self.padded)
+        vec_bytes(&self.phi_n)
+            + vec_bytes(&self.out)
+            + vec_bytes(&self.box_min)
+            + vec_bytes(&self.padded)
     }
 }

@@ -51,7 +51,8 @@ mod tests {
     #[test]
     fn order_does_not_matter() {
         let mut rng = fastrand::Rng::with_seed(7);
-        let terms: Vec<f32> = (0..10_000).map(|_| (rng.f32() - 0.5) * 10f32.powi(rng.i32(-6..4))).collect();
+        let terms: Vec<f32> =
+            (0..10_000).map(|_| (rng.f32() - 0.5) * 10f32.powi(rng.i32(-6..4))).collect();
         let mut a = ExactSum::default();
         a.add_all(&terms);
         let mut b = ExactSum::default();

@@ -211,12 +211,16 @@ impl Flow {
         }
         if let Speed::Constant(f) = self.speed {
             if !f.is_finite() {
-                return Err(EvolveError::InvalidParameter(format!("speed F must be finite, got {f}")));
+                return Err(EvolveError::InvalidParameter(format!(
+                    "speed F must be finite, got {f}"
+                )));
             }
         }
         if let Some(Velocity::Constant(u)) = self.velocity {
             if u.iter().any(|c| !c.is_finite()) {
-                return Err(EvolveError::InvalidParameter(format!("velocity must be finite, got {u:?}")));
+                return Err(EvolveError::InvalidParameter(format!(
+                    "velocity must be finite, got {u:?}"
+                )));
             }
         }
         Ok(())
@@ -263,17 +267,23 @@ impl Default for Settings {
 impl Settings {
     /// HJ-WENO5 with TVD-RK3 (the tile paper's Sec. 5.2 scheme), CFL 0.5.
     pub fn weno5_rk3() -> Settings {
-        Settings { scheme: SpatialScheme::Weno5, integrator: Integrator::Rk3, ..Settings::default() }
+        Settings {
+            scheme: SpatialScheme::Weno5,
+            integrator: Integrator::Rk3,
+            ..Settings::default()
+        }
     }
 
     fn validate(&self) -> Result<(), EvolveError> {
         match self.time_step {
-            TimeStep::Cfl(c) if !(c > 0.0 && c <= 1.0) => Err(EvolveError::InvalidParameter(
-                format!("CFL number must be in (0, 1], got {c}"),
-            )),
-            TimeStep::Fixed(dt) if !(dt.is_finite() && dt > 0.0) => Err(
-                EvolveError::InvalidParameter(format!("time step must be finite and > 0, got {dt}")),
-            ),
+            TimeStep::Cfl(c) if !(c > 0.0 && c <= 1.0) => {
+                Err(EvolveError::InvalidParameter(format!("CFL number must be in (0, 1], got {c}")))
+            }
+            TimeStep::Fixed(dt) if !(dt.is_finite() && dt > 0.0) => {
+                Err(EvolveError::InvalidParameter(format!(
+                    "time step must be finite and > 0, got {dt}"
+                )))
+            }
             _ if !(self.delta_width.is_finite() && self.delta_width > 0.0) => {
                 Err(EvolveError::InvalidParameter(format!(
                     "delta width must be finite and > 0, got {}",
@@ -313,6 +323,10 @@ pub enum EvolveError {
     )]
     DenseBoxTooSmall { voxel: Coord },
 }
+
+/// Voxels of room around the initial band that the dense reference's box gets: the
+/// interface may move this far (less the four-voxel margin the box must keep).
+pub const DENSE_MARGIN: u32 = 16;
 
 /// What one step did.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -378,7 +392,7 @@ pub struct Simulation {
 
 impl Simulation {
     /// A simulation of the band of an analytic shape on representation `kind` (the dense
-    /// reference gets the shape's bounding box with a margin of 8 voxels + γ).
+    /// reference gets the band's bounding box with a margin of [`DENSE_MARGIN`] voxels).
     pub fn from_shape(
         kind: GridKind,
         shape: &Shape,
@@ -391,7 +405,8 @@ impl Simulation {
     }
 
     /// A simulation starting from a tile grid, converted to representation `kind` (the
-    /// dense reference gets the grid's bounding box with a margin of 8 voxels).
+    /// dense reference gets the grid's bounding box with a margin of [`DENSE_MARGIN`]
+    /// voxels).
     pub fn from_tile_grid(
         kind: GridKind,
         tiles: TileGrid,
@@ -403,8 +418,8 @@ impl Simulation {
             GridKind::Tiles(lanes) => Rep::Tiles(TilesRep::new(tiles, lanes)),
             GridKind::DtGrid => Rep::DtGrid(DtRep::new(crate::build::dtgrid_from_tiles(&tiles))),
             GridKind::Dense => {
-                let (origin, dims) =
-                    crate::build::dense_box(&tiles, 8).ok_or(EvolveError::EmptyLevelSet)?;
+                let (origin, dims) = crate::build::dense_box(&tiles, DENSE_MARGIN)
+                    .ok_or(EvolveError::EmptyLevelSet)?;
                 let field = crate::build::to_dense(&tiles, origin, dims)?;
                 Rep::Dense(DenseRep::new(field, spec)?)
             }
@@ -413,7 +428,11 @@ impl Simulation {
     }
 
     /// A simulation starting from a DT-Grid (kept as a DT-Grid).
-    pub fn from_dtgrid(grid: DtGrid, flow: Flow, settings: Settings) -> Result<Simulation, EvolveError> {
+    pub fn from_dtgrid(
+        grid: DtGrid,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
         Simulation::start(Rep::DtGrid(DtRep::new(grid)), GridKind::DtGrid, flow, settings)
     }
 
@@ -447,7 +466,12 @@ impl Simulation {
         }
     }
 
-    fn start(rep: Rep, kind: GridKind, flow: Flow, settings: Settings) -> Result<Simulation, EvolveError> {
+    fn start(
+        rep: Rep,
+        kind: GridKind,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
         flow.validate()?;
         settings.validate()?;
         let mut sim = Simulation {
@@ -473,10 +497,7 @@ impl Simulation {
     }
 
     /// Runs `f` on the representation inside the simulation's thread pool.
-    fn install<T: Send>(
-        &mut self,
-        f: impl FnOnce(&mut dyn Representation) -> T + Send,
-    ) -> T {
+    fn install<T: Send>(&mut self, f: impl FnOnce(&mut dyn Representation) -> T + Send) -> T {
         let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
         match &self.settings.pool {
             Some(pool) => pool.install(|| f(rep)),
@@ -673,21 +694,20 @@ impl Simulation {
                     )));
                 }
             }
-            let p = StageParams {
-                stage,
-                dt,
-                gamma: g,
-                h,
-                eps: self.flow.curvature,
-                rescale: self.flow.rescale,
-                speed: &self.speed,
-                velocity: self
-                    .flow
-                    .velocity
-                    .as_ref()
-                    .map(|_| [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]),
-                phi_n: &[],
-            };
+            let p =
+                StageParams {
+                    stage,
+                    dt,
+                    gamma: g,
+                    h,
+                    eps: self.flow.curvature,
+                    rescale: self.flow.rescale,
+                    speed: &self.speed,
+                    velocity: self.flow.velocity.as_ref().map(|_| {
+                        [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]
+                    }),
+                    phi_n: &[],
+                };
             let last = si + 1 == stages.len();
             let scheme = self.settings.scheme;
             let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
@@ -712,7 +732,12 @@ impl Simulation {
     /// Fills the per-voxel F and u for a stage at time `t`; returns κ̄ when the flow is
     /// volume-conserving. `first` marks stage 1 (the layout may have changed since the
     /// last step, so everything is sampled anew).
-    fn prepare_fields(&mut self, n: usize, t: f64, first: bool) -> Result<Option<f64>, EvolveError> {
+    fn prepare_fields(
+        &mut self,
+        n: usize,
+        t: f64,
+        first: bool,
+    ) -> Result<Option<f64>, EvolveError> {
         let rep: &dyn Representation = with_rep!(&self.rep, r => r);
         let install = |f: &mut (dyn FnMut() + Send)| match &self.settings.pool {
             Some(pool) => pool.install(f),

@@ -12,16 +12,17 @@ use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
 /// # Invariants
 /// * `coords` is strictly increasing in [`Coord`] order (sorted, no duplicates) and every
 ///   coordinate is within [`super::TILE_MIN`]..=[`super::TILE_MAX`];
-/// * `ids.len() == coords.len()` and `ids` is a permutation of `0..arena.len()`: every
-///   entry owns one tile of the arena and no tile data is orphaned;
+/// * `ids.len() == coords.len() == arena.len()` and `ids` is the identity: entry `pos`
+///   owns arena tile `pos` (tile data in list order, nothing orphaned), which
+///   [`TileGrid::values`] and [`TileGrid::swap_values`] rely on;
 /// * `border`, `activity` have one entry per arena tile; border flags use only
 ///   [`BORDER_MASK`] bits and activity flags only [`ACTIVE_MASK`] | [`INSIDE`], never
 ///   [`INSIDE`] together with a region bit;
 /// * every value is finite and within `[-γ, γ]`.
 ///
 /// Construction ([`TileGrid::append`]) and [`TileGrid::manage_tiles`] keep `ids` the
-/// identity (tile data in list order); [`TileGrid::check_invariants`] checks all of the
-/// above and runs after every mutation in debug builds.
+/// identity; [`TileGrid::check_invariants`] checks all of the above and runs after every
+/// mutation in debug builds.
 #[derive(Clone, Debug)]
 pub struct TileGrid {
     spec: GridSpec,
@@ -104,7 +105,6 @@ impl TileGrid {
     /// (every operation keeps the arena in list order, so `ids` is the identity).
     #[inline]
     pub fn values(&self) -> &[Tile] {
-        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
         &self.arena
     }
 
@@ -127,7 +127,6 @@ impl TileGrid {
                 activity.len()
             )));
         }
-        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
         std::mem::swap(&mut self.arena, values);
         for (a, &f) in self.activity.iter_mut().zip(activity) {
             let f = f & (ACTIVE_MASK | INSIDE);
@@ -568,12 +567,11 @@ impl TileGrid {
         if let Some(c) = self.coords.iter().find(|&&c| !tile_in_range(c)) {
             return Err(format!("tile {c:?} out of range"));
         }
-        let mut seen = vec![false; t];
-        for &id in &self.ids {
-            let id = id as usize;
-            if id >= t || std::mem::replace(&mut seen[id], true) {
-                return Err(format!("tile id {id} out of range or shared"));
-            }
+        if let Some(p) = self.ids.iter().enumerate().position(|(p, &id)| id as usize != p) {
+            return Err(format!(
+                "tile data not in list order: entry {p} owns arena tile {}",
+                self.ids[p]
+            ));
         }
         if self.border.iter().any(|b| b & !BORDER_MASK != 0) {
             return Err("border flag outside BORDER_MASK".into());
