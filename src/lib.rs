@@ -33,6 +33,7 @@ pub mod grid;
 pub mod info;
 pub mod npy;
 pub mod sample;
+pub mod scenario;
 pub mod shapes;
 pub mod tiles;
 

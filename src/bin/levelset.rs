@@ -25,6 +25,128 @@ enum Command {
     /// Time the same stencil arithmetic, random access and band maintenance on the tiles
     /// and on the DT-Grid (the default command).
     Bench(BenchArgs),
+    /// Evolve one of the papers' scenarios and write DIR/summary.json.
+    Run(RunArgs),
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ScenarioArg {
+    /// Sphere under mean curvature flow (tile paper Sec. 5.1).
+    Sphere,
+    /// Extruded spiral under volume-conserving mean curvature flow (Sec. 5.2, Table 2).
+    Spiral,
+    /// Enright's periodic deformation test (Sec. 5.4).
+    Enright,
+    /// A sphere growing at constant speed far beyond its initial box.
+    Expand,
+    /// A sphere morphing into a torus (H-RLE paper eq. (1)).
+    Morph,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum GridArg {
+    Tiles,
+    Dtgrid,
+    /// The dense reference (small sizes only).
+    Dense,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum LanesArg {
+    Scalar,
+    Simd,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SchemeArg {
+    Upwind1,
+    Weno5,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum IntegratorArg {
+    Euler,
+    Rk3,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// The scenario.
+    #[arg(value_enum)]
+    scenario: ScenarioArg,
+    /// Effective resolution N (an N³ box) [default: sphere 256, spiral and enright 128,
+    /// expand and morph 64].
+    #[arg(long)]
+    size: Option<u32>,
+    /// Steps to take [default: spiral 1000, morph 300, others 100 unless --time is given;
+    /// enright: one period, expand: until the sphere spans twice its box].
+    #[arg(long, conflicts_with = "time")]
+    steps: Option<u64>,
+    /// Simulated time to reach (the last step lands on it).
+    #[arg(long)]
+    time: Option<f64>,
+    /// Representation.
+    #[arg(long, value_enum, default_value_t = GridArg::Tiles)]
+    grid: GridArg,
+    /// Lanes of the tile engine.
+    #[arg(long, value_enum, default_value_t = LanesArg::Simd)]
+    lanes: LanesArg,
+    /// Worker threads of the tile engine [default: all cores].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Shape radius [default: sphere 100·N/256, spiral 50·N/128, enright 0.15, expand N/4,
+    /// morph 0.3·N].
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Curvature weight ε [default: 1 for sphere and spiral, 0 otherwise].
+    #[arg(long)]
+    epsilon: Option<f32>,
+    /// Normal speed F of expand [default: 1 voxel per unit time].
+    #[arg(long)]
+    speed: Option<f32>,
+    /// Enright's period T [default: 3].
+    #[arg(long)]
+    period: Option<f64>,
+    /// Spiral: volume-conserving flow (true) or plain mean curvature flow (false).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    volume_conserving: bool,
+    /// Spiral depth [default: 40·N/128].
+    #[arg(long)]
+    depth: Option<f64>,
+    /// Band half-width γ in voxels.
+    #[arg(long, default_value_t = 3.0)]
+    half_width: f32,
+    /// Weight of the rescaling term of eq. (3) [default: 1].
+    #[arg(long)]
+    rescale: Option<f32>,
+    /// Spatial scheme [default: upwind1 for sphere and morph, weno5 otherwise].
+    #[arg(long, value_enum)]
+    scheme: Option<SchemeArg>,
+    /// Time integrator [default: euler for sphere and morph, rk3 otherwise].
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorArg>,
+    /// CFL number in (0, 1].
+    #[arg(long, default_value_t = 0.5)]
+    cfl: f32,
+    /// Keep a record every K steps.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..))]
+    record_every: u64,
+    /// Start from a dense float32 .npy field (shape (nz, ny, nx), φ < 0 inside, world
+    /// units) instead of the scenario's shape.
+    #[arg(long, value_name = "FIELD.npy")]
+    init: Option<PathBuf>,
+    /// Voxel size of the --init field [default: the scenario's].
+    #[arg(long, requires = "init")]
+    voxel_size: Option<f32>,
+    /// Output directory (created if needed).
+    #[arg(long, value_name = "DIR", default_value = "out")]
+    out: PathBuf,
+    /// Also write the final state as a dense field DIR/final.npy (band box + 4 voxels).
+    #[arg(long)]
+    export_npy: bool,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args, Default)]
@@ -247,6 +369,108 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn run_scenario(a: &RunArgs) -> Result<(), String> {
+    use indicatif::{ProgressBar, ProgressStyle};
+    use sparse_levelset::evolve::{GridKind, Integrator, Lanes, SpatialScheme};
+    use sparse_levelset::scenario::{Scenario, ScenarioKind, ScenarioOptions};
+    let kind = match a.scenario {
+        ScenarioArg::Sphere => ScenarioKind::Sphere,
+        ScenarioArg::Spiral => ScenarioKind::Spiral,
+        ScenarioArg::Enright => ScenarioKind::Enright,
+        ScenarioArg::Expand => ScenarioKind::Expand,
+        ScenarioArg::Morph => ScenarioKind::Morph,
+    };
+    let lanes = match a.lanes {
+        LanesArg::Scalar => Lanes::Scalar,
+        LanesArg::Simd => Lanes::Simd,
+    };
+    let mut o = ScenarioOptions::new(kind);
+    o.size = a.size;
+    o.steps = a.steps;
+    o.time = a.time;
+    o.grid = match a.grid {
+        GridArg::Tiles => GridKind::Tiles(lanes),
+        GridArg::Dtgrid => GridKind::DtGrid,
+        GridArg::Dense => GridKind::Dense,
+    };
+    o.threads = a.threads.map(|t| t as usize);
+    o.radius = a.radius;
+    o.epsilon = a.epsilon;
+    o.speed = a.speed;
+    o.period = a.period;
+    o.depth = a.depth;
+    o.half_width = a.half_width;
+    o.rescale = a.rescale;
+    o.volume_conserving = Some(a.volume_conserving);
+    o.scheme = a.scheme.map(|s| match s {
+        SchemeArg::Upwind1 => SpatialScheme::Upwind1,
+        SchemeArg::Weno5 => SpatialScheme::Weno5,
+    });
+    o.integrator = a.integrator.map(|i| match i {
+        IntegratorArg::Euler => Integrator::Euler,
+        IntegratorArg::Rk3 => Integrator::Rk3,
+    });
+    o.cfl = a.cfl;
+    o.record_every = a.record_every;
+    o.voxel_size = a.voxel_size;
+    if let Some(path) = &a.init {
+        let field = sparse_levelset::npy::read_npy(path).map_err(|e| e.to_string())?;
+        o.init = Some((path.display().to_string(), field));
+    }
+    if matches!(o.grid, GridKind::Dense) && o.size.unwrap_or(kind.default_size()) > 160 {
+        return Err("the dense reference is for small grids: use --size 160 or less".into());
+    }
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let scenario = Scenario::resolve(o).map_err(|e| e.to_string())?;
+    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(1000) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent}% {msg}")
+            .expect("valid template"),
+    );
+    bar.set_message(format!("{} on {}", kind.name(), scenario.params.grid));
+    let (summary, sim) =
+        scenario.run(|f| bar.set_position((f * 1000.0) as u64)).map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    let last = summary.records.last().expect("records");
+    println!(
+        "{}: {} steps to t = {:.6}{} on {} in {:.2} s ({:.1} Mvoxel-updates/s); band voxels {}, \
+         volume V/V0 = {:.6}, area {:.6e}, {} bytes; checksum {}",
+        kind.name(),
+        summary.steps_taken,
+        summary.time,
+        if summary.collapsed { " (collapsed)" } else { "" },
+        summary.params.grid,
+        summary.seconds,
+        summary.voxel_updates_per_s / 1e6,
+        last.band_voxels,
+        summary.volume_ratio,
+        last.area,
+        last.bytes,
+        summary.checksum
+    );
+    if let (Some(h), Some(p)) = (summary.volume_ratio_half_period, summary.volume_ratio_period) {
+        println!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
+    }
+    write_json(&a.out.join("summary.json"), &summary)?;
+    if a.export_npy {
+        let path = a.out.join("final.npy");
+        let (lo, hi) = sim
+            .band_bounding_box()
+            .ok_or("the final level set has no band voxels: nothing to export")?;
+        let m = 4;
+        let origin = sparse_levelset::Coord::new(lo.x - m, lo.y - m, lo.z - m);
+        let dims = [
+            (hi.x - lo.x + 1 + 2 * m) as usize,
+            (hi.y - lo.y + 1 + 2 * m) as usize,
+            (hi.z - lo.z + 1 + 2 * m) as usize,
+        ];
+        let field = sim.to_dense(origin, dims).map_err(|e| e.to_string())?;
+        sparse_levelset::npy::write_npy(&path, &field).map_err(|e| e.to_string())?;
+        println!("wrote {} (origin voxel {origin}, dims {dims:?})", path.display());
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -258,6 +482,7 @@ fn main() -> ExitCode {
             }
         }),
         Some(Command::Bench(a)) => run_bench(&a),
+        Some(Command::Run(a)) => run_scenario(&a),
         None => run_bench(&BenchArgs { reps: 9, ..Default::default() }),
     };
     match result {

@@ -563,6 +563,26 @@ impl Simulation {
         DenseField::from_fn(origin, dims, |c| self.value(c))
     }
 
+    /// Voxels a stage computes: stored voxels (tile padding included).
+    pub fn stored_voxels(&self) -> usize {
+        with_rep!(&self.rep, r => r.flat().len())
+    }
+
+    /// Inclusive bounding box of the band voxels (`None` when there are none).
+    pub fn band_bounding_box(&self) -> Option<(Coord, Coord)> {
+        let mut b: Option<(Coord, Coord)> = None;
+        self.for_each_band_voxel(|c, _| {
+            b = Some(match b {
+                None => (c, c),
+                Some((lo, hi)) => (
+                    Coord::new(lo.x.min(c.x), lo.y.min(c.y), lo.z.min(c.z)),
+                    Coord::new(hi.x.max(c.x), hi.y.max(c.y), hi.z.max(c.z)),
+                ),
+            })
+        });
+        b
+    }
+
     /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
     pub fn for_each_band_voxel(&self, mut f: impl FnMut(Coord, f32)) {
         with_rep!(&self.rep, r => r.for_each_band_voxel(&mut f))

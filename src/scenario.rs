@@ -1,0 +1,461 @@
+//! The papers' evolution scenarios as library functions (behind `levelset run`):
+//!
+//! | scenario | what | papers' setup (the defaults) |
+//! |---|---|---|
+//! | `sphere` | sphere under mean curvature flow | tile paper Sec. 5.1: 256³, first-order upwind + Euler (Sec. 4.7) |
+//! | `spiral` | extruded spiral under volume-conserving mean curvature flow | Sec. 5.2 / Table 2: 128³, radius 50, depth 40, HJ-WENO5 + TVD-RK3, 1000 steps |
+//! | `enright` | Enright's deformation test | Sec. 5.4: sphere r = 0.15 at (0.35, 0.35, 0.35) in the unit box, period T = 3, 128³ |
+//! | `expand` | a sphere growing at constant speed far beyond its box | DT-Grid paper Sec. 4.3 (out-of-the-box) |
+//! | `morph` | a sphere morphing into a torus | H-RLE paper Sec. 6.4.1, eq. (1) |
+//!
+//! Lengths of `sphere`, `spiral`, `expand` and `morph` are in voxels (voxel size 1, the
+//! box `[0, size]³`); `enright` lives in the unit box with voxel size 1/size.
+
+use crate::dense::DenseField;
+use crate::evolve::{
+    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Settings,
+    Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
+};
+use crate::grid::GridSpec;
+use crate::shapes::Shape;
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The scenarios.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScenarioKind {
+    Sphere,
+    Spiral,
+    Enright,
+    Expand,
+    Morph,
+}
+
+impl ScenarioKind {
+    pub const ALL: [ScenarioKind; 5] = [
+        ScenarioKind::Sphere,
+        ScenarioKind::Spiral,
+        ScenarioKind::Enright,
+        ScenarioKind::Expand,
+        ScenarioKind::Morph,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ScenarioKind::Sphere => "sphere",
+            ScenarioKind::Spiral => "spiral",
+            ScenarioKind::Enright => "enright",
+            ScenarioKind::Expand => "expand",
+            ScenarioKind::Morph => "morph",
+        }
+    }
+
+    /// The papers' effective resolution.
+    pub fn default_size(self) -> u32 {
+        match self {
+            ScenarioKind::Sphere => 256,
+            ScenarioKind::Spiral | ScenarioKind::Enright => 128,
+            ScenarioKind::Expand | ScenarioKind::Morph => 64,
+        }
+    }
+}
+
+/// Every choice of a scenario run; `None` takes the scenario's default (see
+/// [`Scenario::resolve`]).
+#[derive(Clone, Debug)]
+pub struct ScenarioOptions {
+    pub kind: ScenarioKind,
+    pub size: Option<u32>,
+    pub steps: Option<u64>,
+    pub time: Option<f64>,
+    pub grid: GridKind,
+    /// Worker threads of the tile engine (all cores when `None`).
+    pub threads: Option<usize>,
+    pub radius: Option<f64>,
+    pub epsilon: Option<f32>,
+    pub speed: Option<f32>,
+    pub period: Option<f64>,
+    pub depth: Option<f64>,
+    pub half_width: f32,
+    pub rescale: Option<f32>,
+    /// Spiral: volume-conserving flow (default) or plain mean curvature flow.
+    pub volume_conserving: Option<bool>,
+    pub scheme: Option<SpatialScheme>,
+    pub integrator: Option<Integrator>,
+    pub cfl: f32,
+    /// Keep a record every this many steps (and of the first and last step).
+    pub record_every: u64,
+    /// Start from this dense field instead of the scenario's shape.
+    pub init: Option<(String, DenseField)>,
+    /// Voxel size of an `init` field (default: the scenario's).
+    pub voxel_size: Option<f32>,
+}
+
+impl ScenarioOptions {
+    /// All defaults for `kind` on the tile engine with SIMD lanes.
+    pub fn new(kind: ScenarioKind) -> ScenarioOptions {
+        ScenarioOptions {
+            kind,
+            size: None,
+            steps: None,
+            time: None,
+            grid: GridKind::Tiles(Lanes::Simd),
+            threads: None,
+            radius: None,
+            epsilon: None,
+            speed: None,
+            period: None,
+            depth: None,
+            half_width: 3.0,
+            rescale: None,
+            volume_conserving: None,
+            scheme: None,
+            integrator: None,
+            cfl: 0.5,
+            record_every: 10,
+            init: None,
+            voxel_size: None,
+        }
+    }
+}
+
+/// Every parameter of a run, resolved (what `summary.json` calls `params`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ScenarioParams {
+    pub scenario: ScenarioKind,
+    pub size: u32,
+    pub grid: &'static str,
+    pub lanes: Option<Lanes>,
+    pub threads: usize,
+    pub scheme: SpatialScheme,
+    pub integrator: Integrator,
+    pub cfl: f32,
+    pub voxel_size: f32,
+    pub half_width: f32,
+    /// Shape radius (world units): sphere, spiral, Enright sphere, expand, morph source.
+    pub radius: f64,
+    /// ε, the curvature weight.
+    pub epsilon: f32,
+    /// F, the normal speed (expand).
+    pub speed: f32,
+    /// Enright's period T.
+    pub period: Option<f64>,
+    /// Spiral depth.
+    pub depth: Option<f64>,
+    pub volume_conserving: bool,
+    /// Weight of the rescaling term of eq. (3).
+    pub rescale: f32,
+    pub steps: Option<u64>,
+    pub time: Option<f64>,
+    pub record_every: u64,
+    /// The `--init` field, if any.
+    pub init: Option<String>,
+    /// Description of the initial shape and the flow.
+    pub shape: String,
+    pub target: Option<String>,
+}
+
+/// One recorded step.
+#[derive(Clone, Debug, Serialize)]
+pub struct Record {
+    pub step: u64,
+    pub time: f64,
+    pub dt: f32,
+    pub band_voxels: usize,
+    /// Tiles (tile engine), points (DT-Grid) or voxels (dense) stored.
+    pub tiles: usize,
+    pub volume: f64,
+    pub area: f64,
+    pub bytes: usize,
+    pub work_bytes: usize,
+    /// Wall-clock seconds of stepping since the start (measurements excluded).
+    pub seconds: f64,
+}
+
+/// The outcome of a run (`summary.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub params: ScenarioParams,
+    pub records: Vec<Record>,
+    pub steps_taken: u64,
+    pub time: f64,
+    pub collapsed: bool,
+    /// FNV-1a of the final band (coordinates and value bits, [`Simulation::checksum`]).
+    pub checksum: String,
+    /// Seconds of stepping in all.
+    pub seconds: f64,
+    /// Σ over steps of voxels computed × stages / seconds.
+    pub voxel_updates_per_s: f64,
+    /// V(t)/V(0) at Enright's maximum deformation t = T/2 (if reached).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_ratio_half_period: Option<f64>,
+    /// V(t)/V(0) after one period t = T (if reached).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_ratio_period: Option<f64>,
+    /// V(end)/V(0).
+    pub volume_ratio: f64,
+}
+
+/// A resolved scenario: the simulation and what to run.
+pub struct Scenario {
+    pub params: ScenarioParams,
+    pub sim: Simulation,
+    /// Times to land on exactly and record (Enright's T/2 and T).
+    pub milestones: Vec<f64>,
+}
+
+fn spec(voxel_size: f32, half_width: f32) -> Result<GridSpec, EvolveError> {
+    Ok(GridSpec::new(voxel_size, [0.0; 3], half_width)?)
+}
+
+fn positive(what: &str, v: f64) -> Result<f64, EvolveError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(EvolveError::InvalidParameter(format!("{what} must be finite and > 0, got {v}")))
+    }
+}
+
+impl Scenario {
+    /// Resolves the options: defaults, shape, flow, settings, the simulation.
+    pub fn resolve(o: ScenarioOptions) -> Result<Scenario, EvolveError> {
+        let kind = o.kind;
+        let size = o.size.unwrap_or(kind.default_size());
+        if !(8..=1 << 16).contains(&size) {
+            return Err(EvolveError::InvalidParameter(format!(
+                "size must be in 8..=65536, got {size}"
+            )));
+        }
+        let n = size as f64;
+        let c = [n / 2.0; 3];
+        let threads = o.threads.unwrap_or_else(rayon::current_num_threads);
+        if threads == 0 {
+            return Err(EvolveError::InvalidParameter("threads must be >= 1".into()));
+        }
+        if let Some(t) = o.time {
+            positive("time", t)?;
+        }
+        if o.steps == Some(0) {
+            return Err(EvolveError::InvalidParameter("steps must be >= 1".into()));
+        }
+        if o.record_every == 0 {
+            return Err(EvolveError::InvalidParameter("record-every must be >= 1".into()));
+        }
+        let mut voxel = 1.0f32;
+        let mut steps = o.steps;
+        let mut time = o.time;
+        let mut period = None;
+        let mut depth = None;
+        let mut target_desc = None;
+        let eps = o.epsilon;
+        let (shape, flow, scheme, integrator, radius, volume_conserving, speed) = match kind {
+            ScenarioKind::Sphere => {
+                let r = positive("radius", o.radius.unwrap_or(n * 100.0 / 256.0))?;
+                let e = eps.unwrap_or(1.0);
+                let shape = Shape::Sphere { center: c, radius: r };
+                (
+                    shape,
+                    Flow::mean_curvature(e),
+                    SpatialScheme::Upwind1,
+                    Integrator::Euler,
+                    r,
+                    false,
+                    0.0,
+                )
+            }
+            ScenarioKind::Spiral => {
+                let r = positive("radius", o.radius.unwrap_or(n * 50.0 / 128.0))?;
+                let d = positive("depth", o.depth.unwrap_or(n * 40.0 / 128.0))?;
+                depth = Some(d);
+                let e = eps.unwrap_or(1.0);
+                let shape = Shape::spiral_default(c, r, d);
+                if steps.is_none() && time.is_none() {
+                    steps = Some(1000);
+                }
+                let vc = o.volume_conserving.unwrap_or(true);
+                let flow = if vc { Flow::volume_conserving(e) } else { Flow::mean_curvature(e) };
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, vc, 0.0)
+            }
+            ScenarioKind::Enright => {
+                voxel = 1.0 / size as f32;
+                let r = positive("radius", o.radius.unwrap_or(0.15))?;
+                let t = positive("period", o.period.unwrap_or(3.0))?;
+                period = Some(t);
+                if steps.is_none() && time.is_none() {
+                    time = Some(t);
+                }
+                let shape = Shape::Sphere { center: [0.35; 3], radius: r };
+                let flow =
+                    Flow::advection(Velocity::Field(Arc::new(EnrightVelocity { period: t })))
+                        .with_curvature(eps.unwrap_or(0.0));
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, false, 0.0)
+            }
+            ScenarioKind::Expand => {
+                let r = positive("radius", o.radius.unwrap_or(n / 4.0))?;
+                let f = o.speed.unwrap_or(1.0);
+                positive("speed", f as f64)?;
+                if steps.is_none() && time.is_none() {
+                    // Until the sphere spans twice the box: radius = size.
+                    time = Some((n - r).max(r) / f as f64);
+                }
+                let shape = Shape::Sphere { center: c, radius: r };
+                let flow =
+                    Flow::normal_speed(Speed::Constant(f)).with_curvature(eps.unwrap_or(0.0));
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, false, f)
+            }
+            ScenarioKind::Morph => {
+                let r = positive("radius", o.radius.unwrap_or(n * 0.3))?;
+                let shape = Shape::Sphere { center: c, radius: r };
+                let target =
+                    Shape::Torus { center: c, major_radius: n * 0.3, minor_radius: n * 0.12 };
+                target_desc = Some(format!("{target:?}"));
+                let g = o.half_width * voxel;
+                let flow =
+                    Flow::morph(Arc::new(StaticSdf { sdf: move |p| target.sdf(p), clamp: g }))
+                        .with_curvature(eps.unwrap_or(0.0));
+                if steps.is_none() && time.is_none() {
+                    steps = Some(300);
+                }
+                (shape, flow, SpatialScheme::Upwind1, Integrator::Euler, r, false, 0.0)
+            }
+        };
+        if steps.is_none() && time.is_none() {
+            steps = Some(100);
+        }
+        let rescale = o.rescale.unwrap_or(flow.rescale);
+        let flow = flow.with_rescale(rescale);
+        let mut flow = flow;
+        if let Some(e) = eps {
+            flow.curvature = e;
+        }
+        let voxel = o.voxel_size.filter(|_| o.init.is_some()).unwrap_or(voxel);
+        let spec = spec(voxel, o.half_width)?;
+        let pool = Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| EvolveError::InvalidParameter(format!("thread pool: {e}")))?,
+        );
+        let settings = Settings {
+            scheme: o.scheme.unwrap_or(scheme),
+            integrator: o.integrator.unwrap_or(integrator),
+            time_step: TimeStep::Cfl(o.cfl),
+            pool: Some(pool),
+            ..Settings::default()
+        };
+        let params = ScenarioParams {
+            scenario: kind,
+            size,
+            grid: o.grid.name(),
+            lanes: match o.grid {
+                GridKind::Tiles(l) => Some(l),
+                _ => None,
+            },
+            threads: if matches!(o.grid, GridKind::Tiles(_)) { threads } else { 1 },
+            scheme: settings.scheme,
+            integrator: settings.integrator,
+            cfl: o.cfl,
+            voxel_size: voxel,
+            half_width: o.half_width,
+            radius,
+            epsilon: flow.curvature,
+            speed,
+            period,
+            depth,
+            volume_conserving,
+            rescale,
+            steps,
+            time,
+            record_every: o.record_every,
+            init: o.init.as_ref().map(|(n, _)| n.clone()),
+            shape: format!("{shape:?}"),
+            target: target_desc,
+        };
+        let sim = match &o.init {
+            Some((_, field)) => Simulation::from_dense(o.grid, field, spec, flow, settings)?,
+            None => Simulation::from_shape(o.grid, &shape, spec, flow, settings)?,
+        };
+        let milestones = match (kind, period) {
+            (ScenarioKind::Enright, Some(t)) => vec![t / 2.0, t],
+            _ => Vec::new(),
+        };
+        Ok(Scenario { params, sim, milestones })
+    }
+
+    /// Runs to the requested steps or time (or collapse), recording every
+    /// `record_every` steps; `progress(fraction done)` after every step.
+    pub fn run(
+        mut self,
+        mut progress: impl FnMut(f64),
+    ) -> Result<(Summary, Simulation), EvolveError> {
+        let p = &self.params;
+        let stages = match p.integrator {
+            Integrator::Euler => 1,
+            Integrator::Rk3 => 3,
+        };
+        let m0 = self.sim.measure();
+        let mut records = vec![record(0, 0.0, 0.0, &m0, 0.0)];
+        let mut seconds = 0.0;
+        let mut updates = 0f64;
+        let max_steps = p.steps.unwrap_or(u64::MAX);
+        let end_time = p.time.unwrap_or(f64::INFINITY);
+        let mut milestones = self.milestones.clone();
+        let mut ratios = Vec::new();
+        while self.sim.steps() < max_steps && self.sim.time() < end_time && !self.sim.collapsed() {
+            let cap =
+                milestones.first().copied().unwrap_or(end_time).min(end_time) - self.sim.time();
+            let computed = self.sim.stored_voxels();
+            let t = Instant::now();
+            let r = self.sim.step_capped(cap as f32)?;
+            seconds += t.elapsed().as_secs_f64();
+            updates += (computed * stages) as f64;
+            let hit = milestones.first().is_some_and(|&m| self.sim.time() >= m);
+            let last = self.sim.steps() >= max_steps || self.sim.time() >= end_time || r.collapsed;
+            if hit || last || r.step % p.record_every == 0 {
+                let m = self.sim.measure();
+                if hit {
+                    ratios.push(m.volume / m0.volume);
+                    milestones.remove(0);
+                }
+                records.push(record(r.step, r.time, r.dt, &m, seconds));
+            }
+            let frac = match p.steps {
+                Some(s) => self.sim.steps() as f64 / s as f64,
+                None => self.sim.time() / end_time,
+            };
+            progress(frac.min(1.0));
+        }
+        let last = records.last().expect("the initial record");
+        let summary = Summary {
+            params: self.params,
+            steps_taken: self.sim.steps(),
+            time: self.sim.time(),
+            collapsed: self.sim.collapsed(),
+            checksum: format!("{:016x}", self.sim.checksum()),
+            seconds,
+            voxel_updates_per_s: if seconds > 0.0 { updates / seconds } else { 0.0 },
+            volume_ratio_half_period: ratios.first().copied(),
+            volume_ratio_period: ratios.get(1).copied(),
+            volume_ratio: last.volume / m0.volume,
+            records,
+        };
+        Ok((summary, self.sim))
+    }
+}
+
+fn record(step: u64, time: f64, dt: f32, m: &Measures, seconds: f64) -> Record {
+    Record {
+        step,
+        time,
+        dt,
+        band_voxels: m.band_voxels,
+        tiles: m.stored,
+        volume: m.volume,
+        area: m.area,
+        bytes: m.bytes,
+        work_bytes: m.work_bytes,
+        seconds,
+    }
+}
