@@ -361,18 +361,27 @@ pub struct Measures {
 
 enum Rep {
     Tiles(TilesRep),
-    DtGrid(DtRep),
+    // Boxed: the DT-Grid engine holds three grids (current, rebuild scratch, result).
+    DtGrid(Box<DtRep>),
     Dense(DenseRep),
 }
 
-macro_rules! with_rep {
-    ($rep:expr, $r:ident => $body:expr) => {
-        match $rep {
-            Rep::Tiles($r) => $body,
-            Rep::DtGrid($r) => $body,
-            Rep::Dense($r) => $body,
+impl Rep {
+    fn get(&self) -> &dyn Representation {
+        match self {
+            Rep::Tiles(r) => r,
+            Rep::DtGrid(r) => r.as_ref(),
+            Rep::Dense(r) => r,
         }
-    };
+    }
+
+    fn get_mut(&mut self) -> &mut dyn Representation {
+        match self {
+            Rep::Tiles(r) => r,
+            Rep::DtGrid(r) => r.as_mut(),
+            Rep::Dense(r) => r,
+        }
+    }
 }
 
 /// A level set evolving under a [`Flow`] on one representation.
@@ -416,7 +425,9 @@ impl Simulation {
         let spec = *tiles.spec();
         let rep = match kind {
             GridKind::Tiles(lanes) => Rep::Tiles(TilesRep::new(tiles, lanes)),
-            GridKind::DtGrid => Rep::DtGrid(DtRep::new(crate::build::dtgrid_from_tiles(&tiles))),
+            GridKind::DtGrid => {
+                Rep::DtGrid(Box::new(DtRep::new(crate::build::dtgrid_from_tiles(&tiles))))
+            }
             GridKind::Dense => {
                 let (origin, dims) = crate::build::dense_box(&tiles, DENSE_MARGIN)
                     .ok_or(EvolveError::EmptyLevelSet)?;
@@ -433,7 +444,7 @@ impl Simulation {
         flow: Flow,
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
-        Simulation::start(Rep::DtGrid(DtRep::new(grid)), GridKind::DtGrid, flow, settings)
+        Simulation::start(Rep::DtGrid(Box::new(DtRep::new(grid))), GridKind::DtGrid, flow, settings)
     }
 
     /// A simulation starting from a dense field (φ < 0 inside, world units, values
@@ -487,7 +498,7 @@ impl Simulation {
             target: Vec::new(),
         };
         let g = sim.spec().gamma();
-        if !with_rep!(&sim.rep, r => r.flat().iter().any(|v| v.abs() < g)) {
+        if !sim.rep.get().flat().iter().any(|v| v.abs() < g) {
             return Err(EvolveError::EmptyLevelSet);
         }
         // Bring the initial band to the band rule: every voxel within one voxel of the
@@ -498,7 +509,7 @@ impl Simulation {
 
     /// Runs `f` on the representation inside the simulation's thread pool.
     fn install<T: Send>(&mut self, f: impl FnOnce(&mut dyn Representation) -> T + Send) -> T {
-        let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
+        let rep: &mut dyn Representation = self.rep.get_mut();
         match &self.settings.pool {
             Some(pool) => pool.install(|| f(rep)),
             None => f(rep),
@@ -506,7 +517,7 @@ impl Simulation {
     }
 
     fn spec(&self) -> GridSpec {
-        with_rep!(&self.rep, r => r.spec())
+        self.rep.get().spec()
     }
 
     /// The representation this simulation runs on.
@@ -555,7 +566,7 @@ impl Simulation {
 
     /// Value at any voxel.
     pub fn value(&self, c: Coord) -> f32 {
-        with_rep!(&self.rep, r => r.value(c))
+        self.rep.get().value(c)
     }
 
     /// The current values as a dense field over `origin .. origin + dims`.
@@ -565,7 +576,7 @@ impl Simulation {
 
     /// Voxels a stage computes: stored voxels (tile padding included).
     pub fn stored_voxels(&self) -> usize {
-        with_rep!(&self.rep, r => r.flat().len())
+        self.rep.get().flat().len()
     }
 
     /// Inclusive bounding box of the band voxels (`None` when there are none).
@@ -585,7 +596,7 @@ impl Simulation {
 
     /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
     pub fn for_each_band_voxel(&self, mut f: impl FnMut(Coord, f32)) {
-        with_rep!(&self.rep, r => r.for_each_band_voxel(&mut f))
+        self.rep.get().for_each_band_voxel(&mut f)
     }
 
     /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
@@ -613,28 +624,25 @@ impl Simulation {
         let h = spec.voxel_size;
         let g = spec.gamma();
         let width = self.settings.delta_width * h;
-        let (flat_inside, band) = with_rep!(&self.rep, r => {
-            let mut s = ExactSum::default();
-            let mut band = 0usize;
-            for &v in r.flat() {
-                s.add((0.5 - v / h).clamp(0.0, 1.0));
-                band += (v.abs() < g) as usize;
-            }
-            (s, band)
-        });
-        let unstored = with_rep!(&self.rep, r => r.unstored_inside());
+        let mut flat_inside = ExactSum::default();
+        let mut band = 0usize;
+        for &v in self.rep.get().flat() {
+            flat_inside.add((0.5 - v / h).clamp(0.0, 1.0));
+            band += (v.abs() < g) as usize;
+        }
+        let unstored = self.rep.get().unstored_inside();
         let area_sum = match &self.settings.pool {
-            Some(pool) => pool.install(|| with_rep!(&self.rep, r => r.kappa_bar_sums(width))),
-            None => with_rep!(&self.rep, r => r.kappa_bar_sums(width)),
+            Some(pool) => pool.install(|| self.rep.get().kappa_bar_sums(width)),
+            None => self.rep.get().kappa_bar_sums(width),
         };
         let h3 = (h as f64).powi(3);
         Measures {
             band_voxels: band,
-            stored: with_rep!(&self.rep, r => r.units()),
+            stored: self.rep.get().units(),
             volume: h3 * (flat_inside.value() + unstored as f64),
             area: area_sum.map_or(f64::NAN, |(_, den)| h3 * den.value()),
-            bytes: with_rep!(&self.rep, r => r.bytes()),
-            work_bytes: with_rep!(&self.rep, r => r.work_bytes()),
+            bytes: self.rep.get().bytes(),
+            work_bytes: self.rep.get().work_bytes(),
         }
     }
 
@@ -685,7 +693,7 @@ impl Simulation {
         }
         let spec = self.spec();
         let (h, g) = (spec.voxel_size, spec.gamma());
-        let n = with_rep!(&self.rep, r => r.flat().len());
+        let n = self.rep.get().flat().len();
         let stages: &[(u8, f64)] = match self.settings.integrator {
             Integrator::Euler => &[(1, 0.0)],
             Integrator::Rk3 => &[(1, 0.0), (2, 1.0), (3, 0.5)],
@@ -730,7 +738,7 @@ impl Simulation {
                 };
             let last = si + 1 == stages.len();
             let scheme = self.settings.scheme;
-            let rep: &mut dyn Representation = with_rep!(&mut self.rep, r => r);
+            let rep: &mut dyn Representation = self.rep.get_mut();
             match &self.settings.pool {
                 Some(pool) => pool.install(|| rep.stage(&p, scheme, last))?,
                 None => rep.stage(&p, scheme, last)?,
@@ -739,7 +747,8 @@ impl Simulation {
         self.install(|r| r.finish_step())?;
         self.time = t0 + dt as f64;
         self.steps += 1;
-        self.collapsed = with_rep!(&self.rep, r => r.unstored_inside() == 0 && !r.flat().iter().any(|&v| v < 0.0));
+        let rep = self.rep.get();
+        self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
         Ok(StepReport {
             step: self.steps,
             time: self.time,
@@ -758,7 +767,7 @@ impl Simulation {
         t: f64,
         first: bool,
     ) -> Result<Option<f64>, EvolveError> {
-        let rep: &dyn Representation = with_rep!(&self.rep, r => r);
+        let rep: &dyn Representation = self.rep.get();
         let install = |f: &mut (dyn FnMut() + Send)| match &self.settings.pool {
             Some(pool) => pool.install(f),
             None => f(),
@@ -837,7 +846,7 @@ impl Simulation {
 
     /// max |F| and max (|u|+|v|+|w|) over the band voxels of the current values.
     fn band_maxima(&self, g: f32) -> Result<(f32, f32), EvolveError> {
-        let flat = with_rep!(&self.rep, r => r.flat());
+        let flat = self.rep.get().flat();
         let mut max_f = 0.0f32;
         let mut finite = true;
         for (&v, &f) in flat.iter().zip(&self.speed) {
