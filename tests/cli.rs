@@ -218,3 +218,185 @@ fn bench_quick_reports_both_grids_and_the_kernels() {
     let o = levelset(&["bench", "--reps", "0"]);
     assert!(!o.status.success());
 }
+
+fn read_summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("summary.json")).expect("summary.json written"))
+        .expect("valid JSON")
+}
+
+#[test]
+fn run_writes_the_summary_the_issue_asks_for() {
+    let dir = tmp("run-sphere");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "40",
+        "--steps",
+        "12",
+        "--record-every",
+        "5",
+        "--threads",
+        "2",
+        "--quiet",
+        "--export-npy",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_summary(&dir);
+    let p = &s["params"];
+    for key in [
+        "radius",
+        "epsilon",
+        "speed",
+        "half_width",
+        "voxel_size",
+        "scheme",
+        "integrator",
+        "grid",
+        "lanes",
+        "threads",
+        "rescale",
+        "size",
+        "cfl",
+    ] {
+        assert!(!p[key].is_null(), "params.{key} missing: {p}");
+    }
+    assert_eq!(p["scheme"], "upwind1");
+    assert_eq!(p["grid"], "tiles");
+    assert_eq!(p["threads"], 2);
+    let records = s["records"].as_array().unwrap();
+    // Step 0, every 5th step and the last.
+    let steps: Vec<u64> = records.iter().map(|r| r["step"].as_u64().unwrap()).collect();
+    assert_eq!(steps, [0, 5, 10, 12]);
+    for r in records {
+        for key in
+            ["step", "time", "dt", "band_voxels", "tiles", "volume", "area", "bytes", "seconds"]
+        {
+            assert!(r[key].is_number(), "record.{key} missing: {r}");
+        }
+    }
+    assert_eq!(s["steps_taken"], 12);
+    assert_eq!(s["collapsed"], false);
+    assert_eq!(s["checksum"].as_str().unwrap().len(), 16);
+    // The exported field reads back and holds the shrunken sphere.
+    let f = sparse_levelset::npy::read_npy(&dir.join("final.npy")).unwrap();
+    assert!(f.data().iter().any(|&v| v < 0.0) && f.data().iter().any(|&v| v > 0.0));
+
+    // The same run on the DT-Grid and on one thread ends with the same checksum.
+    let dir2 = tmp("run-sphere-dt");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "40",
+        "--steps",
+        "12",
+        "--grid",
+        "dtgrid",
+        "--quiet",
+        "--out",
+        dir2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(read_summary(&dir2)["checksum"], s["checksum"]);
+}
+
+#[test]
+fn run_ends_cleanly_on_collapse_and_bad_input() {
+    // A small sphere under strong curvature flow collapses: a message, exit 0.
+    let dir = tmp("run-collapse");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "32",
+        "--radius",
+        "4",
+        "--steps",
+        "100000",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("collapsed"));
+    assert_eq!(read_summary(&dir)["collapsed"], true);
+
+    // An --init field holding inf: error, exit 1, no panic.
+    let path = tmp("inf.npy");
+    let mut data = sphere_f32(12, 3.0);
+    data[4 * 100..4 * 101].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    write_npy(&path, "<f4", &[12, 12, 12], &data);
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--init",
+        path.to_str().unwrap(),
+        "--out",
+        tmp("o1").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).starts_with("error:") && stderr(&o).contains("not finite"),
+        "{}",
+        stderr(&o)
+    );
+
+    // An --init field without an interface: error, exit 1.
+    let path = tmp("outside.npy");
+    let data: Vec<u8> = (0..8 * 8 * 8).flat_map(|_| 5.0f32.to_le_bytes()).collect();
+    write_npy(&path, "<f4", &[8, 8, 8], &data);
+    let o = levelset(&[
+        "run",
+        "morph",
+        "--init",
+        path.to_str().unwrap(),
+        "--out",
+        tmp("o2").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("empty"), "{}", stderr(&o));
+
+    // Nonsense arguments.
+    for args in [
+        &["run", "sphere", "--cfl", "3"][..],
+        &["run", "sphere", "--epsilon=-1"],
+        &["run", "enright", "--period", "0"],
+        &["run", "sphere", "--size", "0"],
+        &["run", "sphere", "--threads", "0"],
+        &["run", "sphere", "--half-width", "0.5"],
+        &["run", "sphere", "--grid", "dense", "--size", "400"],
+    ] {
+        let o = levelset(args);
+        assert_eq!(
+            o.status.code(),
+            Some(if args.contains(&"--threads") { 2 } else { 1 }),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn run_starts_from_an_npy_field() {
+    let path = tmp("init.npy");
+    write_npy(&path, "<f4", &[24, 24, 24], &sphere_f32(24, 6.0));
+    let dir = tmp("run-init");
+    let o = levelset(&[
+        "run",
+        "expand",
+        "--init",
+        path.to_str().unwrap(),
+        "--steps",
+        "5",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = read_summary(&dir);
+    assert_eq!(s["params"]["init"], path.to_str().unwrap());
+    assert!(s["volume_ratio"].as_f64().unwrap() > 1.0, "the sphere grows");
+}
