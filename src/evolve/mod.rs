@@ -57,7 +57,8 @@ pub mod exact;
 pub mod field;
 
 pub use field::{
-    EnrightVelocity, ScalarClosure, ScalarFn, Speed, StaticSdf, VectorClosure, VectorFn, Velocity,
+    EnrightVelocity, SampledField, SampledVelocity, ScalarClosure, ScalarFn, Speed, StaticSdf,
+    VectorClosure, VectorFn, Velocity,
 };
 
 use crate::coord::Coord;
