@@ -7,6 +7,23 @@ use sparse_levelset::shapes::Shape;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// `print!` that ignores a closed standard output (`levelset run … | head` must not
+/// panic on a broken pipe).
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
+/// `println!` that ignores a closed standard output.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "levelset",
@@ -297,7 +314,7 @@ fn write_json<T: serde::Serialize>(path: &std::path::Path, value: &T) -> Result<
         w.write_all(text.as_bytes())
     })
     .map_err(|e| format!("{}: {e}", path.display()))?;
-    println!("wrote {}", path.display());
+    outln!("wrote {}", path.display());
     Ok(())
 }
 
@@ -319,8 +336,8 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
             kernels: kernel_bench(a.quick)?,
             target_features: levelset_kernels::target_features(),
         };
-        println!("target features: {}", report.target_features.join(","));
-        print!("{}", kernels_text(&report.kernels));
+        outln!("target features: {}", report.target_features.join(","));
+        out!("{}", kernels_text(&report.kernels));
         if let Some(path) = &a.json {
             write_json(path, &report)?;
         }
@@ -362,7 +379,7 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
         scenarios: results,
         kernels,
     };
-    print!("{}", report.to_text());
+    out!("{}", report.to_text());
     if let Some(path) = &a.json {
         write_json(path, &report)?;
     }
@@ -432,7 +449,7 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
         scenario.run(|f| bar.set_position((f * 1000.0) as u64)).map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let last = summary.records.last().expect("records");
-    println!(
+    outln!(
         "{}: {} steps to t = {:.6}{} on {} in {:.2} s ({:.1} Mvoxel-updates/s); band voxels {}, \
          volume V/V0 = {:.6}, area {:.6e}, {} bytes; checksum {}",
         kind.name(),
@@ -449,7 +466,7 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
         summary.checksum
     );
     if let (Some(h), Some(p)) = (summary.volume_ratio_half_period, summary.volume_ratio_period) {
-        println!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
+        outln!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
     }
     write_json(&a.out.join("summary.json"), &summary)?;
     if a.export_npy {
@@ -466,7 +483,7 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
         ];
         let field = sim.to_dense(origin, dims).map_err(|e| e.to_string())?;
         sparse_levelset::npy::write_npy(&path, &field).map_err(|e| e.to_string())?;
-        println!("wrote {} (origin voxel {origin}, dims {dims:?})", path.display());
+        outln!("wrote {} (origin voxel {origin}, dims {dims:?})", path.display());
     }
     Ok(())
 }
@@ -476,9 +493,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Info(a)) => run_info(&a).map(|r| {
             if a.json {
-                println!("{}", serde_json::to_string_pretty(&r).expect("report serialises"));
+                outln!("{}", serde_json::to_string_pretty(&r).expect("report serialises"));
             } else {
-                print!("{}", r.to_text());
+                out!("{}", r.to_text());
             }
         }),
         Some(Command::Bench(a)) => run_bench(&a),
