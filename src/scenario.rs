@@ -331,7 +331,17 @@ impl Scenario {
             flow.curvature = e;
         }
         let voxel = o.voxel_size.filter(|_| o.init.is_some()).unwrap_or(voxel);
+        if !(o.half_width > 1.0 && o.half_width <= 64.0) {
+            return Err(EvolveError::InvalidParameter(format!(
+                "half-width must be in (1, 64] voxels, got {}",
+                o.half_width
+            )));
+        }
         let spec = spec(voxel, o.half_width)?;
+        if o.init.is_none() {
+            // The evolution holds about five grid-sized arrays; the dense reference a box.
+            crate::build::check_band_fits(&shape, &spec, 5.0)?;
+        }
         let pool = Arc::new(
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -404,11 +414,10 @@ impl Scenario {
         let mut milestones = self.milestones.clone();
         let mut ratios = Vec::new();
         while self.sim.steps() < max_steps && self.sim.time() < end_time && !self.sim.collapsed() {
-            let cap =
-                milestones.first().copied().unwrap_or(end_time).min(end_time) - self.sim.time();
+            let until = milestones.first().copied().unwrap_or(end_time).min(end_time);
             let computed = self.sim.stored_voxels();
             let t = Instant::now();
-            let r = self.sim.step_capped(cap as f32)?;
+            let r = self.sim.step_until(until)?;
             seconds += t.elapsed().as_secs_f64();
             updates += (computed * stages) as f64;
             let hit = milestones.first().is_some_and(|&m| self.sim.time() >= m);

@@ -367,7 +367,9 @@ fn run_ends_cleanly_on_collapse_and_bad_input() {
         &["run", "sphere", "--size", "0"],
         &["run", "sphere", "--threads", "0"],
         &["run", "sphere", "--half-width", "0.5"],
-        &["run", "sphere", "--grid", "dense", "--size", "400"],
+        &["run", "sphere", "--grid", "dense", "--size", "64", "--radius", "2000"],
+        &["run", "sphere", "--half-width", "1000000"],
+        &["run", "enright", "--size", "65536"],
     ] {
         let o = levelset(args);
         assert_eq!(

@@ -245,6 +245,33 @@ fn enright_finer_grid_loses_less_volume() {
     assert!(loss[1] < loss[0], "volume loss 32³ {} vs 64³ {}", loss[0], loss[1]);
 }
 
+/// A time-independent field is sampled once per step; the volume-conserving term must be
+/// added to it afresh in every RK stage (F = 0 as a field behaves as F = 0).
+#[test]
+fn static_speed_fields_match_constants_in_every_stage() {
+    let shape = Shape::Sphere { center: [0.2, 0.1, -0.3], radius: 9.0 };
+    let zero: Arc<dyn sparse_levelset::evolve::ScalarFn> =
+        Arc::new(StaticSdf { sdf: |_: [f64; 3]| 0.0, clamp: 1.0 });
+    for kind in [GridKind::Tiles(Lanes::Simd), GridKind::DtGrid] {
+        let run = |speed: Speed| {
+            let flow = Flow::volume_conserving(1.0).with_speed(speed);
+            let mut sim = Simulation::from_shape(
+                kind,
+                &shape,
+                GridSpec::default(),
+                flow,
+                Settings::weno5_rk3(),
+            )
+            .unwrap();
+            for _ in 0..20 {
+                sim.step().unwrap();
+            }
+            sim.checksum()
+        };
+        assert_eq!(run(Speed::Constant(0.0)), run(Speed::Field(zero.clone())), "{kind:?}");
+    }
+}
+
 #[test]
 fn bad_input_is_an_error_not_a_panic() {
     let spec = GridSpec::default();
@@ -278,6 +305,13 @@ fn bad_input_is_an_error_not_a_panic() {
         Settings::default(),
     )
     .unwrap();
+    assert!(matches!(sim.step(), Err(EvolveError::NonFiniteField { .. })));
+    // ... or turns infinite away from the interface, or NaN only in a later RK stage.
+    let far_inf = Speed::from_fn(|p, _| if p[0] > 6.5 { f32::INFINITY } else { 1.0 });
+    let mut sim = mk(Flow::normal_speed(far_inf), Settings::default()).unwrap();
+    assert!(matches!(sim.step(), Err(EvolveError::NonFiniteField { .. })));
+    let later_nan = Speed::from_fn(|_, t| if t > 0.0 { f32::NAN } else { 1.0 });
+    let mut sim = mk(Flow::normal_speed(later_nan), Settings::weno5_rk3()).unwrap();
     assert!(matches!(sim.step(), Err(EvolveError::NonFiniteField { .. })));
     // An empty level set: a shape far smaller than a voxel's band has no band voxels
     // when it lies between voxel centres... use an all-outside dense field instead.

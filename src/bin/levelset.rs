@@ -264,34 +264,6 @@ fn shape_of(a: &InfoArgs, kind: ShapeKind) -> Shape {
     }
 }
 
-/// Refuses a shape whose band would not fit in memory, before building it. The estimate
-/// is the band of the bounding box's surface: an upper bound for convex shapes, within a
-/// small factor for the others.
-fn check_size(shape: &Shape, spec: &GridSpec) -> Result<(), String> {
-    let (lo, hi) = shape.bounds();
-    let e: Vec<f64> = (0..3).map(|i| (hi[i] - lo[i]).max(0.0) / spec.voxel_size as f64).collect();
-    let area = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[0] * e[2]);
-    // Tiles pad the band to whole tiles: about 4 tile layers of 64 voxels per 16 voxels of area.
-    let tile_bytes = area * (2.0 * spec.half_width as f64 + 8.0) * 4.0 * 1.5;
-    let limit = available_memory().unwrap_or(8 << 30) as f64 * 0.7;
-    if tile_bytes > limit {
-        return Err(format!(
-            "the band of this shape needs about {:.1} GiB but about {:.1} GiB of memory is \
-             available: use a smaller shape or a larger --voxel-size",
-            tile_bytes / (1u64 << 30) as f64,
-            limit / (1u64 << 30) as f64
-        ));
-    }
-    Ok(())
-}
-
-fn available_memory() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 fn run_info(a: &InfoArgs) -> Result<InfoReport, String> {
     let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     if let Some(path) = &a.field {
@@ -302,7 +274,7 @@ fn run_info(a: &InfoArgs) -> Result<InfoReport, String> {
     let kind = a.shape.unwrap_or(ShapeKind::Sphere);
     let shape = shape_of(a, kind);
     shape.validate().map_err(|e| e.to_string())?;
-    check_size(&shape, &spec)?;
+    sparse_levelset::build::check_band_fits(&shape, &spec, 1.0).map_err(|e| e.to_string())?;
     let name = format!("{kind:?}").to_lowercase();
     info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())
 }
@@ -433,9 +405,6 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
     if let Some(path) = &a.init {
         let field = sparse_levelset::npy::read_npy(path).map_err(|e| e.to_string())?;
         o.init = Some((path.display().to_string(), field));
-    }
-    if matches!(o.grid, GridKind::Dense) && o.size.unwrap_or(kind.default_size()) > 160 {
-        return Err("the dense reference is for small grids: use --size 160 or less".into());
     }
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let scenario = Scenario::resolve(o).map_err(|e| e.to_string())?;

@@ -129,9 +129,10 @@ pub(crate) fn dispatch<V: Sweep>(
     }
 }
 
-/// The integrands of κ̄ (eq. (6)) with the smoothed delta of eq. (7): `NUM` selects
-/// κ δ(φ)|∇φ| (numerator) or δ(φ)|∇φ| (denominator, which summed times h³ is the
-/// interface area).
+/// The integrands of κ̄ (eq. (6)) with the smoothed delta of eq. (7), made
+/// dimensionless so that their fixed-point sums neither overflow nor lose precision at any
+/// voxel size: `NUM` selects κ δ(φ)|∇φ| · h² (numerator) or δ(φ)|∇φ| · h (denominator,
+/// which summed times h² is the interface area); κ̄ = Σ num / (h Σ den).
 #[derive(Clone, Copy)]
 pub(crate) struct KappaBarTerm<const NUM: bool> {
     pub inv_h: f32,
@@ -143,11 +144,13 @@ impl<const NUM: bool> VoxelKernel for KappaBarTerm<NUM> {
     const BOX_REACH: i32 = 1;
     #[inline(always)]
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
-        let (num, den) = kappa_bar_integrands(w, L::splat(self.inv_h), L::splat(self.width));
+        let inv_h = L::splat(self.inv_h);
+        let (num, den) = kappa_bar_integrands(w, inv_h, L::splat(self.width));
+        let h = L::splat(1.0) / inv_h;
         if NUM {
-            num
+            num * (h * h)
         } else {
-            den
+            den * h
         }
     }
 }
@@ -630,7 +633,7 @@ impl Representation for DtRep {
         for (c, v) in self.grid.iter() {
             if let Some((p, pv)) = prev {
                 if p.z == c.z && p.y == c.y && c.x > p.x + 1 && pv < 0.0 {
-                    n += (c.x - p.x - 1) as u64;
+                    n += (c.x as i64 - p.x as i64 - 1) as u64;
                 }
             }
             prev = Some((c, v));

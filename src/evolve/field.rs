@@ -118,10 +118,10 @@ pub enum Speed {
     /// F(x, t) from a field.
     Field(Arc<dyn ScalarFn>),
     /// Morphing toward a target level set ψ (H-RLE paper Sec. 6.4.1, eq. (1)): F = φ − ψ,
-    /// i.e. φ_t = (ψ − φ)|∇φ|. The paper prints (φ − ψ)|∇φ| for its opposite sign
-    /// convention (φ > 0 inside); with φ < 0 inside this is the form whose steady state
-    /// is φ = ψ. The target is clamped to ±γ like a sparse level set (the "speed limit"
-    /// the paper mentions).
+    /// i.e. φ_t = (ψ − φ)|∇φ|. Eq. (1) as printed, φ_t = (φ − ψ)|∇φ|, makes the difference
+    /// e = φ − ψ grow (e_t = e|∇φ|) under either sign convention, so its sign is reversed
+    /// here: this form's steady state is φ = ψ. The target is clamped to ±γ like a sparse
+    /// level set (the "speed limit" the paper mentions).
     MorphTo(Arc<dyn ScalarFn>),
 }
 

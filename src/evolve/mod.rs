@@ -316,8 +316,8 @@ pub enum EvolveError {
          use a smaller step or the CFL-limited step"
     )]
     CflViolated { dt: f32, limit: f32, step: u64 },
-    #[error("a speed or velocity sample is not finite at step {step}")]
-    NonFiniteField { step: u64 },
+    #[error("a speed or velocity sample is not finite in step {step} (t = {time})")]
+    NonFiniteField { step: u64, time: f64 },
     #[error(
         "the band reached voxel {voxel}, within 4 voxels of the dense reference box's face; \
          use a larger box"
@@ -394,10 +394,11 @@ pub struct Simulation {
     time: f64,
     steps: u64,
     collapsed: bool,
-    /// Per-voxel F (flat order), u, and the morph target.
+    /// Per-voxel F (flat order) and u.
     speed: Vec<f32>,
     velocity: [Vec<f32>; 3],
-    target: Vec<f32>,
+    /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
+    base: Vec<f32>,
 }
 
 impl Simulation {
@@ -496,7 +497,7 @@ impl Simulation {
             collapsed: false,
             speed: Vec::new(),
             velocity: Default::default(),
-            target: Vec::new(),
+            base: Vec::new(),
         };
         let g = sim.spec().gamma();
         if !sim.rep.get().flat().iter().any(|v| v.abs() < g) {
@@ -641,7 +642,8 @@ impl Simulation {
             band_voxels: band,
             stored: self.rep.get().units(),
             volume: h3 * (flat_inside.value() + unstored as f64),
-            area: area_sum.map_or(f64::NAN, |(_, den)| h3 * den.value()),
+            // The sums hold δ|∇φ|·h (see `KappaBarTerm`): area = h³ Σ δ|∇φ| = h² Σ den.
+            area: area_sum.map_or(f64::NAN, |(_, den)| h3 / h as f64 * den.value()),
             bytes: self.rep.get().bytes(),
             work_bytes: self.rep.get().work_bytes(),
         }
@@ -665,12 +667,11 @@ impl Simulation {
     /// One time step. Fails cleanly (the state unchanged) when the flow gives non-finite
     /// speeds, a fixed Δt violates the CFL limit, or the interface has collapsed.
     pub fn step(&mut self) -> Result<StepReport, EvolveError> {
-        self.step_capped(f32::INFINITY)
+        self.step_until(f64::INFINITY)
     }
 
-    /// Steps until `time` is reached (the last step shortened to land on it), the
-    /// interface collapses, or `max_steps` steps were taken; calls `each` after every
-    /// step.
+    /// Steps until `time` is reached (the last step lands on it exactly), the interface
+    /// collapses, or `max_steps` steps were taken; calls `each` after every step.
     pub fn run_until(
         &mut self,
         time: f64,
@@ -679,18 +680,25 @@ impl Simulation {
     ) -> Result<(), EvolveError> {
         let mut n = 0;
         while self.time < time && n < max_steps && !self.collapsed {
-            let rest = (time - self.time) as f32;
-            let r = self.step_capped(rest)?;
+            let r = self.step_until(time)?;
             each(self, &r);
             n += 1;
         }
         Ok(())
     }
 
-    /// One step with Δt at most `max_dt`.
-    pub fn step_capped(&mut self, max_dt: f32) -> Result<StepReport, EvolveError> {
+    /// One step that does not pass time `until`: when the step the CFL condition allows
+    /// would reach or pass it, Δt is shortened and the simulation lands on `until`
+    /// exactly.
+    pub fn step_until(&mut self, until: f64) -> Result<StepReport, EvolveError> {
         if self.collapsed {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
+        }
+        if until.is_nan() || until <= self.time {
+            return Err(EvolveError::InvalidParameter(format!(
+                "cannot step to t = {until} from t = {}",
+                self.time
+            )));
         }
         let spec = self.spec();
         let (h, g) = (spec.voxel_size, spec.gamma());
@@ -701,13 +709,14 @@ impl Simulation {
         };
         let t0 = self.time;
         let mut dt = 0.0f32;
+        let mut lands = false;
         let mut kappa_bar_1 = None;
         for (si, &(stage, c)) in stages.iter().enumerate() {
             let t = t0 + c * dt as f64;
             let kappa_bar = self.prepare_fields(n, t, stage == 1)?;
             if stage == 1 {
                 kappa_bar_1 = kappa_bar;
-                let (max_f, max_u) = self.band_maxima(g)?;
+                let (max_f, max_u) = self.band_maxima(g);
                 let limit = self.stability_limit(max_f, max_u);
                 dt = match self.settings.time_step {
                     TimeStep::Cfl(cfl) => cfl * limit,
@@ -715,8 +724,12 @@ impl Simulation {
                         return Err(EvolveError::CflViolated { dt: d, limit, step: self.steps })
                     }
                     TimeStep::Fixed(d) => d,
+                };
+                let rest = (until - t0) as f32;
+                if dt >= rest {
+                    dt = rest;
+                    lands = true;
                 }
-                .min(max_dt);
                 if !(dt.is_finite() && dt > 0.0) {
                     return Err(EvolveError::InvalidParameter(format!(
                         "no finite time step (Δt = {dt}): the flow moves nothing"
@@ -746,7 +759,7 @@ impl Simulation {
             }
         }
         self.install(|r| r.finish_step())?;
-        self.time = t0 + dt as f64;
+        self.time = if lands { until } else { t0 + dt as f64 };
         self.steps += 1;
         let rep = self.rep.get();
         self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
@@ -761,7 +774,8 @@ impl Simulation {
 
     /// Fills the per-voxel F and u for a stage at time `t`; returns κ̄ when the flow is
     /// volume-conserving. `first` marks stage 1 (the layout may have changed since the
-    /// last step, so everything is sampled anew).
+    /// last step, so everything is sampled anew); fields that do not depend on time are
+    /// sampled only then, into `base` (F) and `velocity` (u).
     fn prepare_fields(
         &mut self,
         n: usize,
@@ -773,51 +787,45 @@ impl Simulation {
             Some(pool) => pool.install(f),
             None => f(),
         };
-        // Normal speed.
-        self.speed.resize(n, 0.0);
-        let mut uniform = 0.0f32;
-        match &self.flow.speed {
-            Speed::Constant(f) => {
-                if first {
-                    self.speed.fill(*f);
-                }
-                uniform = *f;
-            }
-            Speed::Field(f) => {
-                if first || f.time_dependent() {
-                    let speed = &mut self.speed;
-                    install(&mut || rep.fill_scalar(f.as_ref(), t, speed));
-                }
-            }
-            Speed::MorphTo(target) => {
-                if first {
-                    self.target.resize(n, 0.0);
-                    let tg = &mut self.target;
-                    install(&mut || rep.fill_scalar(target.as_ref(), t, tg));
-                    let g = rep.spec().gamma();
-                    self.target.iter_mut().for_each(|v| *v = v.clamp(-g, g));
-                }
-                for ((s, &phi), &psi) in self.speed.iter_mut().zip(rep.flat()).zip(&self.target) {
-                    *s = phi - psi;
-                }
-            }
-        }
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let mut kappa_bar = None;
+        let mut add = 0.0f32;
         if self.flow.volume_conserving {
             let width = self.settings.delta_width * rep.spec().voxel_size;
             let (num, den) = match &self.settings.pool {
                 Some(pool) => pool.install(|| rep.kappa_bar_sums(width))?,
                 None => rep.kappa_bar_sums(width)?,
             };
-            let kb = if den.value() > 0.0 { num.value() / den.value() } else { 0.0 };
+            let h = rep.spec().voxel_size as f64;
+            // The sums hold κδ|∇φ|·h² and δ|∇φ|·h (see `KappaBarTerm`).
+            let kb = if den.value() > 0.0 { num.value() / den.value() / h } else { 0.0 };
             kappa_bar = Some(kb);
-            let add = (self.flow.curvature as f64 * kb) as f32;
-            match &self.flow.speed {
-                Speed::Constant(_) => self.speed.fill(uniform + add),
-                _ => {
-                    // Field and morph speeds were (re)written above for this stage.
-                    self.speed.iter_mut().for_each(|s| *s += add)
+            add = (self.flow.curvature as f64 * kb) as f32;
+        }
+        // Normal speed: F = base + ε κ̄.
+        self.speed.resize(n, 0.0);
+        match &self.flow.speed {
+            Speed::Constant(f) => self.speed.fill(*f + add),
+            Speed::Field(f) => {
+                if first || f.time_dependent() {
+                    self.base.resize(n, 0.0);
+                    let base = &mut self.base;
+                    install(&mut || rep.fill_scalar(f.as_ref(), t, base));
+                }
+                for (s, &b) in self.speed.iter_mut().zip(&self.base) {
+                    *s = b + add;
+                }
+            }
+            Speed::MorphTo(target) => {
+                if first {
+                    self.base.resize(n, 0.0);
+                    let base = &mut self.base;
+                    install(&mut || rep.fill_scalar(target.as_ref(), t, base));
+                    let g = rep.spec().gamma();
+                    self.base.iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                }
+                for ((s, &phi), &psi) in self.speed.iter_mut().zip(rep.flat()).zip(&self.base) {
+                    *s = (phi - psi) + add;
                 }
             }
         }
@@ -842,17 +850,23 @@ impl Simulation {
                 }
             }
         }
+        // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
+        // choice and an infinity would turn into NaN and then −γ.
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        let velocity_ok = self.flow.velocity.is_none() || self.velocity.iter().all(|c| finite(c));
+        if !finite(&self.speed) || !velocity_ok {
+            return Err(EvolveError::NonFiniteField { step: self.steps, time: t });
+        }
         Ok(kappa_bar)
     }
 
-    /// max |F| and max (|u|+|v|+|w|) over the band voxels of the current values.
-    fn band_maxima(&self, g: f32) -> Result<(f32, f32), EvolveError> {
+    /// max |F| and max (|u|+|v|+|w|) over the band voxels of the current values (the set
+    /// every representation holds, so every representation takes the same Δt).
+    fn band_maxima(&self, g: f32) -> (f32, f32) {
         let flat = self.rep.get().flat();
         let mut max_f = 0.0f32;
-        let mut finite = true;
         for (&v, &f) in flat.iter().zip(&self.speed) {
             if v.abs() < g {
-                finite &= f.is_finite();
                 max_f = max_f.max(f.abs());
             }
         }
@@ -861,15 +875,10 @@ impl Simulation {
             let [a, b, c] = &self.velocity;
             for (i, &v) in flat.iter().enumerate() {
                 if v.abs() < g {
-                    let s = a[i].abs() + b[i].abs() + c[i].abs();
-                    finite &= s.is_finite();
-                    max_u = max_u.max(s);
+                    max_u = max_u.max(a[i].abs() + b[i].abs() + c[i].abs());
                 }
             }
         }
-        if !finite {
-            return Err(EvolveError::NonFiniteField { step: self.steps });
-        }
-        Ok((max_f, max_u))
+        (max_f, max_u)
     }
 }
