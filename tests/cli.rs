@@ -303,6 +303,18 @@ fn run_writes_the_summary_the_issue_asks_for() {
     assert_eq!(read_summary(&dir2)["checksum"], s["checksum"]);
 }
 
+/// `levelset run SCENARIO --init FIELD --out TMP/OUT`.
+fn run_from(field: &Path, scenario: &str, out: &str) -> Output {
+    levelset(&[
+        "run",
+        scenario,
+        "--init",
+        field.to_str().unwrap(),
+        "--out",
+        tmp(out).to_str().unwrap(),
+    ])
+}
+
 #[test]
 fn run_ends_cleanly_on_collapse_and_bad_input() {
     // A small sphere under strong curvature flow collapses: a message, exit 0.
@@ -329,14 +341,7 @@ fn run_ends_cleanly_on_collapse_and_bad_input() {
     let mut data = sphere_f32(12, 3.0);
     data[4 * 100..4 * 101].copy_from_slice(&f32::INFINITY.to_le_bytes());
     write_npy(&path, "<f4", &[12, 12, 12], &data);
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--init",
-        path.to_str().unwrap(),
-        "--out",
-        tmp("o1").to_str().unwrap(),
-    ]);
+    let o = run_from(&path, "sphere", "o1");
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).starts_with("error:") && stderr(&o).contains("not finite"),
@@ -348,14 +353,7 @@ fn run_ends_cleanly_on_collapse_and_bad_input() {
     let path = tmp("outside.npy");
     let data: Vec<u8> = (0..8 * 8 * 8).flat_map(|_| 5.0f32.to_le_bytes()).collect();
     write_npy(&path, "<f4", &[8, 8, 8], &data);
-    let o = levelset(&[
-        "run",
-        "morph",
-        "--init",
-        path.to_str().unwrap(),
-        "--out",
-        tmp("o2").to_str().unwrap(),
-    ]);
+    let o = run_from(&path, "morph", "o2");
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("empty"), "{}", stderr(&o));
 

@@ -66,16 +66,42 @@ impl<'a> StageParams<'a> {
 /// the flat order (their per-voxel inputs sliced to start at the block's first voxel).
 /// `R` is the halo the kernel needs.
 pub(crate) trait Sweep {
-    /// Kernels that read the 3×3×3 box (first-order upwind, curvature).
-    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync;
-    /// Kernels that also read ±3 along the axes (HJ-WENO5).
-    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync;
+        M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: PointWindow;
+}
+
+/// A stencil reach `R` (1: the 3×3×3 box; 3: the box and ±3 along the axes) as a type, so
+/// that the DT-Grid's sweep picks its point window at compile time.
+pub(crate) struct Halo<const R: usize>;
+
+/// How the DT-Grid's stencil iterator serves a kernel of reach `R`: the stencil it walks
+/// and the point window over its values.
+pub(crate) trait PointWindow {
+    fn stencil(rep: &DtRep) -> &Stencil;
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32;
+}
+
+impl PointWindow for Halo<1> {
+    fn stencil(rep: &DtRep) -> &Stencil {
+        &rep.box27
+    }
+    #[inline(always)]
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        k.eval::<f32, _>(&BoxWindow::new(values.try_into().expect("27 values")), i)
+    }
+}
+
+impl PointWindow for Halo<3> {
+    fn stencil(rep: &DtRep) -> &Stencil {
+        &rep.box_far39
+    }
+    #[inline(always)]
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        k.eval::<f32, _>(&BoxFarWindow::new(values.try_into().expect("39 values")), i)
+    }
 }
 
 macro_rules! stage_kernel {
@@ -113,19 +139,19 @@ pub(crate) fn dispatch<V: Sweep>(
     sweep: V,
 ) -> Result<(), EvolveError> {
     macro_rules! go {
-        ($S:ty, $run:ident, $adv:ident) => {
+        ($S:ty, $R:literal, $adv:ident) => {
             match p.stage {
-                1 => sweep.$run(stage_kernel!(p, $S, 1, $adv)),
-                2 => sweep.$run(stage_kernel!(p, $S, 2, $adv)),
-                _ => sweep.$run(stage_kernel!(p, $S, 3, $adv)),
+                1 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 1, $adv)),
+                2 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 2, $adv)),
+                _ => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 3, $adv)),
             }
         };
     }
     match (scheme, p.velocity.is_some()) {
-        (SpatialScheme::Upwind1, false) => go!(Upwind1, run1, none),
-        (SpatialScheme::Upwind1, true) => go!(Upwind1, run1, adv),
-        (SpatialScheme::Weno5, false) => go!(Weno5, run3, none),
-        (SpatialScheme::Weno5, true) => go!(Weno5, run3, adv),
+        (SpatialScheme::Upwind1, false) => go!(Upwind1, 1, none),
+        (SpatialScheme::Upwind1, true) => go!(Upwind1, 1, adv),
+        (SpatialScheme::Weno5, false) => go!(Weno5, 3, none),
+        (SpatialScheme::Weno5, true) => go!(Weno5, 3, adv),
     }
 }
 
@@ -232,34 +258,20 @@ struct TileSweep<'a> {
 }
 
 impl Sweep for TileSweep<'_> {
-    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run::<K, M, 1>(make)
-    }
-    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run::<K, M, 3>(make)
-    }
-}
-
-impl TileSweep<'_> {
     fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: PointWindow,
     {
         match self.lanes {
             Lanes::Scalar => self.run_lanes::<f32, K, M, R>(make),
             Lanes::Simd => self.run_lanes::<DefaultLane, K, M, R>(make),
         }
     }
+}
 
+impl TileSweep<'_> {
     fn run_lanes<L: Lane, K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
@@ -500,17 +512,6 @@ impl DtRep {
             box_far39: stencil_of(&BOX_FAR39_OFFSETS),
         }
     }
-
-    /// Calls `f(point index, stencil values)` for every point with the box stencil
-    /// (`R = 1`) or the box + far-star stencil (`R = 3`).
-    #[inline(always)]
-    fn for_each_stencil<const R: usize>(&self, mut f: impl FnMut(usize, &[f32])) {
-        let st = if R == 1 { &self.box27 } else { &self.box_far39 };
-        let mut it = StencilIter::new(&self.grid, st);
-        while it.advance() {
-            f(it.center_index(), it.values());
-        }
-    }
 }
 
 struct DtSweep<'a> {
@@ -518,18 +519,12 @@ struct DtSweep<'a> {
     out: &'a mut Vec<f32>,
 }
 
-impl DtSweep<'_> {
-    /// Evaluates the kernel at every point: `eval(kernel, stencil values, point index)`
-    /// sees the stencil iterator's values through a point window.
-    #[inline(always)]
-    fn run_with<K, M, const R: usize>(
-        self,
-        make: M,
-        eval: impl Fn(&K, &[f32], usize) -> f32,
-    ) -> Result<(), EvolveError>
+impl Sweep for DtSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: PointWindow,
     {
         let n = self.rep.grid.len();
         let k = make(0..n);
@@ -537,29 +532,12 @@ impl DtSweep<'_> {
         self.out.clear();
         self.out.resize(n, 0.0);
         let out = &mut self.out[..];
-        self.rep.for_each_stencil::<R>(|i, v| out[i] = eval(&k, v, i));
+        let mut it = StencilIter::new(&self.rep.grid, <Halo<R>>::stencil(self.rep));
+        while it.advance() {
+            let i = it.center_index();
+            out[i] = <Halo<R>>::eval(&k, it.values(), i);
+        }
         Ok(())
-    }
-}
-
-impl Sweep for DtSweep<'_> {
-    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run_with::<K, M, 1>(make, |k, v, i| {
-            k.eval::<f32, _>(&BoxWindow::new(v.try_into().expect("27 values")), i)
-        })
-    }
-    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run_with::<K, M, 3>(make, |k, v, i| {
-            k.eval::<f32, _>(&BoxFarWindow::new(v.try_into().expect("39 values")), i)
-        })
     }
 }
 
@@ -612,11 +590,12 @@ impl Representation for DtRep {
         let (kn, kd) =
             (KappaBarTerm::<true> { inv_h, width }, KappaBarTerm::<false> { inv_h, width });
         let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
-        self.for_each_stencil::<1>(|i, v| {
-            let w = BoxWindow::new(v.try_into().expect("27 values"));
-            num.add(kn.eval::<f32, _>(&w, i));
-            den.add(kd.eval::<f32, _>(&w, i));
-        });
+        let mut it = StencilIter::new(&self.grid, &self.box27);
+        while it.advance() {
+            let i = it.center_index();
+            num.add(<Halo<1>>::eval(&kn, it.values(), i));
+            den.add(<Halo<1>>::eval(&kd, it.values(), i));
+        }
         Ok((num, den))
     }
 
@@ -770,27 +749,11 @@ struct DenseSweep<'a> {
 }
 
 impl Sweep for DenseSweep<'_> {
-    fn run1<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run::<K, M, 1>(make)
-    }
-    fn run3<K, M>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
-        self.run::<K, M, 3>(make)
-    }
-}
-
-impl DenseSweep<'_> {
     fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: PointWindow,
     {
         let rep = self.rep;
         let dims = rep.field.dims();
