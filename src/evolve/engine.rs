@@ -210,9 +210,11 @@ pub(crate) trait Representation: Send + Sync {
     fn value(&self, c: Coord) -> f32;
     /// Tiles (tiles), points (DT-Grid) or voxels (dense) stored.
     fn units(&self) -> usize;
-    /// Bytes of the representation itself.
+    /// Bytes of the representation's data (values, indices, flags; unused capacity of
+    /// its arrays excluded).
     fn bytes(&self) -> usize;
-    /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask).
+    /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask, rebuild scratch)
+    /// and the representation's unused capacity.
     fn work_bytes(&self) -> usize;
 }
 
@@ -467,11 +469,13 @@ impl Representation for TilesRep {
     }
 
     fn bytes(&self) -> usize {
-        self.grid.memory().total()
+        let m = self.grid.memory();
+        m.total() - m.slack
     }
 
     fn work_bytes(&self) -> usize {
-        vec_bytes(&self.phi_n)
+        self.grid.memory().slack
+            + vec_bytes(&self.phi_n)
             + vec_bytes(&self.out)
             + vec_bytes(&self.box_min)
             + vec_bytes(&self.activity)
@@ -638,11 +642,13 @@ impl Representation for DtRep {
     }
 
     fn bytes(&self) -> usize {
-        self.grid.memory().total()
+        let m = self.grid.memory();
+        m.total() - m.slack
     }
 
     fn work_bytes(&self) -> usize {
-        vec_bytes(&self.phi_n)
+        self.grid.memory().slack
+            + vec_bytes(&self.phi_n)
             + vec_bytes(&self.out)
             + self.kept.memory().total()
             + self.next.memory().total()

@@ -354,9 +354,9 @@ pub struct Measures {
     pub volume: f64,
     /// Interface area, world units: h³ Σ δ(φ)|∇φ| with the δ of eq. (7).
     pub area: f64,
-    /// Bytes of the representation.
+    /// Bytes of the representation's data (unused array capacity excluded).
     pub bytes: usize,
-    /// Bytes of the evolution's buffers.
+    /// Bytes of the evolution's buffers and the representation's unused capacity.
     pub work_bytes: usize,
 }
 
