@@ -198,6 +198,9 @@ pub(crate) trait Representation: Send + Sync {
         scheme: SpatialScheme,
         last: bool,
     ) -> Result<(), EvolveError>;
+    /// Puts φⁿ back after stage 1 of an RK3 step (a later stage failed): the step is
+    /// undone.
+    fn rollback(&mut self) -> Result<(), EvolveError>;
     /// (Σ κδ|∇φ|, Σ δ|∇φ|) over the current values (eq. (6) without the h³ that cancels).
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError>;
     /// Band maintenance after a step: tile management, DT-Grid rebuild, dense bounds.
@@ -380,6 +383,14 @@ impl Representation for TilesRep {
             // `out` now holds φⁿ: keep it for stages 2 and 3.
             std::mem::swap(&mut self.phi_n, &mut self.out);
         }
+        Ok(())
+    }
+
+    fn rollback(&mut self) -> Result<(), EvolveError> {
+        let g = self.grid.gamma();
+        self.activity.clear();
+        self.activity.extend(self.phi_n.iter().map(|t| compute_activity(t, g)));
+        self.grid.swap_values(&mut self.phi_n, &self.activity)?;
         Ok(())
     }
 
@@ -586,6 +597,11 @@ impl Representation for DtRep {
             std::mem::swap(&mut self.phi_n, &mut out);
         }
         self.out = out;
+        Ok(())
+    }
+
+    fn rollback(&mut self) -> Result<(), EvolveError> {
+        self.grid.swap_values(&mut self.phi_n)?;
         Ok(())
     }
 
@@ -826,6 +842,11 @@ impl Representation for DenseRep {
             self.phi_n.extend_from_slice(data);
         }
         data.copy_from_slice(&self.out);
+        Ok(())
+    }
+
+    fn rollback(&mut self) -> Result<(), EvolveError> {
+        self.field.data_mut().copy_from_slice(&self.phi_n);
         Ok(())
     }
 

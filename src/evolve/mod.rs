@@ -713,7 +713,16 @@ impl Simulation {
         let mut kappa_bar_1 = None;
         for (si, &(stage, c)) in stages.iter().enumerate() {
             let t = t0 + c * dt as f64;
-            let kappa_bar = self.prepare_fields(n, t, stage == 1)?;
+            let kappa_bar = match self.prepare_fields(n, t, stage == 1) {
+                Ok(k) => k,
+                Err(e) => {
+                    if stage > 1 {
+                        // Stage 1 already wrote φ⁽¹⁾: put φⁿ back so the step is undone.
+                        self.rep.get_mut().rollback()?;
+                    }
+                    return Err(e);
+                }
+            };
             if stage == 1 {
                 kappa_bar_1 = kappa_bar;
                 let (max_f, max_u) = self.band_maxima(g);
