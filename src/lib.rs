@@ -35,6 +35,7 @@ pub mod npy;
 pub mod sample;
 pub mod scenario;
 pub mod shapes;
+pub mod speedup;
 pub mod tiles;
 
 pub use coord::Coord;

@@ -73,6 +73,8 @@ pub struct ScenarioOptions {
     pub grid: GridKind,
     /// Worker threads of the tile engine (all cores when `None`).
     pub threads: Option<usize>,
+    /// Pin worker thread i to core i (core_affinity).
+    pub pin: bool,
     pub radius: Option<f64>,
     pub epsilon: Option<f32>,
     pub speed: Option<f32>,
@@ -103,6 +105,7 @@ impl ScenarioOptions {
             time: None,
             grid: GridKind::Tiles(Lanes::Simd),
             threads: None,
+            pin: false,
             radius: None,
             epsilon: None,
             speed: None,
@@ -188,6 +191,8 @@ pub struct Summary {
     pub seconds: f64,
     /// Σ over steps of voxels computed × stages / seconds.
     pub voxel_updates_per_s: f64,
+    /// Σ over steps of band voxels (|φ| < γ) × stages / seconds.
+    pub band_voxel_updates_per_s: f64,
     /// V(t)/V(0) at Enright's maximum deformation t = T/2 (if reached).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_ratio_half_period: Option<f64>,
@@ -342,9 +347,18 @@ impl Scenario {
             // The evolution holds about five grid-sized arrays; the dense reference a box.
             crate::build::check_band_fits(&shape, &spec, 5.0)?;
         }
+        let mut builder = rayon::ThreadPoolBuilder::new().num_threads(threads);
+        if o.pin {
+            let cores = core_affinity::get_core_ids().unwrap_or_default();
+            if !cores.is_empty() {
+                builder = builder.start_handler(move |i| {
+                    // Best effort: a core that cannot be taken leaves the thread unpinned.
+                    let _ = core_affinity::set_for_current(cores[i % cores.len()]);
+                });
+            }
+        }
         let pool = Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
+            builder
                 .build()
                 .map_err(|e| EvolveError::InvalidParameter(format!("thread pool: {e}")))?,
         );
@@ -409,6 +423,7 @@ impl Scenario {
         let mut records = vec![record(0, 0.0, 0.0, &m0, 0.0)];
         let mut seconds = 0.0;
         let mut updates = 0f64;
+        let mut band_updates = 0f64;
         let max_steps = p.steps.unwrap_or(u64::MAX);
         let end_time = p.time.unwrap_or(f64::INFINITY);
         let mut milestones = self.milestones.clone();
@@ -416,10 +431,12 @@ impl Scenario {
         while self.sim.steps() < max_steps && self.sim.time() < end_time && !self.sim.collapsed() {
             let until = milestones.first().copied().unwrap_or(end_time).min(end_time);
             let computed = self.sim.stored_voxels();
+            let band = self.sim.band_voxels();
             let t = Instant::now();
             let r = self.sim.step_until(until)?;
             seconds += t.elapsed().as_secs_f64();
             updates += (computed * stages) as f64;
+            band_updates += (band * stages) as f64;
             let hit = milestones.first().is_some_and(|&m| self.sim.time() >= m);
             let last = self.sim.steps() >= max_steps || self.sim.time() >= end_time || r.collapsed;
             if hit || last || r.step % p.record_every == 0 {
@@ -445,6 +462,7 @@ impl Scenario {
             checksum: format!("{:016x}", self.sim.checksum()),
             seconds,
             voxel_updates_per_s: if seconds > 0.0 { updates / seconds } else { 0.0 },
+            band_voxel_updates_per_s: if seconds > 0.0 { band_updates / seconds } else { 0.0 },
             volume_ratio_half_period: ratios.first().copied(),
             volume_ratio_period: ratios.get(1).copied(),
             volume_ratio: last.volume / m0.volume,

@@ -200,7 +200,7 @@ fn bench_quick_reports_both_grids_and_the_kernels() {
     assert!(v["target_features"].is_array());
 
     let s = tmp("bench.json");
-    let o = levelset(&["bench", "--quick", "--json", s.to_str().unwrap()]);
+    let o = levelset(&["bench", "--storage", "--quick", "--json", s.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
     let scenarios = v["scenarios"].as_array().unwrap();
@@ -217,6 +217,54 @@ fn bench_quick_reports_both_grids_and_the_kernels() {
     assert_eq!(v["kernels"].as_array().unwrap().len(), 8);
     let o = levelset(&["bench", "--reps", "0"]);
     assert!(!o.status.success());
+}
+
+#[test]
+fn bench_reports_the_speedup_over_dtgrid() {
+    let s = tmp("speedup.json");
+    let o = levelset(&["bench", "--quick", "--threads", "2", "--json", s.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("CPU:") && text.contains("target features") && text.contains("build"));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
+    for key in ["cpu", "target_features", "profile"] {
+        assert!(!v[key].is_null(), "{key}");
+    }
+    let scenarios = v["scenarios"].as_array().unwrap();
+    let names: Vec<&str> = scenarios.iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["sphere", "spiral", "enright"]);
+    for sc in scenarios {
+        assert!(sc["kernel_voxel_updates_per_s"].as_f64().unwrap() > 0.0);
+        // Every representation computes the same band.
+        assert_eq!(sc["max_abs_diff"].as_f64().unwrap(), 0.0, "{}", sc["name"]);
+        let runs = sc["runs"].as_array().unwrap();
+        let kinds: Vec<(String, String, u64)> = runs
+            .iter()
+            .map(|r| {
+                (
+                    r["grid"].as_str().unwrap().into(),
+                    r["lanes"].as_str().unwrap().into(),
+                    r["threads"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                ("dtgrid".into(), "scalar".into(), 1),
+                ("tiles".into(), "scalar".into(), 1),
+                ("tiles".into(), "simd".into(), 1),
+                ("tiles".into(), "simd".into(), 2)
+            ]
+        );
+        let sum = &runs[0]["checksum"];
+        for r in runs {
+            assert_eq!(&r["checksum"], sum, "{}: checksums differ", sc["name"]);
+            for key in ["seconds", "voxel_updates_per_s", "bytes", "speedup_vs_dtgrid"] {
+                assert!(r[key].as_f64().unwrap() > 0.0, "{key}");
+            }
+        }
+    }
 }
 
 fn read_summary(dir: &Path) -> serde_json::Value {

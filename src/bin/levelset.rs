@@ -39,8 +39,9 @@ struct Cli {
 enum Command {
     /// Build both grids from a shape or a dense .npy field and report voxels and bytes.
     Info(InfoArgs),
-    /// Time the same stencil arithmetic, random access and band maintenance on the tiles
-    /// and on the DT-Grid (the default command).
+    /// The speed-up report: the papers' scenarios on the DT-Grid and on tiles (scalar,
+    /// SIMD on one thread, SIMD on every thread), with the kernel-only throughput (the
+    /// default command). `--storage`: the storage benchmark; `--kernels`: kernels only.
     Bench(BenchArgs),
     /// Evolve one of the papers' scenarios and write DIR/summary.json.
     Run(RunArgs),
@@ -171,7 +172,20 @@ struct BenchArgs {
     /// Smaller shapes and fewer repetitions (a quick look, not a measurement).
     #[arg(long)]
     quick: bool,
-    /// Repetitions per operation; the best time is reported.
+    /// The storage benchmark instead: the same stencil arithmetic, random access and band
+    /// maintenance on both grids.
+    #[arg(long, conflicts_with = "kernels")]
+    storage: bool,
+    /// Worker threads of the "all threads" runs [default: every core].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Pin worker threads to cores.
+    #[arg(long)]
+    pin: bool,
+    /// The spiral's 1000 iterations (the tile paper's Table 2) instead of 100.
+    #[arg(long)]
+    full: bool,
+    /// Storage benchmark: repetitions per operation; the best time is reported.
     #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Only the pure-kernel section: voxel updates/s of the PDE kernels on a dense in-cache
@@ -315,6 +329,9 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
         }
         return Ok(());
     }
+    if !a.storage {
+        return run_speedup(a);
+    }
     let spec = GridSpec::default();
     let scale = if a.quick { 0.4 } else { 1.0 };
     let reps = if a.quick { 1 } else { a.reps as usize };
@@ -352,6 +369,31 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
         kernels,
     };
     out!("{}", report.to_text());
+    if let Some(path) = &a.json {
+        write_json(path, &report)?;
+    }
+    Ok(())
+}
+
+fn run_speedup(a: &BenchArgs) -> Result<(), String> {
+    use indicatif::{ProgressBar, ProgressStyle};
+    use sparse_levelset::speedup::{run_speedup, SpeedupConfig};
+    let mut cfg = SpeedupConfig { pin: a.pin, full: a.full, quick: a.quick, ..Default::default() };
+    if let Some(t) = a.threads {
+        cfg.threads = t as usize;
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+            .expect("valid template"),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar.set_message("kernels");
+    let kernels = kernel_bench(a.quick)?;
+    let report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+    bar.finish_and_clear();
+    out!("{}", report.to_text());
+    out!("{}", sparse_levelset::bench::kernels_text(&kernels));
     if let Some(path) = &a.json {
         write_json(path, &report)?;
     }

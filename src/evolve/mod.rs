@@ -576,6 +576,12 @@ impl Simulation {
         DenseField::from_fn(origin, dims, |c| self.value(c))
     }
 
+    /// Band voxels (|φ| < γ).
+    pub fn band_voxels(&self) -> usize {
+        let g = self.spec().gamma();
+        self.rep.get().flat().iter().filter(|v| v.abs() < g).count()
+    }
+
     /// Voxels a stage computes: stored voxels (tile padding included).
     pub fn stored_voxels(&self) -> usize {
         self.rep.get().flat().len()

@@ -1,0 +1,306 @@
+//! The speed-up report behind `levelset bench` (and `cargo run --release`): the papers'
+//! evolution scenarios on the DT-Grid, on tiles with scalar lanes, with SIMD lanes on one
+//! thread and with SIMD lanes on every thread — the same flows, kernels and band rule, so
+//! the ratios measure the data structures and the lanes (tile paper Sec. 5: the same
+//! level-set code on both structures).
+//!
+//! Every run of a scenario ends with the same band, bit for bit (see [`crate::evolve`]):
+//! the report shows the checksums and the largest difference of the final φ between the
+//! DT-Grid and each tile run.
+
+use crate::evolve::{GridKind, Lanes, Simulation};
+use crate::scenario::{Scenario, ScenarioKind, ScenarioOptions};
+use crate::Coord;
+use serde::Serialize;
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct SpeedupConfig {
+    /// Worker threads of the "all threads" run (default: every core).
+    pub threads: usize,
+    /// Pin the worker threads to cores (core_affinity).
+    pub pin: bool,
+    /// The spiral's 1000 iterations of the tile paper's Table 2 instead of the short run.
+    pub full: bool,
+    /// A quick look: small sizes and few steps (not a measurement).
+    pub quick: bool,
+}
+
+impl Default for SpeedupConfig {
+    fn default() -> Self {
+        SpeedupConfig {
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            pin: false,
+            full: false,
+            quick: false,
+        }
+    }
+}
+
+/// One run of one scenario.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunResult {
+    /// `"dtgrid"` or `"tiles"`.
+    pub grid: &'static str,
+    /// `"scalar"` or `"simd"` (`"scalar"` for the DT-Grid, whose arithmetic is scalar).
+    pub lanes: &'static str,
+    pub threads: usize,
+    /// Seconds of stepping (set-up and measurements excluded).
+    pub seconds: f64,
+    /// Stored voxels (DT-Grid points, tiles × 64) × RK stages per second.
+    pub voxel_updates_per_s: f64,
+    /// Band voxels (|φ| < γ) × stages per second: the same numerator for every run.
+    pub band_voxel_updates_per_s: f64,
+    /// Bytes of the representation's data at the end.
+    pub bytes: usize,
+    pub bytes_vs_dtgrid: f64,
+    pub speedup_vs_dtgrid: f64,
+    /// Checksum of the final band (equal for equal bands).
+    pub checksum: String,
+}
+
+/// One scenario: its runs and how they compare.
+#[derive(Clone, Debug, Serialize)]
+pub struct ScenarioBench {
+    pub name: &'static str,
+    pub size: u32,
+    pub steps: u64,
+    /// The kernels benchmark's throughput of the same arithmetic at the widest lanes
+    /// (`upwind_curvature` for first-order runs, `weno5_rk3` for HJ-WENO5 + TVD-RK3).
+    pub kernel: &'static str,
+    pub kernel_voxel_updates_per_s: f64,
+    /// Tiles, SIMD, one thread: voxel-updates/s over the kernel-only throughput.
+    pub engine_fraction_of_kernel: f64,
+    /// Largest |φ_tiles − φ_dtgrid| over the band voxels of either, over all tile runs.
+    pub max_abs_diff: f32,
+    pub runs: Vec<RunResult>,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize)]
+pub struct SpeedupReport {
+    pub cpu: String,
+    pub target_features: Vec<&'static str>,
+    pub profile: &'static str,
+    pub threads: usize,
+    pub pinned: bool,
+    pub scenarios: Vec<ScenarioBench>,
+}
+
+/// The scenarios with their sizes and fixed step counts.
+fn plan(cfg: &SpeedupConfig) -> Vec<(ScenarioKind, u32, u64)> {
+    if cfg.quick {
+        return vec![
+            (ScenarioKind::Sphere, 64, 4),
+            (ScenarioKind::Spiral, 48, 4),
+            (ScenarioKind::Enright, 48, 4),
+        ];
+    }
+    vec![
+        (ScenarioKind::Sphere, 256, 40),
+        (ScenarioKind::Spiral, 128, if cfg.full { 1000 } else { 100 }),
+        (ScenarioKind::Enright, 256, 30),
+    ]
+}
+
+fn band(sim: &Simulation) -> Vec<(Coord, f32)> {
+    let mut v = Vec::new();
+    sim.for_each_band_voxel(|c, x| v.push((c, x)));
+    v
+}
+
+/// Largest |a − b| over the band voxels of either band (a voxel missing on one side
+/// reads ±γ there, through the simulation's random access).
+fn max_abs_diff(a: &[(Coord, f32)], sa: &Simulation, b: &[(Coord, f32)], sb: &Simulation) -> f32 {
+    let (mut i, mut j, mut m) = (0, 0, 0.0f32);
+    while i < a.len() || j < b.len() {
+        let d = match (a.get(i), b.get(j)) {
+            (Some(&(ca, va)), Some(&(cb, vb))) if ca == cb => {
+                i += 1;
+                j += 1;
+                (va - vb).abs()
+            }
+            (Some(&(ca, va)), Some(&(cb, _))) if ca < cb => {
+                i += 1;
+                (va - sb.value(ca)).abs()
+            }
+            (Some(&(ca, va)), None) => {
+                i += 1;
+                (va - sb.value(ca)).abs()
+            }
+            (_, Some(&(cb, vb))) => {
+                j += 1;
+                (sa.value(cb) - vb).abs()
+            }
+            (None, None) => unreachable!("the loop condition"),
+        };
+        m = m.max(d);
+    }
+    m
+}
+
+/// Runs the report; `progress(message)` before every run.
+pub fn run_speedup(
+    cfg: &SpeedupConfig,
+    kernels: &[levelset_kernels::bench::KernelResult],
+    mut progress: impl FnMut(&str),
+) -> Result<SpeedupReport, String> {
+    let widest = levelset_kernels::bench::LANES[3];
+    let mut scenarios = Vec::new();
+    for (kind, size, steps) in plan(cfg) {
+        let runs_plan: [(GridKind, usize); 4] = [
+            (GridKind::DtGrid, 1),
+            (GridKind::Tiles(Lanes::Scalar), 1),
+            (GridKind::Tiles(Lanes::Simd), 1),
+            (GridKind::Tiles(Lanes::Simd), cfg.threads),
+        ];
+        let mut runs = Vec::new();
+        let mut reference: Option<(Vec<(Coord, f32)>, Simulation)> = None;
+        let mut max_diff = 0.0f32;
+        let mut kernel = "";
+        for (grid, threads) in runs_plan {
+            progress(&format!("{} {size}³: {} {threads} thread(s)", kind.name(), grid_label(grid)));
+            let mut o = ScenarioOptions::new(kind);
+            o.size = Some(size);
+            o.steps = Some(steps);
+            o.grid = grid;
+            o.threads = Some(threads);
+            o.pin = cfg.pin;
+            o.record_every = u64::MAX;
+            let sc = Scenario::resolve(o).map_err(|e| format!("{}: {e}", kind.name()))?;
+            kernel = match sc.params.scheme {
+                crate::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
+                crate::evolve::SpatialScheme::Weno5 => "weno5_rk3",
+            };
+            let (summary, sim) = sc.run(|_| {}).map_err(|e| format!("{}: {e}", kind.name()))?;
+            let last = summary.records.last().expect("records");
+            let b = band(&sim);
+            if let Some((rb, rs)) = &reference {
+                max_diff = max_diff.max(max_abs_diff(&b, &sim, rb, rs));
+            }
+            runs.push(RunResult {
+                grid: grid.name(),
+                lanes: match grid {
+                    GridKind::Tiles(Lanes::Simd) => "simd",
+                    _ => "scalar",
+                },
+                threads,
+                seconds: summary.seconds,
+                voxel_updates_per_s: summary.voxel_updates_per_s,
+                band_voxel_updates_per_s: summary.band_voxel_updates_per_s,
+                bytes: last.bytes,
+                bytes_vs_dtgrid: 0.0,
+                speedup_vs_dtgrid: 0.0,
+                checksum: summary.checksum.clone(),
+            });
+            if reference.is_none() {
+                reference = Some((b, sim));
+            }
+        }
+        let (dt_s, dt_b) = (runs[0].seconds, runs[0].bytes as f64);
+        for r in &mut runs {
+            r.speedup_vs_dtgrid = dt_s / r.seconds;
+            r.bytes_vs_dtgrid = r.bytes as f64 / dt_b;
+        }
+        let k = kernels
+            .iter()
+            .find(|r| r.kernel == kernel && r.lanes == widest)
+            .map_or(0.0, |r| r.voxel_updates_per_s);
+        scenarios.push(ScenarioBench {
+            name: kind.name(),
+            size,
+            steps,
+            kernel,
+            kernel_voxel_updates_per_s: k,
+            engine_fraction_of_kernel: if k > 0.0 { runs[2].voxel_updates_per_s / k } else { 0.0 },
+            max_abs_diff: max_diff,
+            runs,
+        });
+    }
+    Ok(SpeedupReport {
+        cpu: crate::bench::cpu_name(),
+        target_features: levelset_kernels::target_features(),
+        profile: if cfg!(debug_assertions) { "debug" } else { "release" },
+        threads: cfg.threads,
+        pinned: cfg.pin,
+        scenarios,
+    })
+}
+
+fn grid_label(g: GridKind) -> &'static str {
+    match g {
+        GridKind::DtGrid => "DT-Grid",
+        GridKind::Tiles(Lanes::Scalar) => "tiles scalar",
+        GridKind::Tiles(Lanes::Simd) => "tiles SIMD",
+        GridKind::Dense => "dense",
+    }
+}
+
+impl SpeedupReport {
+    /// The report as a text table.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "CPU: {}; target features: {}; {} build; up to {} thread(s){}",
+            self.cpu,
+            self.target_features.join(","),
+            self.profile,
+            self.threads,
+            if self.pinned { ", pinned" } else { "" }
+        );
+        for sc in &self.scenarios {
+            let _ = writeln!(
+                s,
+                "\n{} {}³, {} steps: kernel-only {} (widest lanes) {:.1} Mvox/s; tiles SIMD 1 thread \
+                 reaches {:.0} % of it; max |φ_tiles − φ_dtgrid| = {}",
+                sc.name,
+                sc.size,
+                sc.steps,
+                sc.kernel,
+                sc.kernel_voxel_updates_per_s / 1e6,
+                100.0 * sc.engine_fraction_of_kernel,
+                sc.max_abs_diff
+            );
+            let _ = writeln!(
+                s,
+                "  {:<13} {:>7} {:>9} {:>10} {:>13} {:>9} {:>11} {:>8}  checksum",
+                "grid",
+                "threads",
+                "seconds",
+                "Mvox/s",
+                "band Mvox/s",
+                "speed-up",
+                "bytes",
+                "bytes/DT"
+            );
+            for r in &sc.runs {
+                let name = match (r.grid, r.lanes) {
+                    ("dtgrid", _) => "DT-Grid",
+                    (_, "simd") => "tiles SIMD",
+                    _ => "tiles scalar",
+                };
+                let _ = writeln!(
+                    s,
+                    "  {:<13} {:>7} {:>9.3} {:>10.1} {:>13.1} {:>8.2}x {:>11} {:>8.2}  {}",
+                    name,
+                    r.threads,
+                    r.seconds,
+                    r.voxel_updates_per_s / 1e6,
+                    r.band_voxel_updates_per_s / 1e6,
+                    r.speedup_vs_dtgrid,
+                    r.bytes,
+                    r.bytes_vs_dtgrid,
+                    r.checksum
+                );
+            }
+        }
+        s.push_str(
+            "\nMvox/s: stored voxels (DT-Grid points, tiles x 64) x RK stages per second of \
+             stepping; band Mvox/s: voxels with |phi| < gamma x stages per second (the same work \
+             for every run).\n",
+        );
+        s
+    }
+}
