@@ -26,11 +26,11 @@ use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
 #[derive(Clone, Debug)]
 pub struct TileGrid {
     spec: GridSpec,
-    coords: Vec<Coord>,
-    ids: Vec<u32>,
-    arena: Vec<Tile>,
-    border: Vec<u32>,
-    activity: Vec<u32>,
+    pub(super) coords: Vec<Coord>,
+    pub(super) ids: Vec<u32>,
+    pub(super) arena: Vec<Tile>,
+    pub(super) border: Vec<u32>,
+    pub(super) activity: Vec<u32>,
     /// Row directory for random access; rebuilt with the list, dropped by `append`.
     dir: Option<RowDirectory>,
 }
@@ -415,17 +415,19 @@ impl TileGrid {
         self.activity.shrink_to_fit();
     }
 
-    /// Tile management (Sec. 4.6): streams the dilation of the list (Algorithm 2) and, for
-    /// every position, keeps, removes or creates a tile from the activity flags of the
-    /// tile and its neighbours (Algorithm 3). A removed tile writes its classification into
-    /// the border flags of its neighbours that face it; a created tile is filled with ±γ
-    /// from the border flags its neighbours hold towards it, and all its own border flags
-    /// take that sign. The result is sorted, and the tile data is compacted in list order.
-    /// Linear in the number of tiles.
+    /// Tile management (Sec. 4.6) exactly as the paper streams it, on one thread: streams
+    /// the dilation of the list (Algorithm 2) and, for every position, keeps, removes or
+    /// creates a tile from the activity flags of the tile and its neighbours (Algorithm
+    /// 3). A removed tile writes its classification into the border flags of its
+    /// neighbours that face it; a created tile is filled with ±γ from the border flags its
+    /// neighbours hold towards it, and all its own border flags take that sign. The result
+    /// is sorted, and the tile data is compacted in list order. Linear in the number of
+    /// tiles. [`TileGrid::manage_tiles`] computes the same result in parallel; this is its
+    /// reference.
     ///
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
-    pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
+    pub fn manage_tiles_streamed(&mut self) -> Result<ManageStats, GridError> {
         self.restructure(|nb, activity, ids| {
             let mut m = nb.matched;
             while m != 0 {
@@ -539,7 +541,7 @@ impl TileGrid {
     }
 
     #[inline]
-    fn debug_check(&self) {
+    pub(super) fn debug_check(&self) {
         #[cfg(debug_assertions)]
         if let Err(e) = self.check_invariants() {
             panic!("TileGrid invariant violated: {e}");

@@ -17,6 +17,7 @@ mod block;
 mod directory;
 pub mod flags;
 mod grid;
+mod manage;
 mod stream;
 
 pub use block::PaddedBlock;

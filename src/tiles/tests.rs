@@ -328,6 +328,49 @@ fn management_with_random_activity_keeps_list_valid() {
     }
 }
 
+/// The parallel management equals the paper's streamed Algorithms 2 + 3 in every list,
+/// value and flag, for any number of threads.
+#[test]
+fn parallel_management_equals_streamed() {
+    let mut rng = fastrand::Rng::with_seed(7);
+    let pools: Vec<rayon::ThreadPool> = [1, 2, 5]
+        .iter()
+        .map(|&t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap())
+        .collect();
+    for case in cases(23, 4) {
+        let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
+        for _round in 0..5 {
+            for p in 0..grid.len() {
+                let f = match rng.u32(0..5) {
+                    0 => 0,
+                    1 => INSIDE,
+                    2 => 1 << rng.u32(0..27),
+                    3 => grid.activity_flags(p),
+                    _ => rng.u32(..) & ACTIVE_MASK,
+                };
+                grid.set_activity_flags(p, f);
+            }
+            let mut want = grid.clone();
+            let want_stats = want.manage_tiles_streamed().unwrap();
+            for pool in &pools {
+                let mut got = grid.clone();
+                let stats = pool.install(|| got.manage_tiles()).unwrap();
+                assert_eq!(stats, want_stats);
+                assert_eq!(got.tile_coords(), want.tile_coords());
+                for p in 0..got.len() {
+                    assert_eq!(got.tile(p), want.tile(p));
+                    assert_eq!(got.border_flags(p), want.border_flags(p), "border of {p}");
+                    assert_eq!(got.activity_flags(p), want.activity_flags(p));
+                }
+            }
+            grid = want;
+            if grid.is_empty() {
+                break;
+            }
+        }
+    }
+}
+
 fn grid_from(spec: GridSpec, tiles: &[(Coord, f32)], inside: impl Fn(Coord) -> bool) -> TileGrid {
     let mut v: Vec<_> = tiles.iter().map(|&(c, x)| (c, Tile::splat(x))).collect();
     v.sort_by_key(|t| t.0);

@@ -1,0 +1,221 @@
+//! Parallel tile management (tile paper Sec. 4.6, Algorithm 3; its Sec. 5.8 leaves
+//! multicore to future work).
+//!
+//! The paper streams the dilation of the whole list (Algorithm 2) and decides keep /
+//! remove / create at every position of it. The same decisions split into independent
+//! chunks of the list:
+//!
+//! 1. **Keep or remove** each tile from its neighbours' activity (pull, as Algorithm 3),
+//!    with a [`NeighbourCursor`] per chunk seeded by binary search (Sec. 5.8). A removed
+//!    tile writes its classification into the border flags its neighbours hold towards it
+//!    (lines 11–18): each such bit belongs to exactly one removed tile, so the writes are
+//!    atomic bit operations whose result does not depend on their order.
+//! 2. **Create** the absent neighbours a tile's guard regions trigger (push: the same
+//!    trigger test, seen from the active tile), collected per chunk, then sorted and
+//!    deduplicated; each takes the OR of the border flags its present neighbours hold
+//!    towards it (lines 22–27). Those bits point at an absent position, so no removal
+//!    changes them and the old flags give the paper's answer.
+//! 3. **Compaction**: each chunk merges its kept tiles with the created tiles of its
+//!    coordinate range; a prefix sum over the chunks' counts places every chunk's output,
+//!    written in parallel in list order.
+//!
+//! The result does not depend on the number of threads or the chunking, and equals
+//! [`TileGrid::manage_tiles_streamed`] (tested).
+
+use super::flags::{ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
+use super::stream::NeighbourCursor;
+use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
+use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
+use crate::grid::GridError;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// Tiles per parallel task (the result does not depend on it; the unit tests use small
+/// chunks so that their grids span many).
+const CHUNK: usize = if cfg!(test) { 7 } else { 512 };
+
+/// Splits `v` into consecutive slices of the given lengths.
+fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(lens.len());
+    for &l in lens {
+        let (a, b) = v.split_at_mut(l);
+        out.push(a);
+        v = b;
+    }
+    out
+}
+
+impl TileGrid {
+    /// Tile management (Sec. 4.6, Algorithm 3) in parallel chunks (see the [module
+    /// docs](self)): keeps, removes or creates tiles from the activity flags of each tile
+    /// and its neighbours; a removed tile writes its classification into the border flags
+    /// of its neighbours that face it; a created tile is filled with ±γ from the border
+    /// flags its neighbours hold towards it, and all its own border flags take that sign.
+    /// The result is sorted, the tile data compacted in list order, and identical to
+    /// [`TileGrid::manage_tiles_streamed`] for any number of threads. Linear in the number
+    /// of tiles.
+    ///
+    /// A tile that would be created outside the representable range gives
+    /// [`GridError::OutOfRange`] and leaves the grid unchanged.
+    pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
+        let n = self.coords.len();
+        if n == 0 {
+            return Ok(ManageStats::default());
+        }
+        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
+        let coords = &self.coords[..];
+        let activity = &self.activity[..];
+        let border_new: Vec<AtomicU32> = self.border.iter().map(|&b| AtomicU32::new(b)).collect();
+        let mut keep = vec![false; n];
+
+        // 1 + 2: keep/remove, removal notices, candidates for creation, per chunk.
+        let found: Vec<Vec<Coord>> = keep
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, keep)| {
+                let start = c * CHUNK;
+                let mut created = Vec::new();
+                let mut cur = NeighbourCursor::new(coords, start, start + keep.len());
+                while let Some(nb) = cur.next() {
+                    let p = nb.pos;
+                    let mut triggered = false;
+                    let mut m = nb.matched;
+                    while m != 0 {
+                        let d = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        if activity[nb.ptr[d]] & NEIGHBOUR_TRIGGER[d] != 0 {
+                            triggered = true;
+                            break;
+                        }
+                    }
+                    keep[p - start] = triggered;
+                    if !triggered {
+                        // Algorithm 3 lines 11-18: tell the neighbours what the tile was.
+                        let inside = activity[p] & INSIDE != 0;
+                        let mut m = nb.matched & !(1 << MID);
+                        while m != 0 {
+                            let d = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            let bit = 1u32 << reverse(d);
+                            let b = &border_new[nb.ptr[d]];
+                            if inside {
+                                b.fetch_or(bit, Ordering::Relaxed);
+                            } else {
+                                b.fetch_and(!bit, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    let a = activity[p];
+                    if a & ACTIVE_MASK != 0 {
+                        let mut absent = !nb.matched & BORDER_MASK;
+                        while absent != 0 {
+                            let e = absent.trailing_zeros() as usize;
+                            absent &= absent - 1;
+                            if a & NEIGHBOUR_TRIGGER[reverse(e)] != 0 {
+                                created.push(nb.coord.wrapping_add(NEIGHBOURHOOD[e]));
+                            }
+                        }
+                    }
+                }
+                created
+            })
+            .collect();
+        let mut created: Vec<Coord> = found.concat();
+        created.par_sort_unstable();
+        created.dedup();
+        if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
+            return Err(GridError::OutOfRange { coord: c });
+        }
+        let kept = keep.iter().filter(|&&k| k).count();
+        let stats = ManageStats { kept, removed: n - kept, created: created.len() };
+        if stats.removed == 0 && stats.created == 0 {
+            // Nothing changed (and without removals no border flag did either).
+            self.debug_check();
+            return Ok(stats);
+        }
+        // Lines 22-27: the sign of each new tile from its present neighbours' flags.
+        let old_border = &self.border[..];
+        let created_inside: Vec<bool> = created
+            .par_iter()
+            .map(|&c| {
+                (0..27).filter(|&d| d != MID).any(|d| {
+                    let q = c.wrapping_add(NEIGHBOURHOOD[d]);
+                    let p = lower_bound(coords, q);
+                    p < n && coords[p] == q && old_border[p] & (1 << reverse(d)) != 0
+                })
+            })
+            .collect();
+
+        // 3: each chunk's kept tiles and the created tiles of its coordinate range.
+        let chunks = n.div_ceil(CHUNK);
+        let cuts: Vec<usize> = (0..=chunks)
+            .map(|c| match c {
+                0 => 0,
+                c if c == chunks => created.len(),
+                c => created.partition_point(|&x| x < coords[c * CHUNK]),
+            })
+            .collect();
+        let lens: Vec<usize> = (0..chunks)
+            .map(|c| {
+                let k = keep[c * CHUNK..((c + 1) * CHUNK).min(n)].iter().filter(|&&k| k).count();
+                k + cuts[c + 1] - cuts[c]
+            })
+            .collect();
+        let total = stats.kept + stats.created;
+        if u32::try_from(total).is_err() {
+            return Err(GridError::InvalidParameter("more than 2^32 tiles".into()));
+        }
+        let g = self.gamma();
+        let mut new_coords = vec![Coord::default(); total];
+        let mut new_arena = vec![Tile::splat(0.0); total];
+        let mut new_border = vec![0u32; total];
+        let mut new_activity = vec![0u32; total];
+        let arena = &self.arena[..];
+        split_by(&mut new_coords, &lens)
+            .into_par_iter()
+            .zip(split_by(&mut new_arena, &lens))
+            .zip(split_by(&mut new_border, &lens))
+            .zip(split_by(&mut new_activity, &lens))
+            .enumerate()
+            .for_each(|(c, (((oc, oa), ob), of))| {
+                let (mut p, end) = (c * CHUNK, ((c + 1) * CHUNK).min(n));
+                let (mut q, qend) = (cuts[c], cuts[c + 1]);
+                let mut o = 0;
+                loop {
+                    while p < end && !keep[p] {
+                        p += 1;
+                    }
+                    let take_old = match (p < end, q < qend) {
+                        (true, true) => coords[p] < created[q],
+                        (true, false) => true,
+                        (false, true) => false,
+                        (false, false) => break,
+                    };
+                    if take_old {
+                        oc[o] = coords[p];
+                        oa[o] = arena[p];
+                        ob[o] = border_new[p].load(Ordering::Relaxed);
+                        of[o] = activity[p];
+                        p += 1;
+                    } else {
+                        let inside = created_inside[q];
+                        oc[o] = created[q];
+                        oa[o] = Tile::splat(if inside { -g } else { g });
+                        ob[o] = if inside { BORDER_MASK } else { 0 };
+                        of[o] = if inside { INSIDE } else { 0 };
+                        q += 1;
+                    }
+                    o += 1;
+                }
+                debug_assert_eq!(o, oc.len());
+            });
+        self.coords = new_coords;
+        self.ids = (0..total as u32).collect();
+        self.arena = new_arena;
+        self.border = new_border;
+        self.activity = new_activity;
+        self.build_directory();
+        self.debug_check();
+        Ok(stats)
+    }
+}
