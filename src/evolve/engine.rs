@@ -40,7 +40,9 @@ pub(crate) struct StageParams<'a> {
     pub eps: f32,
     /// Weight of the rescaling term of eq. (3).
     pub rescale: f32,
-    /// F per voxel (flat order).
+    /// F, the same everywhere (then `speed` is unused)...
+    pub uniform_speed: Option<f32>,
+    /// ... or per voxel (flat order).
     pub speed: &'a [f32],
     /// u per voxel (flat order), if the flow advects.
     pub velocity: Option<[&'a [f32]; 3]>,
@@ -104,54 +106,66 @@ impl PointWindow for Halo<3> {
     }
 }
 
+/// The kernel of one stage over the voxels `r` of the flat order: the rate (F uniform
+/// or per voxel; with or without advection) in a TVD-RK3 stage (stage 1 is Euler).
 macro_rules! stage_kernel {
-    ($p:expr, $S:ty, $stage:literal, adv) => {
+    ($p:expr, $S:ty, $stage:literal, $spd:ident, $adv:ident) => {
         move |r: Range<usize>| Rk3::<_, $stage> {
-            rate: Sum(
-                Eq3Rate::<$S, &[f32]>::new($p.h, &$p.speed[r.clone()], $p.eps, $p.rescale),
-                AdvectionRate::<$S, [&[f32]; 3]>::new(
-                    $p.h,
-                    $p.velocity
-                        .map(|v| [&v[0][r.clone()], &v[1][r.clone()], &v[2][r.clone()]])
-                        .unwrap(),
-                ),
-            ),
+            rate: stage_kernel!(@rate $p, $S, r, $spd, $adv),
             dt: $p.dt,
             gamma: $p.gamma,
             phi_n: $p.phi_n(r),
         }
     };
-    ($p:expr, $S:ty, $stage:literal, none) => {
-        move |r: Range<usize>| Rk3::<_, $stage> {
-            rate: Eq3Rate::<$S, &[f32]>::new($p.h, &$p.speed[r.clone()], $p.eps, $p.rescale),
-            dt: $p.dt,
-            gamma: $p.gamma,
-            phi_n: $p.phi_n(r),
-        }
+    (@speed $p:expr, $r:ident, uniform) => {
+        $p.uniform_speed.unwrap_or(0.0)
+    };
+    (@speed $p:expr, $r:ident, per_voxel) => {
+        &$p.speed[$r.clone()]
+    };
+    (@rate $p:expr, $S:ty, $r:ident, $spd:ident, none) => {
+        Eq3Rate::<$S, _>::new($p.h, stage_kernel!(@speed $p, $r, $spd), $p.eps, $p.rescale)
+    };
+    (@rate $p:expr, $S:ty, $r:ident, $spd:ident, adv) => {
+        Sum(
+            Eq3Rate::<$S, _>::new($p.h, stage_kernel!(@speed $p, $r, $spd), $p.eps, $p.rescale),
+            AdvectionRate::<$S, [&[f32]; 3]>::new(
+                $p.h,
+                $p.velocity
+                    .map(|v| [&v[0][$r.clone()], &v[1][$r.clone()], &v[2][$r.clone()]])
+                    .unwrap_or([&[], &[], &[]]),
+            ),
+        )
     };
 }
 
-/// Decides scheme, stage and advection once and runs the sweep with that kernel type
-/// (STYLE: decide once, outside the loop).
+/// Decides scheme, stage, uniform or per-voxel F and advection once and runs the sweep
+/// with that kernel type (STYLE: decide once, outside the loop).
 pub(crate) fn dispatch<V: Sweep>(
     p: &StageParams,
     scheme: SpatialScheme,
     sweep: V,
 ) -> Result<(), EvolveError> {
     macro_rules! go {
-        ($S:ty, $R:literal, $adv:ident) => {
+        ($S:ty, $R:literal, $spd:ident, $adv:ident) => {
             match p.stage {
-                1 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 1, $adv)),
-                2 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 2, $adv)),
-                _ => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 3, $adv)),
+                1 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 1, $spd, $adv)),
+                2 => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 2, $spd, $adv)),
+                _ => sweep.run::<_, _, $R>(stage_kernel!(p, $S, 3, $spd, $adv)),
+            }
+        };
+        ($S:ty, $R:literal) => {
+            match (p.uniform_speed.is_some(), p.velocity.is_some()) {
+                (true, false) => go!($S, $R, uniform, none),
+                (true, true) => go!($S, $R, uniform, adv),
+                (false, false) => go!($S, $R, per_voxel, none),
+                (false, true) => go!($S, $R, per_voxel, adv),
             }
         };
     }
-    match (scheme, p.velocity.is_some()) {
-        (SpatialScheme::Upwind1, false) => go!(Upwind1, 1, none),
-        (SpatialScheme::Upwind1, true) => go!(Upwind1, 1, adv),
-        (SpatialScheme::Weno5, false) => go!(Weno5, 3, none),
-        (SpatialScheme::Weno5, true) => go!(Weno5, 3, adv),
+    match scheme {
+        SpatialScheme::Upwind1 => go!(Upwind1, 1),
+        SpatialScheme::Weno5 => go!(Weno5, 3),
     }
 }
 

@@ -396,6 +396,8 @@ pub struct Simulation {
     collapsed: bool,
     /// Per-voxel F (flat order) and u.
     speed: Vec<f32>,
+    /// F when it is the same everywhere (a constant, plus ε κ̄); then `speed` is empty.
+    uniform_speed: Option<f32>,
     velocity: [Vec<f32>; 3],
     /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
     base: Vec<f32>,
@@ -496,6 +498,7 @@ impl Simulation {
             steps: 0,
             collapsed: false,
             speed: Vec::new(),
+            uniform_speed: None,
             velocity: Default::default(),
             base: Vec::new(),
         };
@@ -759,6 +762,7 @@ impl Simulation {
                     h,
                     eps: self.flow.curvature,
                     rescale: self.flow.rescale,
+                    uniform_speed: self.uniform_speed,
                     speed: &self.speed,
                     velocity: self.flow.velocity.as_ref().map(|_| {
                         [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]
@@ -777,6 +781,7 @@ impl Simulation {
         self.time = if lands { until } else { t0 + dt as f64 };
         self.steps += 1;
         let rep = self.rep.get();
+        // Unstored interior (cheap, per tile row) first; the values only when there is none.
         self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
         Ok(StepReport {
             step: self.steps,
@@ -817,10 +822,16 @@ impl Simulation {
             kappa_bar = Some(kb);
             add = (self.flow.curvature as f64 * kb) as f32;
         }
-        // Normal speed: F = base + ε κ̄.
-        self.speed.resize(n, 0.0);
+        // Normal speed: F = base + ε κ̄, uniform (no per-voxel array) for a constant F.
+        self.uniform_speed = None;
+        if !matches!(self.flow.speed, Speed::Constant(_)) {
+            self.speed.resize(n, 0.0);
+        }
         match &self.flow.speed {
-            Speed::Constant(f) => self.speed.fill(*f + add),
+            Speed::Constant(f) => {
+                self.uniform_speed = Some(*f + add);
+                self.speed.clear();
+            }
             Speed::Field(f) => {
                 if first || f.time_dependent() {
                     self.base.resize(n, 0.0);
@@ -869,7 +880,8 @@ impl Simulation {
         // choice and an infinity would turn into NaN and then −γ.
         let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
         let velocity_ok = self.flow.velocity.is_none() || self.velocity.iter().all(|c| finite(c));
-        if !finite(&self.speed) || !velocity_ok {
+        let speed_ok = self.uniform_speed.map_or_else(|| finite(&self.speed), f32::is_finite);
+        if !speed_ok || !velocity_ok {
             return Err(EvolveError::NonFiniteField { step: self.steps, time: t });
         }
         Ok(kappa_bar)
@@ -880,9 +892,15 @@ impl Simulation {
     fn band_maxima(&self, g: f32) -> (f32, f32) {
         let flat = self.rep.get().flat();
         let mut max_f = 0.0f32;
-        for (&v, &f) in flat.iter().zip(&self.speed) {
-            if v.abs() < g {
-                max_f = max_f.max(f.abs());
+        match self.uniform_speed {
+            // Every step starts with band voxels (or the interface has collapsed).
+            Some(f) => max_f = f.abs(),
+            None => {
+                for (&v, &f) in flat.iter().zip(&self.speed) {
+                    if v.abs() < g {
+                        max_f = max_f.max(f.abs());
+                    }
+                }
             }
         }
         let mut max_u = 0.0f32;
