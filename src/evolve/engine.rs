@@ -14,7 +14,9 @@ use crate::coord::Coord;
 use crate::dense::DenseField;
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::grid::GridSpec;
-use crate::tiles::{compute_activity, voxel_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};
+use crate::tiles::{
+    compute_activity, voxel_of, NeighbourCursor, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
+};
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{
     AdvectionRate, BandMasked, BoxFarWindow, BoxMinAbs, BoxWindow, DefaultLane, DenseBlock,
@@ -184,15 +186,22 @@ impl<const NUM: bool> VoxelKernel for KappaBarTerm<NUM> {
     const BOX_REACH: i32 = 1;
     #[inline(always)]
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
-        let inv_h = L::splat(self.inv_h);
-        let (num, den) = kappa_bar_integrands(w, inv_h, L::splat(self.width));
-        let h = L::splat(1.0) / inv_h;
+        let (num, den) = kappa_terms(w, self.inv_h, self.width);
         if NUM {
-            num * (h * h)
+            num
         } else {
-            den * h
+            den
         }
     }
+}
+
+/// Both integrands of [`KappaBarTerm`] from one evaluation of the stencil.
+#[inline(always)]
+fn kappa_terms<L: Lane, W: Window<L>>(w: &W, inv_h: f32, width: f32) -> (L, L) {
+    let inv_h = L::splat(inv_h);
+    let (num, den) = kappa_bar_integrands(w, inv_h, L::splat(width));
+    let h = L::splat(1.0) / inv_h;
+    (num * (h * h), den * h)
 }
 
 /// What every representation does for the evolution.
@@ -330,6 +339,22 @@ impl TileSweep<'_> {
     }
 }
 
+/// The κ̄ integrands of one tile (both in one pass over the block).
+#[inline(always)]
+fn kappa_tile<L: Lane>(
+    tb: &TileBlock<1>,
+    inv_h: f32,
+    width: f32,
+    num: &mut [f32; 64],
+    den: &mut [f32; 64],
+) {
+    tb.for_each::<L>(|first, w| {
+        let (a, b) = kappa_terms(w, inv_h, width);
+        a.store(&mut num[first..]);
+        b.store(&mut den[first..]);
+    });
+}
+
 fn tile_flat(t: &[Tile]) -> &[f32] {
     bytemuck::cast_slice(t)
 }
@@ -414,6 +439,7 @@ impl Representation for TilesRep {
         let n = self.grid.len();
         let lanes = self.lanes;
         let grid = &self.grid;
+        let skip_inactive = width <= grid.gamma();
         let chunks: Vec<usize> = (0..n.div_ceil(TILE_CHUNK)).collect();
         let sums = chunks
             .par_iter()
@@ -425,23 +451,16 @@ impl Representation for TilesRep {
                 let mut cur = NeighbourCursor::new(coords, start, end);
                 let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
                 while let Some(nb) = cur.next() {
+                    // A tile without band voxels holds only ±γ, where δ vanishes when
+                    // its width does not exceed γ: its terms are exactly zero.
+                    if skip_inactive && grid.activity_flags(nb.pos) & ACTIVE_MASK == 0 {
+                        continue;
+                    }
                     block.gather(grid, &nb);
                     let tb = TileBlock::<1>::new(block.data())?;
                     match lanes {
-                        Lanes::Scalar => {
-                            tb.apply::<f32, _>(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
-                            tb.apply::<f32, _>(&KappaBarTerm::<false> { inv_h, width }, &mut b)?;
-                        }
-                        Lanes::Simd => {
-                            tb.apply::<DefaultLane, _>(
-                                &KappaBarTerm::<true> { inv_h, width },
-                                &mut a,
-                            )?;
-                            tb.apply::<DefaultLane, _>(
-                                &KappaBarTerm::<false> { inv_h, width },
-                                &mut b,
-                            )?;
-                        }
+                        Lanes::Scalar => kappa_tile::<f32>(&tb, inv_h, width, &mut a, &mut b),
+                        Lanes::Simd => kappa_tile::<DefaultLane>(&tb, inv_h, width, &mut a, &mut b),
                     }
                     num.add_all(&a);
                     den.add_all(&b);
@@ -621,14 +640,13 @@ impl Representation for DtRep {
 
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
-        let (kn, kd) =
-            (KappaBarTerm::<true> { inv_h, width }, KappaBarTerm::<false> { inv_h, width });
         let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
         let mut it = StencilIter::new(&self.grid, &self.box27);
         while it.advance() {
-            let i = it.center_index();
-            num.add(<Halo<1>>::eval(&kn, it.values(), i));
-            den.add(<Halo<1>>::eval(&kd, it.values(), i));
+            let v: &[f32; 27] = it.values().try_into().expect("27 values");
+            let (a, b) = kappa_terms::<f32, _>(&BoxWindow::new(v), inv_h, width);
+            num.add(a);
+            den.add(b);
         }
         Ok((num, den))
     }
