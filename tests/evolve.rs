@@ -108,6 +108,11 @@ fn normal_speed_and_advection_agree_everywhere() {
         );
         all_agree(&shape, spec, Flow::advection(vel.clone()), settings(s, i), 100);
     }
+    // Enright's field: sampled per tile on tiles, per run on the DT-Grid, scaled in time.
+    let enright = Velocity::Field(Arc::new(EnrightVelocity { period: 1.0 }));
+    let spec = GridSpec::new(1.0 / 40.0, [0.0; 3], 3.0).unwrap();
+    let shape = Shape::Sphere { center: [0.35; 3], radius: 0.15 };
+    all_agree(&shape, spec, Flow::advection(enright), Settings::weno5_rk3(), 60);
 }
 
 #[test]

@@ -387,13 +387,7 @@ impl Representation for TilesRep {
             .zip(v.par_chunks_mut(64))
             .zip(w.par_chunks_mut(64))
             .zip(coords.par_iter())
-            .for_each(|(((u, v), w), &tc)| {
-                for row in 0..16 {
-                    let start = voxel_of(tc, 4 * row);
-                    let r = 4 * row..4 * row + 4;
-                    f.fill_run(&spec, start, t, [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]]);
-                }
-            });
+            .for_each(|(((u, v), w), &tc)| f.fill_tile(&spec, voxel_of(tc, 0), t, [u, v, w]));
     }
 
     fn stage(

@@ -26,9 +26,28 @@ pub trait VectorFn: Send + Sync {
     /// Writes the components at voxels `start + (i, 0, 0)` into `out[0][i]`, `out[1][i]`,
     /// `out[2][i]`, at time `t`.
     fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: [&mut [f32]; 3]);
+    /// The components at the 4×4×4 voxels of the tile whose first voxel is `origin`, in
+    /// tile order (x fastest), at time `t`. Must give the values of
+    /// [`VectorFn::fill_run`]; the default runs it row by row, a field may share work
+    /// across the block.
+    fn fill_tile(&self, spec: &GridSpec, origin: Coord, t: f64, out: [&mut [f32]; 3]) {
+        let [u, v, w] = out;
+        for row in 0..16 {
+            let start =
+                Coord::new(origin.x, origin.y + (row & 3) as i32, origin.z + (row >> 2) as i32);
+            let r = 4 * row..4 * row + 4;
+            self.fill_run(spec, start, t, [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]]);
+        }
+    }
     /// Whether the field changes with `t` (if not, it is sampled once per step).
     fn time_dependent(&self) -> bool {
         true
+    }
+    /// For a field u(x, t) = s(t) u(x, 0): s(t). Then the field is sampled at t = 0 once
+    /// per step and scaled by s in each stage (in f32, the same on every representation).
+    fn time_scale(&self, t: f64) -> Option<f32> {
+        let _ = t;
+        None
     }
 }
 
@@ -91,22 +110,58 @@ pub struct EnrightVelocity {
     pub period: f64,
 }
 
+impl EnrightVelocity {
+    /// sin(πa), sin(2πa) of a world coordinate.
+    #[inline]
+    fn factors(a: f64) -> (f64, f64) {
+        ((PI * a).sin(), (2.0 * PI * a).sin())
+    }
+
+    /// u, v, w from the per-axis factors and the time factor `c`.
+    #[inline]
+    fn velocity(x: (f64, f64), y: (f64, f64), z: (f64, f64), c: f64) -> [f32; 3] {
+        let ((sx, s2x), (sy, s2y), (sz, s2z)) = (x, y, z);
+        [
+            (2.0 * sx * sx * s2y * s2z * c) as f32,
+            (-(s2x * sy * sy * s2z) * c) as f32,
+            (-(s2x * s2y * sz * sz) * c) as f32,
+        ]
+    }
+}
+
 impl VectorFn for EnrightVelocity {
     fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: [&mut [f32]; 3]) {
         let p = spec.world(start);
         let c = (PI * t / self.period).cos();
-        let (sy, s2y) = ((PI * p[1]).sin(), (2.0 * PI * p[1]).sin());
-        let (sz, s2z) = ((PI * p[2]).sin(), (2.0 * PI * p[2]).sin());
+        let (fy, fz) = (Self::factors(p[1]), Self::factors(p[2]));
         let [u, v, w] = out;
         for i in 0..u.len() {
             // The x position exactly as `GridSpec::world` computes it for this voxel, so a
             // run gives the same numbers as single voxels.
             let x = spec.world(Coord::new(start.x + i as i32, start.y, start.z))[0];
-            let (sx, s2x) = ((PI * x).sin(), (2.0 * PI * x).sin());
-            u[i] = (2.0 * sx * sx * s2y * s2z * c) as f32;
-            v[i] = (-(s2x * sy * sy * s2z) * c) as f32;
-            w[i] = (-(s2x * s2y * sz * sz) * c) as f32;
+            [u[i], v[i], w[i]] = Self::velocity(Self::factors(x), fy, fz, c);
         }
+    }
+
+    /// The factors of the tile's 4 x, 4 y and 4 z positions, shared by its 64 voxels.
+    fn fill_tile(&self, spec: &GridSpec, origin: Coord, t: f64, out: [&mut [f32]; 3]) {
+        let c = (PI * t / self.period).cos();
+        let axis = |k: usize| -> [(f64, f64); 4] {
+            std::array::from_fn(|i| {
+                let mut q = [origin.x, origin.y, origin.z];
+                q[k] += i as i32;
+                Self::factors(spec.world(Coord::new(q[0], q[1], q[2]))[k])
+            })
+        };
+        let (fx, fy, fz) = (axis(0), axis(1), axis(2));
+        let [u, v, w] = out;
+        for i in 0..64 {
+            [u[i], v[i], w[i]] = Self::velocity(fx[i & 3], fy[(i >> 2) & 3], fz[i >> 4], c);
+        }
+    }
+
+    fn time_scale(&self, t: f64) -> Option<f32> {
+        Some((PI * t / self.period).cos() as f32)
     }
 }
 
@@ -254,6 +309,34 @@ impl VectorFn for SampledVelocity {
 mod tests {
     use super::*;
     use crate::dense::DenseField;
+
+    #[test]
+    fn enright_tiles_runs_and_time_scale_agree() {
+        let spec = GridSpec::new(1.0 / 37.0, [0.01, -0.02, 0.03], 3.0).unwrap();
+        let f = EnrightVelocity { period: 3.0 };
+        let origin = Coord::new(8, -4, 12);
+        let t = 0.7;
+        let mut tile = [[0.0f32; 64]; 3];
+        let [a, b, c] = &mut tile;
+        f.fill_tile(&spec, origin, t, [a, b, c]);
+        let mut base = [[0.0f32; 64]; 3];
+        let [a, b, c] = &mut base;
+        f.fill_tile(&spec, origin, 0.0, [a, b, c]);
+        let s = f.time_scale(t).unwrap();
+        for row in 0..16 {
+            let start = Coord::new(origin.x, origin.y + (row & 3), origin.z + (row >> 2));
+            let mut run = [[0.0f32; 4]; 3];
+            let [a, b, c] = &mut run;
+            f.fill_run(&spec, start, t, [a, b, c]);
+            for k in 0..3 {
+                for i in 0..4 {
+                    let j = 4 * row as usize + i;
+                    assert_eq!(run[k][i].to_bits(), tile[k][j].to_bits());
+                    assert!((base[k][j] * s - tile[k][j]).abs() <= 1e-6);
+                }
+            }
+        }
+    }
 
     #[test]
     fn trilinear_sampling_is_exact_on_linear_fields() {

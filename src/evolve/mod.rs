@@ -399,6 +399,8 @@ pub struct Simulation {
     /// F when it is the same everywhere (a constant, plus ε κ̄); then `speed` is empty.
     uniform_speed: Option<f32>,
     velocity: [Vec<f32>; 3],
+    /// u(x, 0) of a field with a time scale ([`VectorFn::time_scale`]).
+    velocity_base: [Vec<f32>; 3],
     /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
     base: Vec<f32>,
 }
@@ -500,6 +502,7 @@ impl Simulation {
             speed: Vec::new(),
             uniform_speed: None,
             velocity: Default::default(),
+            velocity_base: Default::default(),
             base: Vec::new(),
         };
         let g = sim.spec().gamma();
@@ -868,12 +871,29 @@ impl Simulation {
                         }
                     }
                 }
-                Velocity::Field(f) => {
-                    if first || f.time_dependent() {
-                        let [a, b, c] = &mut self.velocity;
-                        install(&mut || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                Velocity::Field(f) => match f.time_scale(t) {
+                    // u(x, t) = s(t) u(x, 0): sample u(x, 0) once per step, scale per stage.
+                    Some(scale) => {
+                        if first {
+                            for (c, b) in self.velocity.iter_mut().zip(&mut self.velocity_base) {
+                                b.resize(c.len(), 0.0);
+                            }
+                            let [a, b, c] = &mut self.velocity_base;
+                            install(&mut || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
+                        }
+                        for (c, b) in self.velocity.iter_mut().zip(&self.velocity_base) {
+                            for (x, &y) in c.iter_mut().zip(b) {
+                                *x = y * scale;
+                            }
+                        }
                     }
-                }
+                    None => {
+                        if first || f.time_dependent() {
+                            let [a, b, c] = &mut self.velocity;
+                            install(&mut || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                        }
+                    }
+                },
             }
         }
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
