@@ -329,9 +329,9 @@ mod tests {
             let [a, b, c] = &mut run;
             f.fill_run(&spec, start, t, [a, b, c]);
             for k in 0..3 {
-                for i in 0..4 {
+                for (i, r) in run[k].iter().enumerate() {
                     let j = 4 * row as usize + i;
-                    assert_eq!(run[k][i].to_bits(), tile[k][j].to_bits());
+                    assert_eq!(r.to_bits(), tile[k][j].to_bits());
                     assert!((base[k][j] * s - tile[k][j]).abs() <= 1e-6);
                 }
             }
