@@ -253,6 +253,7 @@ fn vec_bytes<T>(v: &Vec<T>) -> usize {
 
 /// The tile engine: the grid holds the current values; `out` is the double buffer the
 /// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.
+#[derive(Clone)]
 pub(crate) struct TilesRep {
     pub grid: TileGrid,
     pub lanes: Lanes,
@@ -316,7 +317,14 @@ impl TileSweep<'_> {
                 let start = c * TILE_CHUNK;
                 let mut block = PaddedBlock::<R>::new();
                 let mut cur = NeighbourCursor::new(coords, start, start + out.len());
-                while let Some(nb) = cur.next() {
+                let mut next = cur.next();
+                while let Some(nb) = next {
+                    // One tile ahead: ask for the next tile's neighbours while this one
+                    // computes (the gather waits on them otherwise).
+                    next = cur.next();
+                    if let Some(n) = &next {
+                        prefetch_neighbours(grid.values(), n);
+                    }
                     let i = nb.pos - start;
                     block.gather(grid, &nb);
                     let tb = TileBlock::<R>::new(block.data())?;
@@ -337,6 +345,29 @@ impl TileSweep<'_> {
                 Ok::<(), EvolveError>(())
             })
     }
+}
+
+/// Hints the cache to fetch the tiles around `nb` (the ones a gather reads).
+#[inline(always)]
+fn prefetch_neighbours(values: &[Tile], nb: &crate::tiles::Neighbours) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let mut m = nb.matched;
+        while m != 0 {
+            let d = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let t: *const Tile = &values[nb.ptr[d]];
+            for line in 0..4 {
+                // SAFETY: a prefetch is a hint: it never faults and changes no state the
+                // program can observe; the address lies inside the tile `t` (4 cache
+                // lines of 64 bytes).
+                unsafe { _mm_prefetch::<_MM_HINT_T0>((t as *const i8).wrapping_add(64 * line)) };
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (values, nb);
 }
 
 /// The κ̄ integrands of one tile (both in one pass over the block).
@@ -526,6 +557,7 @@ impl Representation for TilesRep {
 /// The DT-Grid engine: the stencil iterator (DT-Grid paper Sec. 3.3) feeds the kernels
 /// point by point, scalar and on one thread; after each step the grid is rebuilt
 /// (Sec. 3.6.2) to the voxels within one voxel of the band, so it needs no band mask.
+#[derive(Clone)]
 pub(crate) struct DtRep {
     pub grid: DtGrid,
     phi_n: Vec<f32>,
@@ -727,6 +759,7 @@ fn for_each_run(g: &DtGrid, mut f: impl FnMut(usize, Coord, usize)) {
 /// The dense reference: every voxel of a box, the same kernels over a padded copy, the
 /// band mask of [`BandMasked`]. For tests on small grids. The box must keep a margin of
 /// four voxels around the band ([`EvolveError::DenseBoxTooSmall`] otherwise).
+#[derive(Clone)]
 pub(crate) struct DenseRep {
     pub field: DenseField,
     pub spec: GridSpec,

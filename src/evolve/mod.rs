@@ -360,6 +360,7 @@ pub struct Measures {
     pub work_bytes: usize,
 }
 
+#[derive(Clone)]
 enum Rep {
     Tiles(TilesRep),
     // Boxed: the DT-Grid engine holds three grids (current, rebuild scratch, result).
@@ -386,6 +387,7 @@ impl Rep {
 }
 
 /// A level set evolving under a [`Flow`] on one representation.
+#[derive(Clone)]
 pub struct Simulation {
     rep: Rep,
     kind: GridKind,
