@@ -317,14 +317,7 @@ impl TileSweep<'_> {
                 let start = c * TILE_CHUNK;
                 let mut block = PaddedBlock::<R>::new();
                 let mut cur = NeighbourCursor::new(coords, start, start + out.len());
-                let mut next = cur.next();
-                while let Some(nb) = next {
-                    // One tile ahead: ask for the next tile's neighbours while this one
-                    // computes (the gather waits on them otherwise).
-                    next = cur.next();
-                    if let Some(n) = &next {
-                        prefetch_neighbours(grid.values(), n);
-                    }
+                while let Some(nb) = cur.next() {
                     let i = nb.pos - start;
                     block.gather(grid, &nb);
                     let tb = TileBlock::<R>::new(block.data())?;
@@ -345,29 +338,6 @@ impl TileSweep<'_> {
                 Ok::<(), EvolveError>(())
             })
     }
-}
-
-/// Hints the cache to fetch the tiles around `nb` (the ones a gather reads).
-#[inline(always)]
-fn prefetch_neighbours(values: &[Tile], nb: &crate::tiles::Neighbours) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let mut m = nb.matched;
-        while m != 0 {
-            let d = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let t: *const Tile = &values[nb.ptr[d]];
-            for line in 0..4 {
-                // SAFETY: a prefetch is a hint: it never faults and changes no state the
-                // program can observe; the address lies inside the tile `t` (4 cache
-                // lines of 64 bytes).
-                unsafe { _mm_prefetch::<_MM_HINT_T0>((t as *const i8).wrapping_add(64 * line)) };
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (values, nb);
 }
 
 /// The κ̄ integrands of one tile (both in one pass over the block).
