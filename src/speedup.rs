@@ -97,9 +97,9 @@ fn plan(cfg: &SpeedupConfig) -> Vec<(ScenarioKind, u32, u64)> {
         ];
     }
     vec![
-        (ScenarioKind::Sphere, 256, 40),
-        (ScenarioKind::Spiral, 128, if cfg.full { 1000 } else { 100 }),
-        (ScenarioKind::Enright, 256, 30),
+        (ScenarioKind::Sphere, 256, 100),
+        (ScenarioKind::Spiral, 128, if cfg.full { 1000 } else { 150 }),
+        (ScenarioKind::Enright, 256, 60),
     ]
 }
 

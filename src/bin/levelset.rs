@@ -182,7 +182,7 @@ struct BenchArgs {
     /// Pin worker threads to cores.
     #[arg(long)]
     pin: bool,
-    /// The spiral's 1000 iterations (the tile paper's Table 2) instead of 100.
+    /// The spiral's 1000 iterations (the tile paper's Table 2) instead of 150.
     #[arg(long)]
     full: bool,
     /// Storage benchmark: repetitions per operation; the best time is reported.
