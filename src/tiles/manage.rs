@@ -133,18 +133,38 @@ impl TileGrid {
             self.debug_check();
             return Ok(stats);
         }
-        // Lines 22-27: the sign of each new tile from its present neighbours' flags.
+        // Lines 22-27: the sign of each new tile from its present neighbours' flags. The
+        // new tiles are sorted, so per row of neighbours (dy, dz) a pointer into the old
+        // list only moves forward (as in Algorithm 1); chunks seed theirs by binary search.
         let old_border = &self.border[..];
-        let created_inside: Vec<bool> = created
-            .par_iter()
-            .map(|&c| {
-                (0..27).filter(|&d| d != MID).any(|d| {
-                    let q = c.wrapping_add(NEIGHBOURHOOD[d]);
-                    let p = lower_bound(coords, q);
-                    p < n && coords[p] == q && old_border[p] & (1 << reverse(d)) != 0
-                })
-            })
-            .collect();
+        let mut created_inside = vec![false; created.len()];
+        created_inside.par_chunks_mut(CHUNK).zip(created.par_chunks(CHUNK)).for_each(
+            |(inside, created)| {
+                let mut row = [0usize; 9];
+                for (r, p) in row.iter_mut().enumerate() {
+                    *p = lower_bound(coords, created[0].wrapping_add(NEIGHBOURHOOD[3 * r]));
+                }
+                for (ins, &c) in inside.iter_mut().zip(created) {
+                    for (r, p) in row.iter_mut().enumerate() {
+                        let first = c.wrapping_add(NEIGHBOURHOOD[3 * r]);
+                        let mut q = *p;
+                        while q < n && coords[q] < first {
+                            q += 1;
+                        }
+                        *p = q;
+                        let mut x = first;
+                        for k in 0..3 {
+                            let d = 3 * r + k;
+                            if q < n && coords[q] == x {
+                                *ins |= old_border[q] & (1 << reverse(d)) != 0;
+                                q += 1;
+                            }
+                            x.x += 1;
+                        }
+                    }
+                }
+            },
+        );
 
         // 3: each chunk's kept tiles and the created tiles of its coordinate range.
         let chunks = n.div_ceil(CHUNK);
