@@ -53,48 +53,44 @@ impl<const R: usize> PaddedBlock<R> {
         let values = grid.values();
         let border = grid.border_flags(nb.pos);
         let gamma = grid.gamma();
-        for d in 0..27usize {
-            let src = nb.get(d).map(|p| &values[p].0);
-            let fill = if border & (1 << d) != 0 { -gamma } else { gamma };
-            // Dispatch on the x extent so every row copy has a compile-time length (a
-            // run-time `copy_from_slice` of 1..4 floats costs a call per row).
-            match d % 3 {
-                0 => self.copy_part::<R>(d, src, fill),
-                1 => self.copy_part::<4>(d, src, fill),
-                _ => self.copy_part::<R>(d, src, fill),
-            }
-        }
-    }
-
-    /// Copies the part of the halo (or the tile itself) that neighbour `d` covers: `NX`
-    /// voxels per row. Absent neighbours (`src == None`) fill it with `fill`.
-    #[inline(always)]
-    fn copy_part<const NX: usize>(&mut self, d: usize, src: Option<&[f32; 64]>, fill: f32) {
+        // Each of the 27 parts comes from a neighbour tile or is a "dummy tile" of ±γ.
+        let part: [Result<&[f32; 64], f32>; 27] = std::array::from_fn(|d| match nb.get(d) {
+            Some(p) => Ok(&values[p].0),
+            None => Err(if border & (1 << d) != 0 { -gamma } else { gamma }),
+        });
         let w = Self::W;
-        // Per axis: (first source voxel in the neighbour, first destination, length).
-        let span = |o: usize| -> (usize, usize, usize) {
-            match o {
-                0 => (4 - R, 0, R),
-                1 => (0, R, 4),
-                _ => (0, R + 4, R),
+        let r = R as i32;
+        // Block coordinate → (neighbour offset + 1, local coordinate in that tile).
+        let split = |v: i32| -> (usize, usize) {
+            if v < 0 {
+                (0, (v + 4) as usize)
+            } else if v < 4 {
+                (1, v as usize)
+            } else {
+                (2, (v - 4) as usize)
             }
         };
-        let (sx, dx, _) = span(d % 3);
-        let (sy, dy, ny) = span((d / 3) % 3);
-        let (sz, dz, nz) = span(d / 9);
-        for z in 0..nz {
-            for y in 0..ny {
-                let o = dx + w * (dy + y) + w * w * (dz + z);
-                let dst: &mut [f32; NX] =
-                    (&mut self.data[o..o + NX]).try_into().expect("row inside the block");
-                match src {
-                    Some(t) => {
-                        let s = sx + 4 * (sy + y) + 16 * (sz + z);
-                        *dst = t[s..s + NX].try_into().expect("row inside the tile");
-                    }
-                    None => *dst = [fill; NX],
-                }
-            }
+        // Row by row along x: the left neighbour's last R voxels, the tile's 4, the right
+        // neighbour's first R — three copies of compile-time length per padded row.
+        for (row, out) in self.data.chunks_exact_mut(w).enumerate() {
+            let (y, z) = ((row % w) as i32 - r, (row / w) as i32 - r);
+            let ((oy, ly), (oz, lz)) = (split(y), split(z));
+            let base = 3 * oy + 9 * oz;
+            let at = 4 * ly + 16 * lz;
+            let (left, rest) = out.split_at_mut(R);
+            let (mid, right) = rest.split_at_mut(4);
+            copy_or_fill(left, part[base], at + 4 - R);
+            copy_or_fill(mid, part[base + 1], at);
+            copy_or_fill(right, part[base + 2], at);
         }
+    }
+}
+
+/// Copies `dst.len()` values of a tile from local index `from`, or fills with ±γ.
+#[inline(always)]
+fn copy_or_fill(dst: &mut [f32], src: Result<&[f32; 64], f32>, from: usize) {
+    match src {
+        Ok(t) => dst.copy_from_slice(&t[from..from + dst.len()]),
+        Err(fill) => dst.fill(fill),
     }
 }
