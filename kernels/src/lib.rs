@@ -62,8 +62,9 @@
 //!   tiles and dense blocks, point windows for the DT-Grid.
 //! * Stencil functions: [`diff`] (D⁻, D⁺, D⁰, ∇⁺/∇⁻), [`curvature`] (eq. (4)), [`weno`]
 //!   (HJ-WENO5), [`speed`] (eq. (3), advection, eq. (6)–(7)), [`rk`] (TVD-RK3, CFL).
-//! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], [`Euler`], [`Rk3`])
-//!   and the sweeps that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
+//! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], their [`Sum`],
+//!   [`Euler`], [`Rk3`], the band mask [`BandMasked`] with [`BoxMinAbs`]) and the sweeps
+//!   that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
 //! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind `levelset bench --kernels`.
 //!
 //! # Vector units and the `simd` feature
