@@ -48,9 +48,10 @@ fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
 impl TileGrid {
     /// Tile management (Sec. 4.6, Algorithm 3) in parallel chunks (keep/remove by pull,
     /// creation by push, compaction by a prefix sum; ARCHITECTURE.md, "Speed"): keeps,
-    /// removes or creates tiles from the activity flags of each tile and its neighbours; a removed tile writes its classification into the border flags
-    /// of its neighbours that face it; a created tile is filled with ±γ from the border
-    /// flags its neighbours hold towards it, and all its own border flags take that sign.
+    /// removes or creates tiles from the activity flags of each tile and its neighbours; a
+    /// removed tile writes its classification into the border flags of its neighbours that
+    /// face it; a created tile is filled with ±γ from the border flags its neighbours hold
+    /// towards it, and all its own border flags take that sign.
     /// The result is sorted, the tile data compacted in list order, and identical to
     /// [`TileGrid::manage_tiles_streamed`] for any number of threads. Linear in the number
     /// of tiles.
