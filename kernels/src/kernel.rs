@@ -169,6 +169,26 @@ impl VectorField for [&[f32]; 3] {
     }
 }
 
+/// Three per-voxel components times a uniform factor: a velocity u(x, t) = s(t) u(x, 0)
+/// sampled once and scaled in each stage without another pass over memory. The product is
+/// the f32 `u · s` of each lane, the same bits as scaling the arrays first.
+#[derive(Clone, Copy, Debug)]
+pub struct ScaledVelocity<'a> {
+    pub components: [&'a [f32]; 3],
+    pub scale: f32,
+}
+
+impl VectorField for ScaledVelocity<'_> {
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.components.check(voxels)
+    }
+    #[inline(always)]
+    fn lanes<L: Lane>(&self, first: usize) -> [L; 3] {
+        let s = L::splat(self.scale);
+        self.components.lanes::<L>(first).map(|c| c * s)
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Rates 𝓛(φ).
 

@@ -20,8 +20,8 @@ use crate::tiles::{
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{
     AdvectionRate, BandMasked, BoxFarWindow, BoxMinAbs, BoxWindow, DefaultLane, DenseBlock,
-    Eq3Rate, Lane, Rk3, Sum, TileBlock, Upwind1, VoxelKernel, Weno5, Window, BOX27_OFFSETS,
-    BOX_FAR39_OFFSETS,
+    Eq3Rate, Lane, Rk3, ScaledVelocity, Sum, TileBlock, Upwind1, VoxelKernel, Weno5, Window,
+    BOX27_OFFSETS, BOX_FAR39_OFFSETS,
 };
 use rayon::prelude::*;
 use std::ops::Range;
@@ -48,6 +48,8 @@ pub(crate) struct StageParams<'a> {
     pub speed: &'a [f32],
     /// u per voxel (flat order), if the flow advects.
     pub velocity: Option<[&'a [f32]; 3]>,
+    /// Factor of the velocity in this stage (a time-separable field; 1 otherwise).
+    pub velocity_scale: f32,
     /// φⁿ per voxel (flat order), read in stages 2 and 3 (empty in stage 1); set by the
     /// representation, which keeps φⁿ.
     pub phi_n: &'a [f32],
@@ -131,11 +133,15 @@ macro_rules! stage_kernel {
     (@rate $p:expr, $S:ty, $r:ident, $spd:ident, adv) => {
         Sum(
             Eq3Rate::<$S, _>::new($p.h, stage_kernel!(@speed $p, $r, $spd), $p.eps, $p.rescale),
-            AdvectionRate::<$S, [&[f32]; 3]>::new(
+            AdvectionRate::<$S, ScaledVelocity>::new(
                 $p.h,
-                $p.velocity
-                    .map(|v| [&v[0][$r.clone()], &v[1][$r.clone()], &v[2][$r.clone()]])
-                    .unwrap_or([&[], &[], &[]]),
+                ScaledVelocity {
+                    components: $p
+                        .velocity
+                        .map(|v| [&v[0][$r.clone()], &v[1][$r.clone()], &v[2][$r.clone()]])
+                        .unwrap_or([&[], &[], &[]]),
+                    scale: $p.velocity_scale,
+                },
             ),
         )
     };

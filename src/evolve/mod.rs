@@ -401,8 +401,8 @@ pub struct Simulation {
     /// F when it is the same everywhere (a constant, plus ε κ̄); then `speed` is empty.
     uniform_speed: Option<f32>,
     velocity: [Vec<f32>; 3],
-    /// u(x, 0) of a field with a time scale ([`VectorFn::time_scale`]).
-    velocity_base: [Vec<f32>; 3],
+    /// The factor of `velocity` in the current stage ([`VectorFn::time_scale`]; else 1).
+    velocity_scale: f32,
     /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
     base: Vec<f32>,
 }
@@ -504,7 +504,7 @@ impl Simulation {
             speed: Vec::new(),
             uniform_speed: None,
             velocity: Default::default(),
-            velocity_base: Default::default(),
+            velocity_scale: 1.0,
             base: Vec::new(),
         };
         let g = sim.spec().gamma();
@@ -772,6 +772,7 @@ impl Simulation {
                     velocity: self.flow.velocity.as_ref().map(|_| {
                         [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]
                     }),
+                    velocity_scale: self.velocity_scale,
                     phi_n: &[],
                 };
             let last = si + 1 == stages.len();
@@ -861,6 +862,8 @@ impl Simulation {
             }
         }
         // Advection velocity.
+        self.velocity_scale = 1.0;
+        let mut check_velocity = self.flow.velocity.is_some();
         if let Some(vel) = &self.flow.velocity {
             for c in &mut self.velocity {
                 c.resize(n, 0.0);
@@ -871,28 +874,28 @@ impl Simulation {
                         for (c, &v) in self.velocity.iter_mut().zip(u) {
                             c.fill(v);
                         }
+                    } else {
+                        check_velocity = false;
                     }
                 }
                 Velocity::Field(f) => match f.time_scale(t) {
-                    // u(x, t) = s(t) u(x, 0): sample u(x, 0) once per step, scale per stage.
+                    // u(x, t) = s(t) u(x, 0): u(x, 0) sampled once per step, the kernels
+                    // multiply by s.
                     Some(scale) => {
                         if first {
-                            for (c, b) in self.velocity.iter_mut().zip(&mut self.velocity_base) {
-                                b.resize(c.len(), 0.0);
-                            }
-                            let [a, b, c] = &mut self.velocity_base;
+                            let [a, b, c] = &mut self.velocity;
                             install(&mut || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
+                        } else {
+                            check_velocity = false;
                         }
-                        for (c, b) in self.velocity.iter_mut().zip(&self.velocity_base) {
-                            for (x, &y) in c.iter_mut().zip(b) {
-                                *x = y * scale;
-                            }
-                        }
+                        self.velocity_scale = scale;
                     }
                     None => {
                         if first || f.time_dependent() {
                             let [a, b, c] = &mut self.velocity;
                             install(&mut || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                        } else {
+                            check_velocity = false;
                         }
                     }
                 },
@@ -901,7 +904,9 @@ impl Simulation {
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
         // choice and an infinity would turn into NaN and then −γ.
         let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
-        let velocity_ok = self.flow.velocity.is_none() || self.velocity.iter().all(|c| finite(c));
+        // (Arrays checked when written; a scale is checked in every stage.)
+        let velocity_ok = self.velocity_scale.is_finite()
+            && (!check_velocity || self.velocity.iter().all(|c| finite(c)));
         let speed_ok = self.uniform_speed.map_or_else(|| finite(&self.speed), f32::is_finite);
         if !speed_ok || !velocity_ok {
             return Err(EvolveError::NonFiniteField { step: self.steps, time: t });
@@ -928,9 +933,10 @@ impl Simulation {
         let mut max_u = 0.0f32;
         if self.flow.velocity.is_some() {
             let [a, b, c] = &self.velocity;
+            let s = self.velocity_scale;
             for (i, &v) in flat.iter().enumerate() {
                 if v.abs() < g {
-                    max_u = max_u.max(a[i].abs() + b[i].abs() + c[i].abs());
+                    max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
                 }
             }
         }
