@@ -98,7 +98,12 @@ pub struct MemoryReport {
 
 impl MemoryReport {
     pub fn total(&self) -> usize {
-        self.values + self.indices + self.flags + self.slack
+        self.used() + self.slack
+    }
+
+    /// Bytes in use: values, indices and flags, unused capacity excluded.
+    pub fn used(&self) -> usize {
+        self.values + self.indices + self.flags
     }
 }
 

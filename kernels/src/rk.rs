@@ -81,9 +81,18 @@ pub fn cfl_dt_curvature(eps: f32, h: f32, cfl: f32) -> f32 {
 /// All of eq. (3) at once: Δt (√3 (max|F| + |w_r|) / h + 3|ε| / h²) ≤ cfl, where `w_r` is
 /// the weight of the rescaling term (|sgn| ≤ 1). Smaller than each single limit.
 pub fn cfl_dt_eq3(max_abs_speed: f32, eps: f32, rescale_weight: f32, h: f32, cfl: f32) -> f32 {
-    let rate =
-        3f32.sqrt() * (max_abs_speed.abs() + rescale_weight.abs()) / h + 3.0 * eps.abs() / (h * h);
-    limit(cfl, rate)
+    limit(cfl, cfl_rate_eq3(max_abs_speed, eps, rescale_weight, h))
+}
+
+/// The rate of [`cfl_dt_eq3`]: √3 (max|F| + |w_r|) / h + 3|ε| / h², so that Δt · rate ≤
+/// cfl. Rates of terms that act together add up (with [`cfl_rate_advection`]).
+pub fn cfl_rate_eq3(max_abs_speed: f32, eps: f32, rescale_weight: f32, h: f32) -> f32 {
+    3f32.sqrt() * (max_abs_speed.abs() + rescale_weight.abs()) / h + 3.0 * eps.abs() / (h * h)
+}
+
+/// The rate of [`cfl_dt_advection`]: max(|u|+|v|+|w|) / h.
+pub fn cfl_rate_advection(max_abs_sum: f32, h: f32) -> f32 {
+    max_abs_sum.abs() / h
 }
 
 fn limit(numerator: f32, rate: f32) -> f32 {

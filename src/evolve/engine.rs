@@ -250,8 +250,10 @@ pub(crate) trait Representation: Send + Sync {
     fn work_bytes(&self) -> usize;
 }
 
+/// Bytes a vector holds, used or not.
 fn vec_bytes<T>(v: &Vec<T>) -> usize {
-    v.capacity() * std::mem::size_of::<T>()
+    let (used, slack) = crate::grid::vec_bytes(v);
+    used + slack
 }
 
 // ---------------------------------------------------------------------------------------
@@ -441,10 +443,9 @@ impl Representation for TilesRep {
         let lanes = self.lanes;
         let grid = &self.grid;
         let skip_inactive = width <= grid.gamma();
-        let chunks: Vec<usize> = (0..n.div_ceil(TILE_CHUNK)).collect();
-        let sums = chunks
-            .par_iter()
-            .map(|&c| {
+        let sums = (0..n.div_ceil(TILE_CHUNK))
+            .into_par_iter()
+            .map(|c| {
                 let start = c * TILE_CHUNK;
                 let end = (start + TILE_CHUNK).min(n);
                 let mut block = PaddedBlock::<1>::new();
@@ -514,8 +515,7 @@ impl Representation for TilesRep {
     }
 
     fn bytes(&self) -> usize {
-        let m = self.grid.memory();
-        m.total() - m.slack
+        self.grid.memory().used()
     }
 
     fn work_bytes(&self) -> usize {
@@ -692,8 +692,7 @@ impl Representation for DtRep {
     }
 
     fn bytes(&self) -> usize {
-        let m = self.grid.memory();
-        m.total() - m.slack
+        self.grid.memory().used()
     }
 
     fn work_bytes(&self) -> usize {

@@ -69,6 +69,7 @@ use crate::shapes::Shape;
 use crate::tiles::TileGrid;
 use engine::{DenseRep, DtRep, Representation, StageParams, TilesRep};
 use exact::ExactSum;
+use levelset_kernels::rk::{cfl_rate_advection, cfl_rate_eq3};
 use levelset_kernels::KernelError;
 use serde::Serialize;
 use std::sync::Arc;
@@ -360,6 +361,14 @@ pub struct Measures {
     pub work_bytes: usize,
 }
 
+/// Runs `f` in `pool` (the global rayon pool when `None`).
+fn in_pool<T: Send>(pool: &Option<Arc<rayon::ThreadPool>>, f: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    }
+}
+
 #[derive(Clone)]
 enum Rep {
     Tiles(TilesRep),
@@ -513,17 +522,9 @@ impl Simulation {
         }
         // Bring the initial band to the band rule: every voxel within one voxel of the
         // band stored (tile management, DT-Grid rebuild).
-        sim.install(|r| r.finish_step())?;
+        let rep = sim.rep.get_mut();
+        in_pool(&sim.settings.pool, || rep.finish_step())?;
         Ok(sim)
-    }
-
-    /// Runs `f` on the representation inside the simulation's thread pool.
-    fn install<T: Send>(&mut self, f: impl FnOnce(&mut dyn Representation) -> T + Send) -> T {
-        let rep: &mut dyn Representation = self.rep.get_mut();
-        match &self.settings.pool {
-            Some(pool) => pool.install(|| f(rep)),
-            None => f(rep),
-        }
     }
 
     fn spec(&self) -> GridSpec {
@@ -647,10 +648,7 @@ impl Simulation {
             band += (v.abs() < g) as usize;
         }
         let unstored = self.rep.get().unstored_inside();
-        let area_sum = match &self.settings.pool {
-            Some(pool) => pool.install(|| self.rep.get().kappa_bar_sums(width)),
-            None => self.rep.get().kappa_bar_sums(width),
-        };
+        let area_sum = in_pool(&self.settings.pool, || self.rep.get().kappa_bar_sums(width));
         let h3 = (h as f64).powi(3);
         Measures {
             band_voxels: band,
@@ -664,13 +662,12 @@ impl Simulation {
     }
 
     /// The largest stable Δt for the current state (CFL number 1), given the largest |F|
-    /// and |u|₁ over the band voxels: Δt (√3 (max|F| + w)/h + 3ε/h² + max|u|₁/h) ≤ 1
+    /// and |u|₁ over the band voxels: the rates of eq. (3) and of advection add up
     /// (see [`levelset_kernels::rk`]).
     fn stability_limit(&self, max_f: f32, max_u: f32) -> f32 {
         let h = self.spec().voxel_size;
-        let rate = 3f32.sqrt() * (max_f + self.flow.rescale) / h
-            + 3.0 * self.flow.curvature / (h * h)
-            + max_u / h;
+        let rate = cfl_rate_eq3(max_f, self.flow.curvature, self.flow.rescale, h)
+            + cfl_rate_advection(max_u, h);
         if rate > 0.0 {
             1.0 / rate
         } else {
@@ -777,13 +774,11 @@ impl Simulation {
                 };
             let last = si + 1 == stages.len();
             let scheme = self.settings.scheme;
-            let rep: &mut dyn Representation = self.rep.get_mut();
-            match &self.settings.pool {
-                Some(pool) => pool.install(|| rep.stage(&p, scheme, last))?,
-                None => rep.stage(&p, scheme, last)?,
-            }
+            let rep = self.rep.get_mut();
+            in_pool(&self.settings.pool, || rep.stage(&p, scheme, last))?;
         }
-        self.install(|r| r.finish_step())?;
+        let rep = self.rep.get_mut();
+        in_pool(&self.settings.pool, || rep.finish_step())?;
         self.time = if lands { until } else { t0 + dt as f64 };
         self.steps += 1;
         let rep = self.rep.get();
@@ -809,19 +804,13 @@ impl Simulation {
         first: bool,
     ) -> Result<Option<f64>, EvolveError> {
         let rep: &dyn Representation = self.rep.get();
-        let install = |f: &mut (dyn FnMut() + Send)| match &self.settings.pool {
-            Some(pool) => pool.install(f),
-            None => f(),
-        };
+        let pool = &self.settings.pool;
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let mut kappa_bar = None;
         let mut add = 0.0f32;
         if self.flow.volume_conserving {
             let width = self.settings.delta_width * rep.spec().voxel_size;
-            let (num, den) = match &self.settings.pool {
-                Some(pool) => pool.install(|| rep.kappa_bar_sums(width))?,
-                None => rep.kappa_bar_sums(width)?,
-            };
+            let (num, den) = in_pool(pool, || rep.kappa_bar_sums(width))?;
             let h = rep.spec().voxel_size as f64;
             // The sums hold κδ|∇φ|·h² and δ|∇φ|·h (see `KappaBarTerm`).
             let kb = if den.value() > 0.0 { num.value() / den.value() / h } else { 0.0 };
@@ -842,7 +831,7 @@ impl Simulation {
                 if first || f.time_dependent() {
                     self.base.resize(n, 0.0);
                     let base = &mut self.base;
-                    install(&mut || rep.fill_scalar(f.as_ref(), t, base));
+                    in_pool(pool, || rep.fill_scalar(f.as_ref(), t, base));
                 }
                 for (s, &b) in self.speed.iter_mut().zip(&self.base) {
                     *s = b + add;
@@ -852,7 +841,7 @@ impl Simulation {
                 if first {
                     self.base.resize(n, 0.0);
                     let base = &mut self.base;
-                    install(&mut || rep.fill_scalar(target.as_ref(), t, base));
+                    in_pool(pool, || rep.fill_scalar(target.as_ref(), t, base));
                     let g = rep.spec().gamma();
                     self.base.iter_mut().for_each(|v| *v = v.clamp(-g, g));
                 }
@@ -884,7 +873,7 @@ impl Simulation {
                     Some(scale) => {
                         if first {
                             let [a, b, c] = &mut self.velocity;
-                            install(&mut || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
+                            in_pool(pool, || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
                         } else {
                             check_velocity = false;
                         }
@@ -893,7 +882,7 @@ impl Simulation {
                     None => {
                         if first || f.time_dependent() {
                             let [a, b, c] = &mut self.velocity;
-                            install(&mut || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                            in_pool(pool, || rep.fill_vector(f.as_ref(), t, [a, b, c]));
                         } else {
                             check_velocity = false;
                         }
