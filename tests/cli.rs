@@ -272,26 +272,35 @@ fn read_summary(dir: &Path) -> serde_json::Value {
         .expect("valid JSON")
 }
 
+/// `levelset run ARGS --quiet --out TMP/OUT`, which must succeed: its output and the
+/// directory holding `summary.json`.
+fn run_ok(args: &[&str], out: &str) -> (Output, PathBuf) {
+    let dir = tmp(out);
+    let mut all = vec!["run"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--quiet", "--out", dir.to_str().unwrap()]);
+    let o = levelset(&all);
+    assert!(o.status.success(), "{all:?}: {}", stderr(&o));
+    (o, dir)
+}
+
 #[test]
 fn run_writes_the_summary_the_issue_asks_for() {
-    let dir = tmp("run-sphere");
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--size",
-        "40",
-        "--steps",
-        "12",
-        "--record-every",
-        "5",
-        "--threads",
-        "2",
-        "--quiet",
-        "--export-npy",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, dir) = run_ok(
+        &[
+            "sphere",
+            "--size",
+            "40",
+            "--steps",
+            "12",
+            "--record-every",
+            "5",
+            "--threads",
+            "2",
+            "--export-npy",
+        ],
+        "run-sphere",
+    );
     let s = read_summary(&dir);
     let p = &s["params"];
     for key in [
@@ -333,21 +342,8 @@ fn run_writes_the_summary_the_issue_asks_for() {
     assert!(f.data().iter().any(|&v| v < 0.0) && f.data().iter().any(|&v| v > 0.0));
 
     // The same run on the DT-Grid and on one thread ends with the same checksum.
-    let dir2 = tmp("run-sphere-dt");
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--size",
-        "40",
-        "--steps",
-        "12",
-        "--grid",
-        "dtgrid",
-        "--quiet",
-        "--out",
-        dir2.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, dir2) =
+        run_ok(&["sphere", "--size", "40", "--steps", "12", "--grid", "dtgrid"], "run-sphere-dt");
     assert_eq!(read_summary(&dir2)["checksum"], s["checksum"]);
 }
 
@@ -366,21 +362,8 @@ fn run_from(field: &Path, scenario: &str, out: &str) -> Output {
 #[test]
 fn run_ends_cleanly_on_collapse_and_bad_input() {
     // A small sphere under strong curvature flow collapses: a message, exit 0.
-    let dir = tmp("run-collapse");
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--size",
-        "32",
-        "--radius",
-        "4",
-        "--steps",
-        "100000",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (o, dir) =
+        run_ok(&["sphere", "--size", "32", "--radius", "4", "--steps", "100000"], "run-collapse");
     assert!(String::from_utf8_lossy(&o.stdout).contains("collapsed"));
     assert_eq!(read_summary(&dir)["collapsed"], true);
 
@@ -431,19 +414,8 @@ fn run_ends_cleanly_on_collapse_and_bad_input() {
 fn run_starts_from_an_npy_field() {
     let path = tmp("init.npy");
     write_npy(&path, "<f4", &[24, 24, 24], &sphere_f32(24, 6.0));
-    let dir = tmp("run-init");
-    let o = levelset(&[
-        "run",
-        "expand",
-        "--init",
-        path.to_str().unwrap(),
-        "--steps",
-        "5",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, dir) =
+        run_ok(&["expand", "--init", path.to_str().unwrap(), "--steps", "5"], "run-init");
     let s = read_summary(&dir);
     assert_eq!(s["params"]["init"], path.to_str().unwrap());
     assert!(s["volume_ratio"].as_f64().unwrap() > 1.0, "the sphere grows");
