@@ -228,6 +228,15 @@ pub fn time_pair(
     (ta, tb)
 }
 
+/// `"debug"` or `"release"`: whether this binary was built with debug assertions.
+pub fn build_profile() -> &'static str {
+    if cfg!(debug_assertions) {
+        "debug"
+    } else {
+        "release"
+    }
+}
+
 /// The CPU model from /proc/cpuinfo, or "unknown".
 pub fn cpu_name() -> String {
     std::fs::read_to_string("/proc/cpuinfo")

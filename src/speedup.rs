@@ -220,7 +220,7 @@ pub fn run_speedup(
     Ok(SpeedupReport {
         cpu: crate::bench::cpu_name(),
         target_features: levelset_kernels::target_features(),
-        profile: if cfg!(debug_assertions) { "debug" } else { "release" },
+        profile: crate::bench::build_profile(),
         threads: cfg.threads,
         pinned: cfg.pin,
         scenarios,

@@ -362,7 +362,7 @@ fn run_bench(a: &BenchArgs) -> Result<(), String> {
     let report = StorageBench {
         cpu: cpu_name(),
         target_features: levelset_kernels::target_features(),
-        profile: if cfg!(debug_assertions) { "debug" } else { "release" },
+        profile: sparse_levelset::bench::build_profile(),
         threads: 1,
         repetitions: reps,
         scenarios: results,

@@ -512,7 +512,6 @@ impl TileGrid {
         }
 
         // Compaction: gather the tiles in list order into a fresh arena.
-        let g = self.gamma();
         let n = new_coords.len();
         let mut arena = Vec::with_capacity(n);
         let mut new_border = Vec::with_capacity(n);
@@ -524,20 +523,44 @@ impl TileGrid {
                 new_border.push(border[id]);
                 activity.push(self.activity[id]);
             } else {
-                let inside = created_inside[id - old_tiles];
-                arena.push(Tile::splat(if inside { -g } else { g }));
-                new_border.push(if inside { BORDER_MASK } else { 0 });
-                activity.push(if inside { INSIDE } else { 0 });
+                let (t, b, a) = self.created_tile(created_inside[id - old_tiles]);
+                arena.push(t);
+                new_border.push(b);
+                activity.push(a);
             }
         }
-        self.coords = new_coords;
-        self.ids = (0..n as u32).collect();
+        self.replace_list(new_coords, arena, new_border, activity);
+        Ok(stats)
+    }
+
+    /// Values, border flags and activity flags of a tile that management creates with the
+    /// given sign (Algorithm 3 lines 22–31): ±γ everywhere, every border flag that sign.
+    #[inline]
+    pub(super) fn created_tile(&self, inside: bool) -> (Tile, u32, u32) {
+        let g = self.gamma();
+        if inside {
+            (Tile::splat(-g), BORDER_MASK, INSIDE)
+        } else {
+            (Tile::splat(g), 0, 0)
+        }
+    }
+
+    /// Installs a new list whose arrays are in list order (so `ids` is the identity) and
+    /// rebuilds the row directory.
+    pub(super) fn replace_list(
+        &mut self,
+        coords: Vec<Coord>,
+        arena: Vec<Tile>,
+        border: Vec<u32>,
+        activity: Vec<u32>,
+    ) {
+        self.ids = (0..coords.len() as u32).collect();
+        self.coords = coords;
         self.arena = arena;
-        self.border = new_border;
+        self.border = border;
         self.activity = activity;
         self.build_directory();
         self.debug_check();
-        Ok(stats)
     }
 
     #[inline]

@@ -186,12 +186,11 @@ impl TileGrid {
         if u32::try_from(total).is_err() {
             return Err(GridError::InvalidParameter("more than 2^32 tiles".into()));
         }
-        let g = self.gamma();
         let mut new_coords = vec![Coord::default(); total];
         let mut new_arena = vec![Tile::splat(0.0); total];
         let mut new_border = vec![0u32; total];
         let mut new_activity = vec![0u32; total];
-        let arena = &self.arena[..];
+        let (grid, arena) = (&*self, &self.arena[..]);
         split_by(&mut new_coords, &lens)
             .into_par_iter()
             .zip(split_by(&mut new_arena, &lens))
@@ -219,24 +218,15 @@ impl TileGrid {
                         of[o] = activity[p];
                         p += 1;
                     } else {
-                        let inside = created_inside[q];
                         oc[o] = created[q];
-                        oa[o] = Tile::splat(if inside { -g } else { g });
-                        ob[o] = if inside { BORDER_MASK } else { 0 };
-                        of[o] = if inside { INSIDE } else { 0 };
+                        (oa[o], ob[o], of[o]) = grid.created_tile(created_inside[q]);
                         q += 1;
                     }
                     o += 1;
                 }
                 debug_assert_eq!(o, oc.len());
             });
-        self.coords = new_coords;
-        self.ids = (0..total as u32).collect();
-        self.arena = new_arena;
-        self.border = new_border;
-        self.activity = new_activity;
-        self.build_directory();
-        self.debug_check();
+        self.replace_list(new_coords, new_arena, new_border, new_activity);
         Ok(stats)
     }
 }
