@@ -155,8 +155,9 @@ pub struct ScenarioParams {
     pub record_every: u64,
     /// The `--init` field, if any.
     pub init: Option<String>,
-    /// Description of the initial shape and the flow.
+    /// The initial shape (its `Debug` form).
     pub shape: String,
+    /// The morph target (its `Debug` form).
     pub target: Option<String>,
 }
 
@@ -255,20 +256,12 @@ impl Scenario {
         let mut depth = None;
         let mut target_desc = None;
         let eps = o.epsilon;
-        let (shape, flow, scheme, integrator, radius, volume_conserving, speed) = match kind {
+        let (shape, flow, scheme, integrator, radius) = match kind {
             ScenarioKind::Sphere => {
                 let r = positive("radius", o.radius.unwrap_or(n * 100.0 / 256.0))?;
                 let e = eps.unwrap_or(1.0);
                 let shape = Shape::Sphere { center: c, radius: r };
-                (
-                    shape,
-                    Flow::mean_curvature(e),
-                    SpatialScheme::Upwind1,
-                    Integrator::Euler,
-                    r,
-                    false,
-                    0.0,
-                )
+                (shape, Flow::mean_curvature(e), SpatialScheme::Upwind1, Integrator::Euler, r)
             }
             ScenarioKind::Spiral => {
                 let r = positive("radius", o.radius.unwrap_or(n * 50.0 / 128.0))?;
@@ -281,7 +274,7 @@ impl Scenario {
                 }
                 let vc = o.volume_conserving.unwrap_or(true);
                 let flow = if vc { Flow::volume_conserving(e) } else { Flow::mean_curvature(e) };
-                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, vc, 0.0)
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r)
             }
             ScenarioKind::Enright => {
                 voxel = 1.0 / size as f32;
@@ -295,7 +288,7 @@ impl Scenario {
                 let flow =
                     Flow::advection(Velocity::Field(Arc::new(EnrightVelocity { period: t })))
                         .with_curvature(eps.unwrap_or(0.0));
-                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, false, 0.0)
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r)
             }
             ScenarioKind::Expand => {
                 let r = positive("radius", o.radius.unwrap_or(n / 4.0))?;
@@ -308,7 +301,7 @@ impl Scenario {
                 let shape = Shape::Sphere { center: c, radius: r };
                 let flow =
                     Flow::normal_speed(Speed::Constant(f)).with_curvature(eps.unwrap_or(0.0));
-                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r, false, f)
+                (shape, flow, SpatialScheme::Weno5, Integrator::Rk3, r)
             }
             ScenarioKind::Morph => {
                 let r = positive("radius", o.radius.unwrap_or(n * 0.3))?;
@@ -323,7 +316,7 @@ impl Scenario {
                 if steps.is_none() && time.is_none() {
                     steps = Some(300);
                 }
-                (shape, flow, SpatialScheme::Upwind1, Integrator::Euler, r, false, 0.0)
+                (shape, flow, SpatialScheme::Upwind1, Integrator::Euler, r)
             }
         };
         if steps.is_none() && time.is_none() {
@@ -331,10 +324,6 @@ impl Scenario {
         }
         let rescale = o.rescale.unwrap_or(flow.rescale);
         let flow = flow.with_rescale(rescale);
-        let mut flow = flow;
-        if let Some(e) = eps {
-            flow.curvature = e;
-        }
         let voxel = o.voxel_size.filter(|_| o.init.is_some()).unwrap_or(voxel);
         if !(o.half_width > 1.0 && o.half_width <= 64.0) {
             return Err(EvolveError::InvalidParameter(format!(
@@ -385,10 +374,13 @@ impl Scenario {
             half_width: o.half_width,
             radius,
             epsilon: flow.curvature,
-            speed,
+            speed: match flow.speed {
+                Speed::Constant(f) => f,
+                _ => 0.0,
+            },
             period,
             depth,
-            volume_conserving,
+            volume_conserving: flow.volume_conserving,
             rescale,
             steps,
             time,
