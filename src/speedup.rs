@@ -40,6 +40,9 @@ impl Default for SpeedupConfig {
 /// One run of one scenario.
 #[derive(Clone, Debug, Serialize)]
 pub struct RunResult {
+    /// "DT-Grid", "tiles scalar" or "tiles SIMD" (for the text table).
+    #[serde(skip)]
+    pub label: &'static str,
     /// `"dtgrid"` or `"tiles"`.
     pub grid: &'static str,
     /// `"scalar"` or `"simd"` (`"scalar"` for the DT-Grid, whose arithmetic is scalar).
@@ -65,9 +68,11 @@ pub struct ScenarioBench {
     pub name: &'static str,
     pub size: u32,
     pub steps: u64,
-    /// The kernels benchmark's throughput of the same arithmetic at the widest lanes
-    /// (`upwind_curvature` for first-order runs, `weno5_rk3` for HJ-WENO5 + TVD-RK3).
+    /// The kernels benchmark's kernel of the same arithmetic (`upwind_curvature` for
+    /// first-order runs, `weno5_rk3` for HJ-WENO5 + TVD-RK3) ...
     pub kernel: &'static str,
+    /// ... at the lane type of the tile engine's SIMD runs.
+    pub kernel_lanes: &'static str,
     pub kernel_voxel_updates_per_s: f64,
     /// Tiles, SIMD, one thread: voxel-updates/s over the kernel-only throughput.
     pub engine_fraction_of_kernel: f64,
@@ -145,7 +150,8 @@ pub fn run_speedup(
     kernels: &[levelset_kernels::bench::KernelResult],
     mut progress: impl FnMut(&str),
 ) -> Result<SpeedupReport, String> {
-    let widest = levelset_kernels::bench::LANES[3];
+    // The lane type the tile engine's SIMD runs use.
+    let engine_lanes = levelset_kernels::LaneKind::DEFAULT.name();
     let mut scenarios = Vec::new();
     for (kind, size, steps) in plan(cfg) {
         let runs_plan: [(GridKind, usize); 4] = [
@@ -179,6 +185,7 @@ pub fn run_speedup(
                 max_diff = max_diff.max(max_abs_diff(&b, &sim, rb, rs));
             }
             runs.push(RunResult {
+                label: grid_label(grid),
                 grid: grid.name(),
                 lanes: match grid {
                     GridKind::Tiles(Lanes::Simd) => "simd",
@@ -204,13 +211,14 @@ pub fn run_speedup(
         }
         let k = kernels
             .iter()
-            .find(|r| r.kernel == kernel && r.lanes == widest)
+            .find(|r| r.kernel == kernel && r.lanes == engine_lanes)
             .map_or(0.0, |r| r.voxel_updates_per_s);
         scenarios.push(ScenarioBench {
             name: kind.name(),
             size,
             steps,
             kernel,
+            kernel_lanes: engine_lanes,
             kernel_voxel_updates_per_s: k,
             engine_fraction_of_kernel: if k > 0.0 { runs[2].voxel_updates_per_s / k } else { 0.0 },
             max_abs_diff: max_diff,
@@ -253,12 +261,13 @@ impl SpeedupReport {
         for sc in &self.scenarios {
             let _ = writeln!(
                 s,
-                "\n{} {}³, {} steps: kernel-only {} (widest lanes) {:.1} Mvox/s; tiles SIMD 1 thread \
+                "\n{} {}³, {} steps: kernel-only {} ({}) {:.1} Mvox/s; tiles SIMD 1 thread \
                  reaches {:.0} % of it; max |φ_tiles − φ_dtgrid| = {}",
                 sc.name,
                 sc.size,
                 sc.steps,
                 sc.kernel,
+                sc.kernel_lanes,
                 sc.kernel_voxel_updates_per_s / 1e6,
                 100.0 * sc.engine_fraction_of_kernel,
                 sc.max_abs_diff
@@ -276,15 +285,10 @@ impl SpeedupReport {
                 "bytes/DT"
             );
             for r in &sc.runs {
-                let name = match (r.grid, r.lanes) {
-                    ("dtgrid", _) => "DT-Grid",
-                    (_, "simd") => "tiles SIMD",
-                    _ => "tiles scalar",
-                };
                 let _ = writeln!(
                     s,
                     "  {:<13} {:>7} {:>9.3} {:>10.1} {:>13.1} {:>8.2}x {:>11} {:>8.2}  {}",
-                    name,
+                    r.label,
                     r.threads,
                     r.seconds,
                     r.voxel_updates_per_s / 1e6,
