@@ -291,21 +291,27 @@ fn brute_triggered(grid: &TileGrid) -> BTreeSet<Coord> {
     out
 }
 
+/// Random activity flags: none, inside, one region, the previous flags, or any regions.
+fn randomize_activity(grid: &mut TileGrid, rng: &mut fastrand::Rng) {
+    for p in 0..grid.len() {
+        let f = match rng.u32(0..5) {
+            0 => 0,
+            1 => INSIDE,
+            2 => 1 << rng.u32(0..27),
+            3 => grid.activity_flags(p),
+            _ => rng.u32(..) & ACTIVE_MASK,
+        };
+        grid.set_activity_flags(p, f);
+    }
+}
+
 #[test]
 fn management_with_random_activity_keeps_list_valid() {
     let mut rng = fastrand::Rng::with_seed(99);
     for case in cases(16, 3) {
         let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
         for _round in 0..6 {
-            for p in 0..grid.len() {
-                let f = match rng.u32(0..4) {
-                    0 => 0,
-                    1 => INSIDE,
-                    2 => 1 << rng.u32(0..27),
-                    _ => rng.u32(..) & ACTIVE_MASK,
-                };
-                grid.set_activity_flags(p, f);
-            }
+            randomize_activity(&mut grid, &mut rng);
             let want = brute_triggered(&grid);
             let before = grid.clone();
             let stats = grid.manage_tiles().unwrap();
@@ -340,16 +346,7 @@ fn parallel_management_equals_streamed() {
     for case in cases(23, 4) {
         let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
         for _round in 0..5 {
-            for p in 0..grid.len() {
-                let f = match rng.u32(0..5) {
-                    0 => 0,
-                    1 => INSIDE,
-                    2 => 1 << rng.u32(0..27),
-                    3 => grid.activity_flags(p),
-                    _ => rng.u32(..) & ACTIVE_MASK,
-                };
-                grid.set_activity_flags(p, f);
-            }
+            randomize_activity(&mut grid, &mut rng);
             let mut want = grid.clone();
             let want_stats = want.manage_tiles_streamed().unwrap();
             for pool in &pools {
