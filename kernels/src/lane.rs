@@ -126,6 +126,10 @@ pub trait Lane:
 
     /// `if self > rhs { if_true } else { if_false }` per lane (false if NaN is involved).
     fn select_gt(self, rhs: Self, if_true: Self, if_false: Self) -> Self;
+
+    /// Whether `self > rhs` in at least one lane (false where NaN is involved): the
+    /// condition under which [`Lane::select_gt`] picks `if_true` anywhere.
+    fn any_gt(self, rhs: Self) -> bool;
 }
 
 impl sealed::Sealed for f32 {
@@ -196,6 +200,10 @@ impl Lane for f32 {
         } else {
             if_false
         }
+    }
+    #[inline(always)]
+    fn any_gt(self, rhs: Self) -> bool {
+        self > rhs
     }
 }
 
@@ -279,6 +287,10 @@ macro_rules! impl_wide_lane {
             #[inline(always)]
             fn select_gt(self, rhs: Self, if_true: Self, if_false: Self) -> Self {
                 wide::Select::select(self.simd_gt(rhs), if_true, if_false)
+            }
+            #[inline(always)]
+            fn any_gt(self, rhs: Self) -> bool {
+                self.simd_gt(rhs).any()
             }
         }
     };
