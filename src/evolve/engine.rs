@@ -15,7 +15,7 @@ use crate::dense::DenseField;
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::grid::GridSpec;
 use crate::tiles::{
-    compute_activity, voxel_of, NeighbourCursor, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
+    compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{
@@ -262,9 +262,14 @@ fn vec_bytes<T>(v: &Vec<T>) -> usize {
 /// The tile engine: the grid holds the current values; `out` is the double buffer the
 /// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.
 #[derive(Clone)]
+///
+/// # Invariants
+/// `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
+/// management; checked in debug builds where it is read).
 pub(crate) struct TilesRep {
     pub grid: TileGrid,
     pub lanes: Lanes,
+    table: NeighbourTable,
     phi_n: Vec<Tile>,
     out: Vec<Tile>,
     box_min: Vec<f32>,
@@ -272,20 +277,31 @@ pub(crate) struct TilesRep {
 }
 
 impl TilesRep {
+    /// The engine over `grid`; builds the neighbour table in the current rayon pool.
     pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
+        let mut table = NeighbourTable::default();
+        table.rebuild(grid.tile_coords());
         TilesRep {
             grid,
             lanes,
+            table,
             phi_n: Vec::new(),
             out: Vec::new(),
             box_min: Vec::new(),
             activity: Vec::new(),
         }
     }
+
+    /// The neighbour table, checked against the list in debug builds.
+    fn table(&self) -> &NeighbourTable {
+        debug_assert_eq!(self.table.len(), self.grid.len(), "stale neighbour table");
+        &self.table
+    }
 }
 
 struct TileSweep<'a> {
     grid: &'a TileGrid,
+    table: &'a NeighbourTable,
     lanes: Lanes,
     out: &'a mut [Tile],
     box_min: &'a mut [f32],
@@ -314,8 +330,7 @@ impl TileSweep<'_> {
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
     {
-        let TileSweep { grid, out, box_min, compute_mask, activity, .. } = self;
-        let coords = grid.tile_coords();
+        let TileSweep { grid, table, out, box_min, compute_mask, activity, .. } = self;
         let gamma = grid.gamma();
         out.par_chunks_mut(TILE_CHUNK)
             .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
@@ -324,10 +339,9 @@ impl TileSweep<'_> {
             .try_for_each(|(c, ((out, mask), act))| {
                 let start = c * TILE_CHUNK;
                 let mut block = PaddedBlock::<R>::new();
-                let mut cur = NeighbourCursor::new(coords, start, start + out.len());
-                while let Some(nb) = cur.next() {
-                    let i = nb.pos - start;
-                    block.gather(grid, &nb);
+                for i in 0..out.len() {
+                    let pos = start + i;
+                    block.gather_row(grid, pos, table.row(pos));
                     let tb = TileBlock::<R>::new(block.data())?;
                     let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
                         .try_into()
@@ -335,11 +349,8 @@ impl TileSweep<'_> {
                     if compute_mask {
                         tb.apply::<L, _>(&BoxMinAbs, m)?;
                     }
-                    let k = BandMasked {
-                        step: make(64 * nb.pos..64 * nb.pos + 64),
-                        box_min: &m[..],
-                        gamma,
-                    };
+                    let k =
+                        BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
                     tb.apply::<L, _>(&k, &mut out[i].0)?;
                     act[i] = compute_activity(&out[i], gamma);
                 }
@@ -411,8 +422,10 @@ impl Representation for TilesRep {
         self.activity.resize(n, 0);
         let p =
             StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.phi_n) }, ..*p };
+        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
         let sweep = TileSweep {
             grid: &self.grid,
+            table: &self.table,
             lanes: self.lanes,
             out: &mut self.out,
             box_min: &mut self.box_min,
@@ -438,7 +451,7 @@ impl Representation for TilesRep {
 
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
-        let coords = self.grid.tile_coords();
+        let table = self.table();
         let n = self.grid.len();
         let lanes = self.lanes;
         let grid = &self.grid;
@@ -450,15 +463,14 @@ impl Representation for TilesRep {
                 let end = (start + TILE_CHUNK).min(n);
                 let mut block = PaddedBlock::<1>::new();
                 let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
-                let mut cur = NeighbourCursor::new(coords, start, end);
                 let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
-                while let Some(nb) = cur.next() {
+                for pos in start..end {
                     // A tile without band voxels holds only ±γ, where δ vanishes when
                     // its width does not exceed γ: its terms are exactly zero.
-                    if skip_inactive && grid.activity_flags(nb.pos) & ACTIVE_MASK == 0 {
+                    if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
                         continue;
                     }
-                    block.gather(grid, &nb);
+                    block.gather_row(grid, pos, table.row(pos));
                     let tb = TileBlock::<1>::new(block.data())?;
                     match lanes {
                         Lanes::Scalar => kappa_tile::<f32>(&tb, inv_h, width, &mut a, &mut b),
@@ -477,6 +489,7 @@ impl Representation for TilesRep {
 
     fn finish_step(&mut self) -> Result<(), EvolveError> {
         self.grid.manage_tiles()?;
+        self.table.rebuild(self.grid.tile_coords());
         Ok(())
     }
 
@@ -524,6 +537,7 @@ impl Representation for TilesRep {
             + vec_bytes(&self.out)
             + vec_bytes(&self.box_min)
             + vec_bytes(&self.activity)
+            + self.table.bytes()
     }
 }
 

@@ -101,14 +101,7 @@ mod tests {
         let mut rng = fastrand::Rng::with_seed(11);
         let mut terms: Vec<f32> = (0..1000).map(|_| (rng.f32() - 0.5) * 1e-3).collect();
         // A tie at the 2⁻³² grid (rounds to even), NaN, ±∞ and terms beyond the 2²⁴ limit.
-        terms.extend([
-            3.0 * 2f32.powi(-33),
-            f32::NAN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            3e7,
-            -3e7,
-        ]);
+        terms.extend([3.0 * 2f32.powi(-33), f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 3e7, -3e7]);
         rng.shuffle(&mut terms);
         let mut a = ExactSum::default();
         a.add_all(&terms);

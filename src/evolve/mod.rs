@@ -441,7 +441,9 @@ impl Simulation {
     ) -> Result<Simulation, EvolveError> {
         let spec = *tiles.spec();
         let rep = match kind {
-            GridKind::Tiles(lanes) => Rep::Tiles(TilesRep::new(tiles, lanes)),
+            GridKind::Tiles(lanes) => {
+                Rep::Tiles(in_pool(&settings.pool, || TilesRep::new(tiles, lanes)))
+            }
             GridKind::DtGrid => {
                 Rep::DtGrid(Box::new(DtRep::new(crate::build::dtgrid_from_tiles(&tiles))))
             }

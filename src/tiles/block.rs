@@ -3,7 +3,7 @@
 //! borders come from the neighbour tiles, or from a "dummy tile" of ±γ chosen by the
 //! border flag where the neighbour is absent).
 
-use super::{Neighbours, TileGrid, TILE_DIM};
+use super::{NeighbourRow, Neighbours, TileGrid, TILE_DIM};
 
 /// The values of a tile and an `R`-voxel halo around it, x fastest:
 /// `data[(x + R) + W (y + R) + W² (z + R)]` for local coordinates `x, y, z` in `-R..4+R`,
@@ -50,11 +50,23 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
+        self.gather_with(grid, nb.pos, |d| nb.get(d));
+    }
+
+    /// Fills the block for the tile at list position `pos`, whose neighbours are `row`
+    /// (from a [`super::NeighbourTable`] of `grid`'s list).
+    #[inline]
+    pub fn gather_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
+        self.gather_with(grid, pos, |d| row.get(d));
+    }
+
+    #[inline(always)]
+    fn gather_with(&mut self, grid: &TileGrid, pos: usize, get: impl Fn(usize) -> Option<usize>) {
         let values = grid.values();
-        let border = grid.border_flags(nb.pos);
+        let border = grid.border_flags(pos);
         let gamma = grid.gamma();
         // Each of the 27 parts comes from a neighbour tile or is a "dummy tile" of ±γ.
-        let part: [Result<&[f32; 64], f32>; 27] = std::array::from_fn(|d| match nb.get(d) {
+        let part: [Result<&[f32; 64], f32>; 27] = std::array::from_fn(|d| match get(d) {
             Some(p) => Ok(&values[p].0),
             None => Err(if border & (1 << d) != 0 { -gamma } else { gamma }),
         });

@@ -25,7 +25,7 @@ pub use flags::{
     compute_activity, region_of_local, ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER,
 };
 pub use grid::{ManageStats, TileGrid};
-pub use stream::{DilationStream, NeighbourCursor, Neighbours};
+pub use stream::{DilationStream, NeighbourCursor, NeighbourRow, NeighbourTable, Neighbours};
 
 use crate::coord::Coord;
 

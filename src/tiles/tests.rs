@@ -221,6 +221,35 @@ fn neighbour_tracking_equals_brute_force_from_any_start() {
     }
 }
 
+#[test]
+fn neighbour_table_equals_brute_force_for_any_thread_count() {
+    for case in cases(16, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        let coords = grid.tile_coords();
+        let tables: Vec<NeighbourTable> = [1, 3]
+            .iter()
+            .map(|&threads| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let mut t = NeighbourTable::default();
+                pool.install(|| t.rebuild(coords));
+                t
+            })
+            .collect();
+        assert_eq!(tables[0].len(), coords.len());
+        for (p, c) in coords.iter().enumerate() {
+            let (a, b) = (tables[0].row(p), tables[1].row(p));
+            assert_eq!(a, b);
+            for (d, off) in NEIGHBOURHOOD.iter().enumerate() {
+                let there = coords.binary_search(&c.wrapping_add(*off)).ok();
+                assert_eq!(a.get(d), there, "tile {p} direction {d}");
+            }
+        }
+    }
+    let mut empty = NeighbourTable::default();
+    empty.rebuild(&[]);
+    assert!(empty.is_empty());
+}
+
 fn brute_dilation(coords: &[Coord]) -> BTreeSet<Coord> {
     coords.iter().flat_map(|c| NEIGHBOURHOOD.iter().map(move |d| c.wrapping_add(*d))).collect()
 }
