@@ -40,7 +40,9 @@ fn star19(c: f32, axis: [[f32; 6]; 3]) -> f32 {
 
 /// `smooth7` over every tile: gather a 1-voxel halo, update 64 voxels. Output in list order.
 pub fn tiles_smooth7(grid: &TileGrid, out: &mut Vec<Tile>) {
-    const W: usize = 6;
+    // The PaddedBlock<1> layout: rows of 12 (x from -4), 6 rows per slice.
+    const SY: usize = 12;
+    const SZ: usize = 12 * 6;
     out.clear();
     out.reserve(grid.len());
     let g = grid.gamma();
@@ -53,9 +55,9 @@ pub fn tiles_smooth7(grid: &TileGrid, out: &mut Vec<Tile>) {
         for z in 0..4 {
             for y in 0..4 {
                 for x in 0..4 {
-                    let i = (x + 1) + W * (y + 1) + W * W * (z + 1);
+                    let i = (x + 4) + SY * (y + 1) + SZ * (z + 1);
                     let star =
-                        [d[i], d[i - 1], d[i + 1], d[i - W], d[i + W], d[i - W * W], d[i + W * W]];
+                        [d[i], d[i - 1], d[i + 1], d[i - SY], d[i + SY], d[i - SZ], d[i + SZ]];
                     t.0[x + 4 * y + 16 * z] = smooth7(star, g);
                 }
             }
@@ -78,23 +80,25 @@ pub fn dtgrid_smooth7(grid: &DtGrid, out: &mut Vec<f32>) {
 
 /// `star19` over every tile with a 3-voxel halo.
 pub fn tiles_star19(grid: &TileGrid, out: &mut Vec<Tile>) {
-    const W: usize = 10;
+    // The PaddedBlock<3> layout: rows of 12 (x from -4), 10 rows per slice, 10 slices.
+    const SY: usize = 12;
+    const SZ: usize = 12 * 10;
     out.clear();
     out.reserve(grid.len());
     let mut block = PaddedBlock::<3>::new();
     let mut cur = NeighbourCursor::new(grid.tile_coords(), 0, grid.len());
     while let Some(nb) = cur.next() {
         block.gather(grid, &nb);
-        let d: &[f32; W * W * W] = block.data().try_into().expect("10³ block");
+        let d: &[f32; SZ * 10] = block.data().try_into().expect("12×10×10 block");
         let mut t = Tile::splat(0.0);
         for z in 0..4 {
             for y in 0..4 {
                 for x in 0..4 {
-                    let i = (x + 3) + W * (y + 3) + W * W * (z + 3);
+                    let i = (x + 4) + SY * (y + 3) + SZ * (z + 3);
                     let ax = |s: usize| {
                         [d[i - 3 * s], d[i - 2 * s], d[i - s], d[i + s], d[i + 2 * s], d[i + 3 * s]]
                     };
-                    t.0[x + 4 * y + 16 * z] = star19(d[i], [ax(1), ax(W), ax(W * W)]);
+                    t.0[x + 4 * y + 16 * z] = star19(d[i], [ax(1), ax(SY), ax(SZ)]);
                 }
             }
         }

@@ -39,10 +39,16 @@ impl<K: VoxelKernel, const R: usize> Fits<K, R> {
     );
 }
 
-/// A 4³ tile padded by an `R`-voxel halo, x fastest:
-/// `data[(x+R) + W (y+R) + W² (z+R)]` for local `x, y, z` in `-R..4+R`, `W = 4 + 2R`
-/// (the layout of the root crate's `PaddedBlock<R>`). `R = 1` serves first-order upwind
-/// and curvature (the 3×3×3 box with diagonals), `R = 3` HJ-WENO5 as well.
+/// A 4³ tile padded by an `R`-voxel halo along y and z and whole neighbour rows along x,
+/// x fastest: `data[(x+4) + SX (y+R) + SX W (z+R)]` for local `x` in `-4..8` and `y, z` in
+/// `-R..4+R`, `SX = 12`, `W = 4 + 2R` (the layout of the root crate's `PaddedBlock<R>`).
+/// `R = 1` serves first-order upwind and curvature (the 3×3×3 box with diagonals), `R = 3`
+/// HJ-WENO5 as well.
+///
+/// The x halo is a whole tile row on each side whatever `R`: a padded row is then the
+/// same x-row of three tiles (left neighbour, tile, right neighbour), three aligned copies
+/// of 4 values, where an `R`-voxel x halo needs copies of odd lengths at odd offsets.
+/// Kernels read at most `R` voxels of it.
 ///
 /// Sweeps visit lane groups in tile order; see [`TileWindow`] for the groups of each lane
 /// type. Voxel order for per-voxel inputs and outputs: tile order `x + 4y + 16z`.
@@ -52,13 +58,16 @@ pub struct TileBlock<'a, const R: usize> {
 }
 
 impl<'a, const R: usize> TileBlock<'a, R> {
-    /// Edge length of the padded block.
+    /// Row length of the padded block (x extent: three tile rows).
+    pub const SX: usize = 12;
+    /// Extent of the padded block along y and z.
     pub const W: usize = 4 + 2 * R;
     /// Number of values in the padded block.
-    pub const LEN: usize = Self::W * Self::W * Self::W;
-    const HALO_OK: () = assert!(R >= 1, "a tile block needs a halo of at least one voxel");
+    pub const LEN: usize = Self::SX * Self::W * Self::W;
+    const HALO_OK: () =
+        assert!(R >= 1 && R <= 4, "a tile block needs a halo of one to four voxels");
 
-    /// A view of `data`, which must hold exactly `(4 + 2R)³` values.
+    /// A view of `data`, which must hold exactly [`Self::LEN`] values.
     pub fn new(data: &'a [f32]) -> Result<Self, KernelError> {
         #[allow(clippy::let_unit_value)]
         let () = Self::HALO_OK;
@@ -68,23 +77,23 @@ impl<'a, const R: usize> TileBlock<'a, R> {
         Ok(TileBlock { data })
     }
 
-    /// Padded index of local coordinates (each in `-R..4+R`).
+    /// Padded index of local coordinates (`x` in `-4..8`, `y, z` in `-R..4+R`).
     #[inline]
     pub fn index(x: i32, y: i32, z: i32) -> usize {
-        let (r, w) = (R as i32, Self::W as i32);
-        ((x + r) + w * (y + r) + w * w * (z + r)) as usize
+        let (r, sx, w) = (R as i32, Self::SX as i32, Self::W as i32);
+        ((x + 4) + sx * (y + r) + sx * w * (z + r)) as usize
     }
 
     /// Calls `f(first, window)` for every lane group of `L`, in tile order; `first` is the
     /// tile index of the group's first voxel.
     #[inline(always)]
     pub fn for_each<L: Lane>(&self, mut f: impl FnMut(usize, &TileWindow<'a, L, R>)) {
-        let w = Self::W;
+        let (sx, w) = (Self::SX, Self::W);
         for g in 0..64 / L::LANES {
             let first = g * L::LANES;
             let (x, y, z) = (first % 4, (first / 4) % 4, first / 16);
-            let centre = scalar_barrier::<L>((x + R) + w * (y + R) + w * w * (z + R));
-            // SAFETY: `data.len() == W³` (checked in `new`), and `first` starts a lane
+            let centre = scalar_barrier::<L>((x + 4) + sx * (y + R) + sx * w * (z + R));
+            // SAFETY: `data.len() == LEN` (checked in `new`), and `first` starts a lane
             // group of `L` (a voxel, a row, two rows or a slice of the tile).
             let win = unsafe { TileWindow::new_unchecked(self.data, centre) };
             f(first, &win);

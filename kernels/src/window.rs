@@ -285,8 +285,9 @@ point_window!(
 /// group is the voxel with tile-local index `first + k`.
 ///
 /// # Invariants
-/// `data.len() == (4 + 2R)³` and `centre` is the padded index of the first voxel of a lane
-/// group of `L` (so every offset with max-norm ≤ `R` stays inside `data`).
+/// `data.len() == 12 (4 + 2R)²` (the [`crate::TileBlock`] layout) and `centre` is the
+/// padded index of the first voxel of a lane group of `L` (so every offset with max-norm
+/// ≤ `R` stays inside `data`).
 #[derive(Clone, Copy, Debug)]
 pub struct TileWindow<'a, L, const R: usize> {
     data: &'a [f32],
@@ -295,7 +296,10 @@ pub struct TileWindow<'a, L, const R: usize> {
 }
 
 impl<'a, L: Lane, const R: usize> TileWindow<'a, L, R> {
-    pub(crate) const W: usize = 4 + 2 * R;
+    /// Row stride (y step) of the padded block.
+    pub(crate) const SX: usize = 12;
+    /// Slice stride (z step) of the padded block.
+    pub(crate) const SXY: usize = 12 * (4 + 2 * R);
 
     /// # Safety
     /// The type's invariants must hold.
@@ -312,18 +316,17 @@ impl<L: Lane, const R: usize> Window<L> for TileWindow<'_, L, R> {
     fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> L {
         let off = const {
             assert!(serves(R as i32, R as i32, DX, DY, DZ), "offset beyond the tile halo");
-            let w = (4 + 2 * R) as isize;
-            DX as isize + DY as isize * w + DZ as isize * w * w
+            DX as isize + DY as isize * Self::SX as isize + DZ as isize * Self::SXY as isize
         };
-        let w = Self::W;
+        let sx = Self::SX;
         let p = self.centre.wrapping_add_signed(off);
         debug_assert!(
-            p + (L::LANES / L::LANES.min(4) - 1) * w + L::LANES.min(4) <= self.data.len()
+            p + (L::LANES / L::LANES.min(4) - 1) * sx + L::LANES.min(4) <= self.data.len()
         );
         // SAFETY: by the invariants the group's voxels lie in the tile and |offset| ≤ R
         // per component, so all `LANES / ROW` rows of `ROW` values are inside the padded
-        // block of length (4 + 2R)³.
-        unsafe { L::load_rows4(self.data.as_ptr().add(p), w) }
+        // block of length 12 (4 + 2R)².
+        unsafe { L::load_rows4(self.data.as_ptr().add(p), sx) }
     }
 }
 

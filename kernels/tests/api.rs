@@ -11,10 +11,12 @@ use levelset_kernels::{
 #[test]
 fn blocks_and_windows_check_lengths() {
     assert_eq!(
-        TileBlock::<1>::new(&[0.0; 215]).unwrap_err(),
-        KernelError::BlockLength { expected: 216, got: 215 }
+        TileBlock::<1>::new(&[0.0; 431]).unwrap_err(),
+        KernelError::BlockLength { expected: 432, got: 431 }
     );
-    assert!(TileBlock::<3>::new(&[0.0; 1000]).is_ok());
+    // 12 (x: three tile rows) × 10 × 10.
+    assert!(TileBlock::<3>::new(&[0.0; 1200]).is_ok());
+    assert!(TileBlock::<3>::new(&[0.0; 1000]).is_err());
     assert_eq!(
         DenseBlock::<1>::new(&[0.0; 10], [1, 1, 1]).unwrap_err(),
         KernelError::BlockLength { expected: 27, got: 10 }

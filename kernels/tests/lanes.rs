@@ -108,7 +108,8 @@ fn dense_all_lanes<K: VoxelKernel>(name: &str, k: &K, block: &DenseBlock<3>) -> 
 /// `kernel` on a padded tile with every lane type equals the `f32` result, which equals
 /// the dense-block result on the same data; returns it.
 fn tile_all_lanes<K: VoxelKernel>(name: &str, k: &K, tile: &[f32]) -> [f32; 64] {
-    let block = TileBlock::<3>::new(tile).unwrap();
+    let padded = tile_layout(tile);
+    let block = TileBlock::<3>::new(&padded).unwrap();
     let mut reference = [0.0; 64];
     block.apply::<f32, _>(k, &mut reference).unwrap();
     for_lanes!(|L| {
@@ -118,7 +119,7 @@ fn tile_all_lanes<K: VoxelKernel>(name: &str, k: &K, tile: &[f32]) -> [f32; 64] 
             assert!(same_bits(out[i], reference[i]), "{name} tile {} voxel {i}", L::NAME);
         }
     });
-    // A 4³ tile with a 3-voxel halo has exactly the layout of a 4×4×4 dense block.
+    // The same values as a 4×4×4 dense block with a 3-voxel halo.
     let dense = DenseBlock::<3>::new(tile, [4, 4, 4]).unwrap();
     let d = dense_all_lanes(name, k, &dense);
     for i in 0..64 {
@@ -127,24 +128,44 @@ fn tile_all_lanes<K: VoxelKernel>(name: &str, k: &K, tile: &[f32]) -> [f32; 64] 
     reference
 }
 
+/// Index of local coordinates (each in `-3..7`) in a 4×4×4 dense block with a 3-voxel
+/// halo: the layout the tile tests fill.
+fn dense_index(x: i32, y: i32, z: i32) -> usize {
+    DenseBlock::<3>::index([4, 4, 4], x as isize, y as isize, z as isize)
+}
+
+/// A tile's values and 3-voxel halo given in the dense layout, copied into the
+/// [`TileBlock`] layout (whose x halo is a whole tile row; the 4th voxel on each side is
+/// never read with `R = 3` and stays NaN).
+fn tile_layout(dense: &[f32]) -> Vec<f32> {
+    let mut t = vec![f32::NAN; TileBlock::<3>::LEN];
+    for z in -3..7 {
+        for y in -3..7 {
+            for x in -3..7 {
+                t[TileBlock::<3>::index(x, y, z)] = dense[dense_index(x, y, z)];
+            }
+        }
+    }
+    t
+}
+
 /// The stencils a DT-Grid stencil iterator would hand over for tile voxel `(x, y, z)`.
 fn gather(tile: &[f32], x: i32, y: i32, z: i32) -> ([f32; 27], [f32; 19]) {
     let mut b = [0.0; 27];
     for dz in -1..=1 {
         for dy in -1..=1 {
             for dx in -1..=1 {
-                b[box27_index(dx, dy, dz)] = tile[TileBlock::<3>::index(x + dx, y + dy, z + dz)];
+                b[box27_index(dx, dy, dz)] = tile[dense_index(x + dx, y + dy, z + dz)];
             }
         }
     }
     let mut s = [0.0; 19];
-    s[0] = tile[TileBlock::<3>::index(x, y, z)];
+    s[0] = tile[dense_index(x, y, z)];
     for a in 0..3 {
         for st in [-3, -2, -1, 1, 2, 3] {
             let mut o = [0; 3];
             o[a] = st;
-            s[star19_index(o[0], o[1], o[2])] =
-                tile[TileBlock::<3>::index(x + o[0], y + o[1], z + o[2])];
+            s[star19_index(o[0], o[1], o[2])] = tile[dense_index(x + o[0], y + o[1], z + o[2])];
         }
     }
     (b, s)
@@ -163,7 +184,7 @@ fn gather39(tile: &[f32], x: i32, y: i32, z: i32) -> [f32; 39] {
                     let i = box_far39_index(dx, dy, dz);
                     assert!(!seen[i], "index {i} twice");
                     seen[i] = true;
-                    v[i] = tile[TileBlock::<3>::index(x + dx, y + dy, z + dz)];
+                    v[i] = tile[dense_index(x + dx, y + dy, z + dz)];
                 }
             }
         }
@@ -363,7 +384,7 @@ fn tiles_every_lane_matches_scalar_dense_and_point_windows() {
     for round in 0..3 {
         for fill in FILLS {
             let tile = fill_dense(fill, &mut rng, [4, 4, 4]);
-            assert_eq!(tile.len(), TileBlock::<3>::LEN);
+            assert_eq!(tile.len(), 1000);
             let mut f = || field(fill, &mut rng, 64);
             let (speed, u, v, w, phi_n) = (f(), f(), f(), f(), f());
             let _ = round;
@@ -379,11 +400,11 @@ fn tile_halo_one_matches_halo_three() {
     let mut rng = Rng(99);
     for fill in FILLS {
         let t3 = fill_dense(fill, &mut rng, [4, 4, 4]);
-        let mut t1 = vec![0.0; TileBlock::<1>::LEN];
+        let mut t1 = vec![f32::NAN; TileBlock::<1>::LEN];
         for z in -1..5 {
             for y in -1..5 {
                 for x in -1..5 {
-                    t1[TileBlock::<1>::index(x, y, z)] = t3[TileBlock::<3>::index(x, y, z)];
+                    t1[TileBlock::<1>::index(x, y, z)] = t3[dense_index(x, y, z)];
                 }
             }
         }
@@ -392,7 +413,7 @@ fn tile_halo_one_matches_halo_three() {
         for_lanes!(|L| {
             let (mut a, mut b) = ([0.0; 64], [0.0; 64]);
             TileBlock::<1>::new(&t1).unwrap().apply::<L, _>(&k, &mut a).unwrap();
-            TileBlock::<3>::new(&t3).unwrap().apply::<L, _>(&k, &mut b).unwrap();
+            TileBlock::<3>::new(&tile_layout(&t3)).unwrap().apply::<L, _>(&k, &mut b).unwrap();
             for i in 0..64 {
                 assert!(same_bits(a[i], b[i]), "{} voxel {i}", L::NAME);
             }

@@ -3,16 +3,23 @@
 //! borders come from the neighbour tiles, or from a "dummy tile" of ±γ chosen by the
 //! border flag where the neighbour is absent).
 
-use super::{NeighbourRow, Neighbours, TileGrid, TILE_DIM};
+use super::{NeighbourRow, Neighbours, Tile, TileGrid, TILE_DIM};
 
-/// The values of a tile and an `R`-voxel halo around it, x fastest:
-/// `data[(x + R) + W (y + R) + W² (z + R)]` for local coordinates `x, y, z` in `-R..4+R`,
-/// `W = 4 + 2R`. Reused across tiles: [`PaddedBlock::gather`] overwrites every entry.
+/// The values of a tile and its halo, in the layout of the kernels'
+/// [`levelset_kernels::TileBlock`]: `R` voxels along y and z, a whole tile row along x,
+/// x fastest: `data[(x + 4) + 12 (y + R) + 12 W (z + R)]` for local `x` in `-4..8` and
+/// `y, z` in `-R..4+R`, `W = 4 + 2R`. Each padded row is the same x-row of three tiles,
+/// so [`PaddedBlock::gather`] copies three aligned 4-value rows per padded row, without
+/// branches (absent neighbours read from two dummy tiles of ±γ). Reused across tiles:
+/// the gather overwrites every entry.
 ///
 /// `R` must be in 1..=4 (a halo wider than a tile would need more than 26 neighbours).
 #[derive(Clone)]
 pub struct PaddedBlock<const R: usize> {
     data: Vec<f32>,
+    /// The dummy tiles (Sec. 4.7): `[+γ; 64]` and `[−γ; 64]` for `dummy_gamma`.
+    dummy: [Tile; 2],
+    dummy_gamma: f32,
 }
 
 impl<const R: usize> Default for PaddedBlock<R> {
@@ -22,14 +29,20 @@ impl<const R: usize> Default for PaddedBlock<R> {
 }
 
 impl<const R: usize> PaddedBlock<R> {
-    /// Edge length of the padded block.
+    /// Row length (x extent) of the padded block.
+    pub const SX: usize = 12;
+    /// Extent of the padded block along y and z.
     pub const W: usize = 4 + 2 * R;
     const CHECK: () = assert!(R >= 1 && R <= TILE_DIM as usize, "halo must be 1..=4 voxels");
 
     pub fn new() -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::CHECK;
-        PaddedBlock { data: vec![0.0; Self::W * Self::W * Self::W] }
+        PaddedBlock {
+            data: vec![0.0; Self::SX * Self::W * Self::W],
+            dummy: [Tile::splat(f32::NAN); 2],
+            dummy_gamma: f32::NAN,
+        }
     }
 
     /// The padded values, x fastest.
@@ -38,12 +51,11 @@ impl<const R: usize> PaddedBlock<R> {
         &self.data
     }
 
-    /// Value at local coordinates (each in `-R..4+R`).
+    /// Value at local coordinates (`x` in `-4..8`, `y, z` in `-R..4+R`).
     #[inline(always)]
     pub fn get(&self, x: i32, y: i32, z: i32) -> f32 {
-        let r = R as i32;
-        let w = Self::W as i32;
-        self.data[((x + r) + w * (y + r) + w * w * (z + r)) as usize]
+        let (r, sx, w) = (R as i32, Self::SX as i32, Self::W as i32);
+        self.data[((x + 4) + sx * (y + r) + sx * w * (z + r)) as usize]
     }
 
     /// Fills the block for the tile described by `nb` (from a
@@ -65,14 +77,19 @@ impl<const R: usize> PaddedBlock<R> {
         let values = grid.values();
         let border = grid.border_flags(pos);
         let gamma = grid.gamma();
-        // Each of the 27 parts comes from a neighbour tile or is a "dummy tile" of ±γ.
-        let part: [Result<&[f32; 64], f32>; 27] = std::array::from_fn(|d| match get(d) {
-            Some(p) => Ok(&values[p].0),
-            None => Err(if border & (1 << d) != 0 { -gamma } else { gamma }),
+        if gamma.to_bits() != self.dummy_gamma.to_bits() {
+            self.dummy = [Tile::splat(gamma), Tile::splat(-gamma)];
+            self.dummy_gamma = gamma;
+        }
+        let dummy = &self.dummy;
+        // Each of the 27 parts is a neighbour tile or a "dummy tile" of ±γ chosen by the
+        // border flag (set: the absent neighbour is inside).
+        let part: [&[f32; 64]; 27] = std::array::from_fn(|d| match get(d) {
+            Some(p) => &values[p].0,
+            None => &dummy[((border >> d) & 1) as usize].0,
         });
-        let w = Self::W;
-        let r = R as i32;
-        // Block coordinate → (neighbour offset + 1, local coordinate in that tile).
+        let (sx, w, r) = (Self::SX, Self::W, R as i32);
+        // Block coordinate along y or z → (neighbour offset + 1, local coordinate).
         let split = |v: i32| -> (usize, usize) {
             if v < 0 {
                 (0, (v + 4) as usize)
@@ -82,27 +99,14 @@ impl<const R: usize> PaddedBlock<R> {
                 (2, (v - 4) as usize)
             }
         };
-        // Row by row along x: the left neighbour's last R voxels, the tile's 4, the right
-        // neighbour's first R — three copies of compile-time length per padded row.
-        for (row, out) in self.data.chunks_exact_mut(w).enumerate() {
+        for (row, out) in self.data.chunks_exact_mut(sx).enumerate() {
             let (y, z) = ((row % w) as i32 - r, (row / w) as i32 - r);
             let ((oy, ly), (oz, lz)) = (split(y), split(z));
             let base = 3 * oy + 9 * oz;
             let at = 4 * ly + 16 * lz;
-            let (left, rest) = out.split_at_mut(R);
-            let (mid, right) = rest.split_at_mut(4);
-            copy_or_fill(left, part[base], at + 4 - R);
-            copy_or_fill(mid, part[base + 1], at);
-            copy_or_fill(right, part[base + 2], at);
+            for (k, dst) in out.chunks_exact_mut(4).enumerate() {
+                dst.copy_from_slice(&part[base + k][at..at + 4]);
+            }
         }
-    }
-}
-
-/// Copies `dst.len()` values of a tile from local index `from`, or fills with ±γ.
-#[inline(always)]
-fn copy_or_fill(dst: &mut [f32], src: Result<&[f32; 64], f32>, from: usize) {
-    match src {
-        Ok(t) => dst.copy_from_slice(&t[from..from + dst.len()]),
-        Err(fill) => dst.fill(fill),
     }
 }
