@@ -41,9 +41,9 @@ fn interface_voxels<G: SparseGrid>(g: &G) -> Vec<(Coord, f32)> {
     for_box(g, 1, |c| {
         let v = g.value(c);
         if v.abs() < gamma
-            && AXES.iter().any(|&a| {
-                [add(c, a), sub(c, a)].iter().any(|&n| (g.value(n) < 0.0) != (v < 0.0))
-            })
+            && AXES
+                .iter()
+                .any(|&a| [add(c, a), sub(c, a)].iter().any(|&n| (g.value(n) < 0.0) != (v < 0.0)))
         {
             out.push((c, v));
         }
@@ -279,16 +279,16 @@ fn widening_the_band_matches_the_exact_distance() {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let tiles = tiles_from_shape(
-        &Shape::spiral_default([0.0; 3], 20.0, 12.0),
-        GridSpec::default(),
-    )
-    .unwrap();
+    let tiles = tiles_from_shape(&Shape::spiral_default([0.0; 3], 20.0, 12.0), GridSpec::default())
+        .unwrap();
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            fmm::reinitialize_tiles(&tiles, &FmmOptions { order: Order::Second, half_width: Some(4.0) })
-                .unwrap()
+            fmm::reinitialize_tiles(
+                &tiles,
+                &FmmOptions { order: Order::Second, half_width: Some(4.0) },
+            )
+            .unwrap()
         })
     };
     let (a, b) = (run(1), run(2));
@@ -303,9 +303,8 @@ fn results_do_not_depend_on_the_thread_count() {
 fn arrival_times_from_a_plane_and_a_point() {
     let spec = GridSpec::new(0.25, [0.0; 3], 3.0).unwrap();
     // A plane of seeds at z = 0 (x, y in 0..16) with F = 2: T = z·h / 2 exactly.
-    let seeds: Vec<(Coord, f64)> = (0..16)
-        .flat_map(|y| (0..16).map(move |x| (Coord::new(x, y, 0), 0.0)))
-        .collect();
+    let seeds: Vec<(Coord, f64)> =
+        (0..16).flat_map(|y| (0..16).map(move |x| (Coord::new(x, y, 0), 0.0))).collect();
     for order in [Order::First, Order::Second] {
         let at = fmm::arrival_times(&spec, &seeds, |_| 2.0, 1.0, order).unwrap();
         let t = at.time(Coord::new(7, 8, 6)).unwrap();
@@ -392,7 +391,13 @@ fn bad_input_is_an_error() {
     let spec = GridSpec::default();
     let seed = [(Coord::new(0, 0, 0), 0.0)];
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        let r = fmm::arrival_times(&spec, &seed, |p| if p[0] > 2.5 { bad } else { 1.0 }, 10.0, Order::First);
+        let r = fmm::arrival_times(
+            &spec,
+            &seed,
+            |p| if p[0] > 2.5 { bad } else { 1.0 },
+            10.0,
+            Order::First,
+        );
         assert!(matches!(r, Err(FmmError::BadSpeed { .. })), "{bad}: {:?}", r.err());
     }
     assert_eq!(
@@ -400,7 +405,14 @@ fn bad_input_is_an_error() {
         Some(FmmError::NoSeeds)
     );
     assert!(fmm::arrival_times(&spec, &seed, |_| 1.0, f64::NAN, Order::First).is_err());
-    assert!(fmm::arrival_times(&spec, &[(Coord::new(0, 0, 0), f64::NAN)], |_| 1.0, 1.0, Order::First).is_err());
+    assert!(fmm::arrival_times(
+        &spec,
+        &[(Coord::new(0, 0, 0), f64::NAN)],
+        |_| 1.0,
+        1.0,
+        Order::First
+    )
+    .is_err());
 }
 
 mod cli {
@@ -422,7 +434,8 @@ mod cli {
         use sparse_levelset::{dense::DenseField, npy, Coord};
         let input = tmp("in.npy");
         let f = DenseField::from_fn(Coord::new(0, 0, 0), [24, 20, 22], |c| {
-            let d = ((c.x as f32 - 11.5).powi(2) + (c.y as f32 - 9.3).powi(2)
+            let d = ((c.x as f32 - 11.5).powi(2)
+                + (c.y as f32 - 9.3).powi(2)
                 + (c.z as f32 - 10.0).powi(2))
             .sqrt();
             2.0 * (d - 6.0)
@@ -431,8 +444,16 @@ mod cli {
         npy::write_npy(&input, &f).unwrap();
         let out = tmp("out.npy");
         let o = levelset(&[
-            "distance", input.to_str().unwrap(), "-o", out.to_str().unwrap(), "--order", "1",
-            "--half-width", "4", "--voxel-size", "0.5",
+            "distance",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--order",
+            "1",
+            "--half-width",
+            "4",
+            "--voxel-size",
+            "0.5",
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let d = npy::read_npy(&out).unwrap();

@@ -26,12 +26,20 @@ struct Entry {
     voxel: u32,
 }
 
+/// A heap slot: the key is kept next to the handle so that sifting reads one array.
+#[derive(Clone, Copy, Debug)]
+struct Slot {
+    key: f64,
+    handle: Handle,
+}
+
 /// Binary min-heap with a position index (see the module docs).
 #[derive(Default, Debug)]
 pub(crate) struct IndexedHeap {
+    /// Entries by handle (the key here is the authoritative copy).
     entries: Vec<Entry>,
-    /// Handles in heap order.
-    heap: Vec<Handle>,
+    /// Slots in heap order.
+    heap: Vec<Slot>,
     /// Heap position of each handle, [`REMOVED`] once popped.
     pos: Vec<u32>,
 }
@@ -52,12 +60,13 @@ impl IndexedHeap {
     }
 
     #[inline]
-    fn less(&self, a: Handle, b: Handle) -> bool {
-        let (ea, eb) = (&self.entries[a as usize], &self.entries[b as usize]);
-        match ea.key.total_cmp(&eb.key) {
+    fn less(&self, a: Slot, b: Slot) -> bool {
+        match a.key.total_cmp(&b.key) {
             Ordering::Less => true,
             Ordering::Greater => false,
-            Ordering::Equal => ea.coord < eb.coord,
+            Ordering::Equal => {
+                self.entries[a.handle as usize].coord < self.entries[b.handle as usize].coord
+            }
         }
     }
 
@@ -67,7 +76,7 @@ impl IndexedHeap {
         assert!(h != REMOVED, "more than 2^32 - 1 heap entries");
         self.entries.push(Entry { key, coord, voxel });
         self.pos.push(self.heap.len() as u32);
-        self.heap.push(h);
+        self.heap.push(Slot { key, handle: h });
         self.sift_up(self.heap.len() - 1);
         h
     }
@@ -78,6 +87,7 @@ impl IndexedHeap {
         debug_assert!(p != REMOVED, "update of a popped entry");
         let old = self.entries[h as usize].key;
         self.entries[h as usize].key = key;
+        self.heap[p as usize].key = key;
         if key < old {
             self.sift_up(p as usize);
         } else {
@@ -92,16 +102,16 @@ impl IndexedHeap {
 
     /// The smallest key, if any.
     pub(crate) fn peek_key(&self) -> Option<f64> {
-        self.heap.first().map(|&h| self.entries[h as usize].key)
+        self.heap.first().map(|s| s.key)
     }
 
     /// Removes the entry with the smallest key: `(key, coord, voxel)`.
     pub(crate) fn pop(&mut self) -> Option<(f64, Coord, u32)> {
-        let top = *self.heap.first()?;
+        let top = self.heap.first()?.handle;
         let last = self.heap.pop().expect("non-empty");
         if !self.heap.is_empty() {
             self.heap[0] = last;
-            self.pos[last as usize] = 0;
+            self.pos[last.handle as usize] = 0;
             self.sift_down(0);
         }
         self.pos[top as usize] = REMOVED;
@@ -118,11 +128,11 @@ impl IndexedHeap {
                 break;
             }
             self.heap[i] = ph;
-            self.pos[ph as usize] = i as u32;
+            self.pos[ph.handle as usize] = i as u32;
             i = parent;
         }
         self.heap[i] = h;
-        self.pos[h as usize] = i as u32;
+        self.pos[h.handle as usize] = i as u32;
     }
 
     fn sift_down(&mut self, mut i: usize) {
@@ -140,19 +150,20 @@ impl IndexedHeap {
                 break;
             }
             self.heap[i] = ch;
-            self.pos[ch as usize] = i as u32;
+            self.pos[ch.handle as usize] = i as u32;
             i = c;
         }
         self.heap[i] = h;
-        self.pos[h as usize] = i as u32;
+        self.pos[h.handle as usize] = i as u32;
     }
 
     /// Checks the heap property and the position index (tests).
     #[cfg(test)]
     pub(crate) fn check(&self) -> Result<(), String> {
         for (i, &h) in self.heap.iter().enumerate() {
-            if self.pos[h as usize] as usize != i {
-                return Err(format!("pos of handle {h} is {}, not {i}", self.pos[h as usize]));
+            let p = self.pos[h.handle as usize] as usize;
+            if p != i || h.key.to_bits() != self.entries[h.handle as usize].key.to_bits() {
+                return Err(format!("slot {i}: handle {} at pos {p}, key {}", h.handle, h.key));
             }
             if i > 0 && self.less(h, self.heap[(i - 1) / 2]) {
                 return Err(format!("heap order broken at {i}"));

@@ -108,7 +108,12 @@ impl<C: Cost> Marcher<C> {
         let n = c.checked_add(Coord::new(a.x * d, a.y * d, a.z * d))?;
         match self.domain {
             Some((lo, hi))
-                if n.x < lo.x || n.y < lo.y || n.z < lo.z || n.x > hi.x || n.y > hi.y || n.z > hi.z =>
+                if n.x < lo.x
+                    || n.y < lo.y
+                    || n.z < lo.z
+                    || n.x > hi.x
+                    || n.y > hi.y
+                    || n.z > hi.z =>
             {
                 None
             }
@@ -160,7 +165,7 @@ impl<C: Cost> Marcher<C> {
     /// throw away a valid second-order difference; the text of Sec. 4 does not, and
     /// neither does this.)
     #[inline]
-    fn update<const SECOND: bool>(&self, c: Coord, inside: bool) -> Result<f64, FmmError> {
+    fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
         let mut terms = [Term { a: 0.0, k: 0.0 }; 3];
         let mut n = 0;
@@ -168,15 +173,18 @@ impl<C: Cost> Marcher<C> {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                let Some(n1) = self.step(c, axis, d) else { continue };
-                let Some(t1) = self.store.frozen_value(n1) else { continue };
+                if self.step(c, axis, d).is_none() {
+                    continue;
+                }
+                let Some(t1) = self.store.frozen_step(id, axis, d) else { continue };
                 let t1 = s * t1;
                 if t1 < v1 {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some(t2) =
-                            self.step(c, axis, 2 * d).and_then(|n2| self.store.frozen_value(n2))
+                        if let Some(t2) = self
+                            .step(c, axis, 2 * d)
+                            .and_then(|_| self.store.frozen_step(id, axis, 2 * d))
                         {
                             let t2 = s * t2;
                             if t2 <= t1 {
@@ -230,7 +238,7 @@ impl<C: Cost> Marcher<C> {
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.store.find_or_insert(n) as usize;
+                    let nid = self.store.step_or_insert(id as u32, axis, d, n) as usize;
                     if self.store.state[nid] == FAR {
                         self.store.state[nid] = TRIAL | inside;
                         trial.push(n);
@@ -243,7 +251,7 @@ impl<C: Cost> Marcher<C> {
         for &c in &trial {
             let id = self.store.find(c).expect("trial voxels are stored");
             let inside = self.store.state[id as usize] & INSIDE != 0;
-            let t = self.update::<SECOND>(c, inside)?;
+            let t = self.update::<SECOND>(c, id, inside)?;
             self.store.handle[id as usize] = self.heap.push(t, c, id);
         }
         // The loop.
@@ -259,11 +267,12 @@ impl<C: Cost> Marcher<C> {
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.store.find_or_insert(n) as usize;
+                    let nid = self.store.step_or_insert(id, axis, d, n) as usize;
                     match self.store.state[nid] & 3 {
                         FROZEN => {}
                         TRIAL => {
-                            let t = self.update::<SECOND>(n, self.store.state[nid] & INSIDE != 0)?;
+                            let inside_n = self.store.state[nid] & INSIDE != 0;
+                            let t = self.update::<SECOND>(n, nid as u32, inside_n)?;
                             let h = self.store.handle[nid];
                             if self.heap.key(h) != t {
                                 self.heap.update(h, t);
@@ -271,7 +280,7 @@ impl<C: Cost> Marcher<C> {
                         }
                         _ => {
                             self.store.state[nid] = TRIAL | inside_bit;
-                            let t = self.update::<SECOND>(n, inside)?;
+                            let t = self.update::<SECOND>(n, nid as u32, inside)?;
                             self.store.handle[nid] = self.heap.push(t, n, nid as u32);
                         }
                     }

@@ -91,7 +91,9 @@ pub enum FmmError {
     NonFinite { coord: Coord, value: f32 },
     /// The input has no voxel with a 6-neighbour of the other sign: nothing to measure
     /// distances from.
-    #[error("the level set is empty: no voxel has a neighbour of the other sign (no zero crossing)")]
+    #[error(
+        "the level set is empty: no voxel has a neighbour of the other sign (no zero crossing)"
+    )]
     NoInterface,
     /// A seed set without seeds.
     #[error("no seed voxels were given")]

@@ -72,8 +72,7 @@ impl Source for TileGrid {
                 let mut star = [None; 6];
                 for (i, o) in OFFSETS.iter().enumerate() {
                     let (x, y, z) = (lx + o.x, ly + o.y, lz + o.z);
-                    star[i] = if (0..4).contains(&x) && (0..4).contains(&y) && (0..4).contains(&z)
-                    {
+                    star[i] = if (0..4).contains(&x) && (0..4).contains(&y) && (0..4).contains(&z) {
                         Some(tile[local_index(x, y, z)])
                     } else {
                         c.checked_add(*o).map(|n| TileGrid::value(self, n))

@@ -26,6 +26,16 @@ pub(crate) const FROZEN: u8 = 2;
 /// Flag bit: the voxel lies on the inside (φ < 0); its arrival time is −φ.
 pub(crate) const INSIDE: u8 = 4;
 const STATE_MASK: u8 = 3;
+/// No block.
+const NONE: u32 = u32::MAX;
+const FACES: [Coord; 6] = [
+    Coord::new(-1, 0, 0),
+    Coord::new(1, 0, 0),
+    Coord::new(0, -1, 0),
+    Coord::new(0, 1, 0),
+    Coord::new(0, 0, -1),
+    Coord::new(0, 0, 1),
+];
 
 /// FxHash-style hasher for block coordinates (three `i32` writes); the hash needs no
 /// resistance against adversarial keys, only speed.
@@ -60,6 +70,10 @@ pub(crate) struct Store {
     blocks: BlockMap,
     /// Block coordinate of each block, in creation order.
     block_coords: Vec<Coord>,
+    /// Per block: the index of the face-neighbour block in directions −x, +x, −y, +y,
+    /// −z, +z ([`NONE`] while absent), kept up to date when blocks are created, so a
+    /// step across a block face needs no hash lookup.
+    links: Vec<[u32; 6]>,
     /// Per voxel: the signed value in march units (φ / h for distances, T for arrival
     /// times); meaningful for trial and frozen voxels.
     pub(crate) value: Vec<f64>,
@@ -76,6 +90,7 @@ impl Store {
         Store {
             blocks: BlockMap::default(),
             block_coords: Vec::new(),
+            links: Vec::new(),
             value: Vec::new(),
             state: Vec::new(),
             handle: Vec::new(),
@@ -122,6 +137,15 @@ impl Store {
                     .expect("fewer than 2^26 blocks (callers check the memory budget first)");
                 self.blocks.insert(t, b);
                 self.block_coords.push(t);
+                let mut links = [NONE; 6];
+                for (f, o) in FACES.iter().enumerate() {
+                    // Block coordinates are voxel >> 2, so ±1 never overflows.
+                    if let Some(&nb) = self.blocks.get(&t.wrapping_add(*o)) {
+                        links[f] = nb;
+                        self.links[nb as usize][f ^ 1] = b;
+                    }
+                }
+                self.links.push(links);
                 let n = self.value.len() + TILE_LEN;
                 self.value.resize(n, 0.0);
                 self.state.resize(n, FAR);
@@ -133,17 +157,44 @@ impl Store {
         b * TILE_LEN as u32 + l as u32
     }
 
+    /// Voxel id of the voxel `d` steps (|d| ≤ 4) along `axis` from voxel `id`, if its
+    /// block exists: within the block by index arithmetic, across a face through the
+    /// block's links. The caller checks that the target is a representable coordinate.
+    #[inline(always)]
+    pub(crate) fn step(&self, id: u32, axis: usize, d: i32) -> Option<u32> {
+        let b = id >> 6;
+        let l = (id & 63) as i32;
+        let shift = 2 * axis as i32;
+        let lc = ((l >> shift) & 3) + d;
+        let base = l & !(3 << shift);
+        if (0..4).contains(&lc) {
+            return Some((b << 6) | (base | (lc << shift)) as u32);
+        }
+        let nb = self.links[b as usize][2 * axis + (d > 0) as usize];
+        (nb != NONE).then(|| (nb << 6) | (base | ((lc & 3) << shift)) as u32)
+    }
+
+    /// [`Store::step`], creating the target block when needed (`n` is the target's
+    /// coordinate).
+    #[inline]
+    pub(crate) fn step_or_insert(&mut self, id: u32, axis: usize, d: i32, n: Coord) -> u32 {
+        match self.step(id, axis, d) {
+            Some(nid) => nid,
+            None => self.find_or_insert(n),
+        }
+    }
+
+    /// The value of the voxel `d` steps along `axis` from voxel `id`, if it is frozen.
+    #[inline(always)]
+    pub(crate) fn frozen_step(&self, id: u32, axis: usize, d: i32) -> Option<f64> {
+        let nid = self.step(id, axis, d)?;
+        (self.state_of(nid) == FROZEN).then(|| self.value[nid as usize])
+    }
+
     /// State of voxel `id` without the inside flag.
     #[inline]
     pub(crate) fn state_of(&self, id: u32) -> u8 {
         self.state[id as usize] & STATE_MASK
-    }
-
-    /// Whether `c` is frozen; its value if so.
-    #[inline]
-    pub(crate) fn frozen_value(&self, c: Coord) -> Option<f64> {
-        let id = self.find(c)?;
-        (self.state_of(id) == FROZEN).then(|| self.value[id as usize])
     }
 
     /// Block coordinates sorted in [`Coord`] order, with their block indices.
