@@ -256,7 +256,7 @@ impl<C: Cost> Marcher<C> {
         }
         // The loop.
         while let Some(key) = self.heap.peek_key() {
-            if !(key <= limit) {
+            if key > limit {
                 break;
             }
             let (t, c, id) = self.heap.pop().expect("non-empty");
