@@ -28,6 +28,7 @@ pub mod coord;
 pub mod dense;
 pub mod dtgrid;
 pub mod evolve;
+pub mod fmm;
 pub mod fsutil;
 pub mod grid;
 pub mod info;
