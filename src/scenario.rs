@@ -13,7 +13,7 @@
 
 use crate::dense::DenseField;
 use crate::evolve::{
-    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Settings,
+    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Reinit, Settings,
     Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
 };
 use crate::grid::GridSpec;
@@ -93,6 +93,8 @@ pub struct ScenarioOptions {
     pub init: Option<(String, DenseField)>,
     /// Voxel size of an `init` field (default: the scenario's).
     pub voxel_size: Option<f32>,
+    /// Reinitialise by fast marching every so many steps.
+    pub reinit: Option<Reinit>,
 }
 
 impl ScenarioOptions {
@@ -120,6 +122,7 @@ impl ScenarioOptions {
             record_every: 10,
             init: None,
             voxel_size: None,
+            reinit: None,
         }
     }
 }
@@ -153,6 +156,8 @@ pub struct ScenarioParams {
     pub steps: Option<u64>,
     pub time: Option<f64>,
     pub record_every: u64,
+    /// Fast-marching reinitialisation: `"fmm every K"` or `"fmm2 every K"`.
+    pub reinit: Option<String>,
     /// The `--init` field, if any.
     pub init: Option<String>,
     /// The initial shape (its `Debug` form).
@@ -356,6 +361,7 @@ impl Scenario {
             integrator: o.integrator.unwrap_or(integrator),
             time_step: TimeStep::Cfl(o.cfl),
             pool: Some(pool),
+            reinit: o.reinit,
             ..Settings::default()
         };
         let params = ScenarioParams {
@@ -385,6 +391,13 @@ impl Scenario {
             steps,
             time,
             record_every: o.record_every,
+            reinit: o.reinit.map(|r| {
+                let name = match r.order {
+                    crate::fmm::Order::First => "fmm",
+                    crate::fmm::Order::Second => "fmm2",
+                };
+                format!("{name} every {}", r.every)
+            }),
             init: o.init.as_ref().map(|(n, _)| n.clone()),
             shape: format!("{shape:?}"),
             target: target_desc,
@@ -402,10 +415,19 @@ impl Scenario {
 
     /// Runs to the requested steps or time (or collapse), recording every
     /// `record_every` steps; `progress(fraction done)` after every step.
-    pub fn run(
+    pub fn run(self, progress: impl FnMut(f64)) -> Result<(Summary, Simulation), EvolveError> {
+        self.run_with(progress, |_| Ok(()))
+    }
+
+    /// [`Scenario::run`] that also calls `after(simulation)` before the first step and
+    /// after every step (outside the timed part): the place to write frames (meshes,
+    /// images). An error from it ends the run.
+    pub fn run_with(
         mut self,
         mut progress: impl FnMut(f64),
+        mut after: impl FnMut(&Simulation) -> Result<(), EvolveError>,
     ) -> Result<(Summary, Simulation), EvolveError> {
+        after(&self.sim)?;
         let p = &self.params;
         let stages = match p.integrator {
             Integrator::Euler => 1,
@@ -439,6 +461,7 @@ impl Scenario {
                 }
                 records.push(record(r.step, r.time, r.dt, &m, seconds));
             }
+            after(&self.sim)?;
             let frac = match p.steps {
                 Some(s) => self.sim.steps() as f64 / s as f64,
                 None => self.sim.time() / end_time,

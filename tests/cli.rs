@@ -420,3 +420,39 @@ fn run_starts_from_an_npy_field() {
     assert_eq!(s["params"]["init"], path.to_str().unwrap());
     assert!(s["volume_ratio"].as_f64().unwrap() > 1.0, "the sphere grows");
 }
+
+#[test]
+fn run_reinitialises_by_fast_marching_on_both_grids() {
+    let args = ["sphere", "--size", "48", "--steps", "9", "--reinit", "fmm2", "--every", "3"];
+    let (_, tiles) = run_ok(&args, "run-reinit-tiles");
+    let mut dt_args = args.to_vec();
+    dt_args.extend_from_slice(&["--grid", "dtgrid"]);
+    let (_, dt) = run_ok(&dt_args, "run-reinit-dtgrid");
+    let (a, b) = (read_summary(&tiles), read_summary(&dt));
+    assert_eq!(a["params"]["reinit"], "fmm2 every 3");
+    assert_eq!(a["checksum"], b["checksum"]);
+    // Without reinitialisation the result differs (the option does something).
+    let (_, plain) = run_ok(&args[..5], "run-reinit-none");
+    assert_ne!(read_summary(&plain)["checksum"], a["checksum"]);
+    // Nonsense: a zero interval, the dense reference.
+    let o = levelset(&["run", "sphere", "--reinit", "fmm", "--every", "0", "--quiet"]);
+    assert!(!o.status.success());
+    let dir = tmp("run-reinit-dense");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "32",
+        "--steps",
+        "2",
+        "--grid",
+        "dense",
+        "--reinit",
+        "fmm",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sparse grids"), "{}", stderr(&o));
+}

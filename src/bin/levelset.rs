@@ -90,6 +90,14 @@ enum IntegratorArg {
     Rk3,
 }
 
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ReinitArg {
+    /// First-order fast marching.
+    Fmm,
+    /// High-accuracy (second-order) fast marching.
+    Fmm2,
+}
+
 #[derive(Args)]
 struct RunArgs {
     /// The scenario.
@@ -159,6 +167,13 @@ struct RunArgs {
     /// Voxel size of the --init field [default: the scenario's].
     #[arg(long, requires = "init")]
     voxel_size: Option<f32>,
+    /// Reinitialise the band to a signed distance by fast marching (sparse grids).
+    #[arg(long, value_enum)]
+    reinit: Option<ReinitArg>,
+    /// Reinitialise after every K steps.
+    #[arg(long, value_name = "K", default_value_t = 10, requires = "reinit",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    every: u64,
     /// Output directory (created if needed).
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
@@ -466,6 +481,13 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
     o.cfl = a.cfl;
     o.record_every = a.record_every;
     o.voxel_size = a.voxel_size;
+    o.reinit = a.reinit.map(|r| sparse_levelset::evolve::Reinit {
+        order: match r {
+            ReinitArg::Fmm => sparse_levelset::fmm::Order::First,
+            ReinitArg::Fmm2 => sparse_levelset::fmm::Order::Second,
+        },
+        every: a.every,
+    });
     if let Some(path) = &a.init {
         let field = sparse_levelset::npy::read_npy(path).map_err(|e| e.to_string())?;
         o.init = Some((path.display().to_string(), field));

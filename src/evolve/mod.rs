@@ -251,10 +251,22 @@ pub struct Settings {
     /// The thread pool for the tile engine (the global rayon pool when `None`). The
     /// DT-Grid and dense references run on the calling thread.
     pub pool: Option<Arc<rayon::ThreadPool>>,
+    /// Reinitialise the band to a signed distance by fast marching every so many steps
+    /// (sparse grids only; see [`Simulation::reinitialize`]).
+    pub reinit: Option<Reinit>,
+}
+
+/// Periodic reinitialisation by fast marching.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Reinit {
+    /// First-order or high-accuracy fast marching.
+    pub order: crate::fmm::Order,
+    /// After every this many steps (≥ 1).
+    pub every: u64,
 }
 
 impl Default for Settings {
-    /// First-order upwind, forward Euler, CFL 0.5, δ width 1.5 voxels.
+    /// First-order upwind, forward Euler, CFL 0.5, δ width 1.5 voxels, no reinitialisation.
     fn default() -> Self {
         Settings {
             scheme: SpatialScheme::Upwind1,
@@ -262,6 +274,7 @@ impl Default for Settings {
             time_step: TimeStep::Cfl(0.5),
             delta_width: 1.5,
             pool: None,
+            reinit: None,
         }
     }
 }
@@ -292,6 +305,9 @@ impl Settings {
                     self.delta_width
                 )))
             }
+            _ if self.reinit.is_some_and(|r| r.every == 0) => Err(EvolveError::InvalidParameter(
+                "reinitialisation interval must be at least 1 step".into(),
+            )),
             _ => Ok(()),
         }
     }
@@ -324,6 +340,11 @@ pub enum EvolveError {
          use a larger box"
     )]
     DenseBoxTooSmall { voxel: Coord },
+    #[error("reinitialisation: {0}")]
+    Reinit(#[from] crate::fmm::FmmError),
+    /// Writing an output of the run (a mesh or image frame) failed.
+    #[error("output: {0}")]
+    Output(String),
 }
 
 /// Voxels of room around the initial band that the dense reference's box gets: the
@@ -504,6 +525,13 @@ impl Simulation {
     ) -> Result<Simulation, EvolveError> {
         flow.validate()?;
         settings.validate()?;
+        if settings.reinit.is_some() && kind == GridKind::Dense {
+            return Err(EvolveError::InvalidParameter(
+                "reinitialisation by fast marching runs on the sparse grids (tiles, DT-Grid), \
+                 not on the dense reference"
+                    .into(),
+            ));
+        }
         let mut sim = Simulation {
             rep,
             kind,
@@ -559,6 +587,34 @@ impl Simulation {
     /// Whether the interior has vanished.
     pub fn collapsed(&self) -> bool {
         self.collapsed
+    }
+
+    /// Reinitialises the band to a signed distance by fast marching
+    /// ([`crate::fmm::reinitialize_tiles`] / [`crate::fmm::reinitialize_dtgrid`], the same
+    /// values on both grids), keeping the half-width, then brings the band to the band rule
+    /// again. The interface stays where it is (its voxels keep their distance estimates);
+    /// the rest of the band becomes an exact marched distance. Sparse grids only.
+    pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
+        let opts = crate::fmm::FmmOptions { order, half_width: None };
+        let pool = &self.settings.pool;
+        match &mut self.rep {
+            Rep::Tiles(t) => {
+                let grid = in_pool(pool, || crate::fmm::reinitialize_tiles(&t.grid, &opts))?;
+                let lanes = t.lanes;
+                *t = in_pool(pool, || TilesRep::new(grid, lanes));
+            }
+            Rep::DtGrid(d) => {
+                **d = DtRep::new(crate::fmm::reinitialize_dtgrid(&d.grid, &opts)?);
+            }
+            Rep::Dense(_) => {
+                return Err(EvolveError::InvalidParameter(
+                    "reinitialisation by fast marching runs on the sparse grids".into(),
+                ))
+            }
+        }
+        let rep = self.rep.get_mut();
+        in_pool(pool, || rep.finish_step())?;
+        Ok(())
     }
 
     /// The tile grid, when running on tiles.
@@ -786,6 +842,11 @@ impl Simulation {
         let rep = self.rep.get();
         // Unstored interior (cheap, per tile row) first; the values only when there is none.
         self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
+        if let Some(r) = self.settings.reinit {
+            if !self.collapsed && self.steps % r.every == 0 {
+                self.reinitialize(r.order)?;
+            }
+        }
         Ok(StepReport {
             step: self.steps,
             time: self.time,
