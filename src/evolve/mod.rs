@@ -843,7 +843,7 @@ impl Simulation {
         // Unstored interior (cheap, per tile row) first; the values only when there is none.
         self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
         if let Some(r) = self.settings.reinit {
-            if !self.collapsed && self.steps % r.every == 0 {
+            if !self.collapsed && self.steps.is_multiple_of(r.every) {
                 self.reinitialize(r.order)?;
             }
         }
