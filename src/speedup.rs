@@ -90,6 +90,84 @@ pub struct SpeedupReport {
     pub threads: usize,
     pub pinned: bool,
     pub scenarios: Vec<ScenarioBench>,
+    /// The operators around the evolution (fast marching, isosurfacing) on the sphere
+    /// benchmark's initial band.
+    pub tools: Vec<ToolBench>,
+}
+
+/// One operator's throughput.
+#[derive(Clone, Debug, Serialize)]
+pub struct ToolBench {
+    /// What ran, e.g. `"fmm reinitialise, first order"`.
+    pub name: &'static str,
+    /// `"tiles"` or `"dtgrid"`.
+    pub grid: &'static str,
+    /// Band voxels (|φ| < γ) of the input.
+    pub band_voxels: usize,
+    /// Best of three runs, seconds.
+    pub seconds: f64,
+    pub band_voxels_per_s: f64,
+    /// What the result holds (band voxels, triangles), for the text table.
+    pub output: String,
+}
+
+/// Best-of-`reps` seconds of `f`, with the result of the last run.
+fn best_of<T>(reps: usize, mut f: impl FnMut() -> Result<T, String>) -> Result<(f64, T), String> {
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..reps {
+        let t = std::time::Instant::now();
+        let r = f()?;
+        best = best.min(t.elapsed().as_secs_f64());
+        out = Some(r);
+    }
+    Ok((best, out.expect("at least one run")))
+}
+
+/// Fast marching (both orders, both grids) and isosurfacing (tiles) of the sphere
+/// scenario's initial band (radius 100·N/256 voxels, γ = 3), single-threaded where the
+/// operator is sequential.
+fn run_tools(
+    cfg: &SpeedupConfig,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<ToolBench>, String> {
+    use crate::fmm::{FmmOptions, Order};
+    let n = if cfg.quick { 64.0 } else { 256.0 };
+    let c = n / 2.0;
+    let shape = crate::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
+    let spec = crate::grid::GridSpec::default();
+    let tiles = crate::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
+    let dt = crate::build::dtgrid_from_tiles(&tiles);
+    let band = tiles.band_voxels();
+    let mut out = Vec::new();
+    let reps = if cfg.quick { 1 } else { 3 };
+    let mut push = |name, grid, seconds: f64, output: String| {
+        out.push(ToolBench {
+            name,
+            grid,
+            band_voxels: band,
+            seconds,
+            band_voxels_per_s: band as f64 / seconds,
+            output,
+        })
+    };
+    for (order, name) in [
+        (Order::First, "fmm reinitialise, first order"),
+        (Order::Second, "fmm reinitialise, second order"),
+    ] {
+        let opts = FmmOptions { order, half_width: None };
+        progress(&format!("{name} (tiles)"));
+        let (s, g) = best_of(reps, || {
+            crate::fmm::reinitialize_tiles(&tiles, &opts).map_err(|e| e.to_string())
+        })?;
+        push(name, "tiles", s, format!("{} band voxels", g.band_voxels()));
+        progress(&format!("{name} (DT-Grid)"));
+        let (s, g) = best_of(reps, || {
+            crate::fmm::reinitialize_dtgrid(&dt, &opts).map_err(|e| e.to_string())
+        })?;
+        push(name, "dtgrid", s, format!("{} band voxels", g.band_voxels()));
+    }
+    Ok(out)
 }
 
 /// The scenarios with their sizes and fixed step counts.
@@ -232,6 +310,7 @@ pub fn run_speedup(
         threads: cfg.threads,
         pinned: cfg.pin,
         scenarios,
+        tools: run_tools(cfg, progress)?,
     })
 }
 
@@ -297,6 +376,26 @@ impl SpeedupReport {
                     r.bytes,
                     r.bytes_vs_dtgrid,
                     r.checksum
+                );
+            }
+        }
+        if !self.tools.is_empty() {
+            let _ = writeln!(s, "\nOperators on the sphere benchmark's initial band:");
+            let _ = writeln!(
+                s,
+                "  {:<34} {:<7} {:>11} {:>9} {:>14}  result",
+                "operator", "grid", "band voxels", "seconds", "band Mvox/s"
+            );
+            for t in &self.tools {
+                let _ = writeln!(
+                    s,
+                    "  {:<34} {:<7} {:>11} {:>9.3} {:>14.2}  {}",
+                    t.name,
+                    t.grid,
+                    t.band_voxels,
+                    t.seconds,
+                    t.band_voxels_per_s / 1e6,
+                    t.output
                 );
             }
         }
