@@ -174,64 +174,140 @@ fn grow(lo: &mut [i64; 3], hi: &mut [i64; 3], p: [i64; 3]) {
     }
 }
 
-/// Largest number of blocks of the occupancy bitmap (2 MiB of bits).
-const MAX_BLOCKS: i64 = 1 << 24;
+/// Largest number of blocks a level stores as a dense bitmap (2 MiB of bits); a level with
+/// more (a band spread over a huge box) stores its occupied blocks in a hash set.
+const MAX_DENSE: i64 = 1 << 24;
+/// log2 of the finest block edge (8 voxels) and of the factor between levels (8).
+const FINE_SHIFT: u32 = 3;
+const LEVEL_SHIFT: u32 = 3;
+/// The coarsest level has at most this many blocks along every axis.
+const TOP_BLOCKS: i64 = 8;
 
-/// Coarse occupancy of space: block `b` (`S³` cells, `S` a power of two ≥ 8) is set when
-/// one of its cells has a band voxel among its eight corners. The cell with base voxel
-/// `v` spans `[v, v + 1]³` in voxel space; block `b` holds the cells with base voxels
-/// `lo + S b ..= lo + S b + S − 1`, i.e. the region `[lo + S b, lo + S (b + 1)]`.
-pub(crate) struct Occupancy {
-    lo: [i64; 3],
+/// Which blocks of one level are occupied.
+enum Blocks {
+    Dense(Vec<u64>),
+    Sparse(std::collections::HashSet<[i64; 3]>),
+}
+
+/// One level of the [`Occupancy`] pyramid: blocks of `2^shift` voxels, `n` per axis.
+struct Level {
     shift: u32,
     n: [i64; 3],
-    bits: Vec<u64>,
+    blocks: Blocks,
+}
+
+impl Level {
+    fn new(shift: u32, n: [i64; 3]) -> Level {
+        let total = n.iter().map(|&v| v as f64).product::<f64>();
+        let blocks = if total <= MAX_DENSE as f64 {
+            Blocks::Dense(vec![0; (total as usize).div_ceil(64)])
+        } else {
+            Blocks::Sparse(Default::default())
+        };
+        Level { shift, n, blocks }
+    }
+
+    #[inline]
+    fn index(&self, b: [i64; 3]) -> usize {
+        (b[0] + self.n[0] * (b[1] + self.n[1] * b[2])) as usize
+    }
+
+    fn set(&mut self, b: [i64; 3]) {
+        let i = self.index(b);
+        match &mut self.blocks {
+            Blocks::Dense(bits) => bits[i >> 6] |= 1 << (i & 63),
+            Blocks::Sparse(set) => {
+                set.insert(b);
+            }
+        }
+    }
+
+    #[inline]
+    fn get(&self, b: [i64; 3]) -> bool {
+        match &self.blocks {
+            Blocks::Dense(bits) => {
+                let i = self.index(b);
+                bits[i >> 6] & (1 << (i & 63)) != 0
+            }
+            Blocks::Sparse(set) => set.contains(&b),
+        }
+    }
+
+    /// The occupied blocks, in no particular order.
+    fn occupied(&self) -> Vec<[i64; 3]> {
+        match &self.blocks {
+            Blocks::Dense(bits) => {
+                let mut out = Vec::new();
+                for (w, &word) in bits.iter().enumerate() {
+                    let mut m = word;
+                    while m != 0 {
+                        let i = (w * 64 + m.trailing_zeros() as usize) as i64;
+                        m &= m - 1;
+                        let x = i % self.n[0];
+                        let y = (i / self.n[0]) % self.n[1];
+                        out.push([x, y, i / (self.n[0] * self.n[1])]);
+                    }
+                }
+                out
+            }
+            Blocks::Sparse(set) => set.iter().copied().collect(),
+        }
+    }
+}
+
+/// Occupancy of space as a pyramid of blocks: a block of the finest level (8³ cells) is
+/// set when one of its cells has a band voxel among its eight corners; a block of the next
+/// level (8× the edge) when one of its 8³ children is set, up to a level of at most 8
+/// blocks per axis. The cell with base voxel `v` spans `[v, v + 1]³` in voxel space;
+/// block `b` of edge `S` holds the cells with base voxels `lo + S b ..= lo + S b + S − 1`,
+/// i.e. the region `[lo + S b, lo + S (b + 1)]`. Rays descend only into set blocks, so a
+/// band spread over a huge box (two small shapes 2³⁰ voxels apart) costs a few steps per
+/// level, not a walk over the empty space between.
+pub(crate) struct Occupancy {
+    lo: [i64; 3],
+    /// Finest first.
+    levels: Vec<Level>,
 }
 
 impl Occupancy {
-    /// The bitmap of a grid's band; `summary` is that of [`summarise`].
+    /// The pyramid of a grid's band; `summary` is that of [`summarise`].
     pub(crate) fn build<G: Source + ?Sized>(grid: &G, summary: &BandSummary) -> Occupancy {
         // Cells with a band corner have base voxels in lo − 1 ..= hi.
         let lo = [summary.lo[0] - 1, summary.lo[1] - 1, summary.lo[2] - 1];
-        let extent = |a: usize| summary.hi[a] - lo[a] + 1;
-        let mut shift = 3;
+        let extent: [i64; 3] = std::array::from_fn(|a| summary.hi[a] - lo[a] + 1);
         let blocks = |shift: u32| -> [i64; 3] {
-            let s = 1i64 << shift;
-            [
-                (extent(0) + s - 1) >> shift,
-                (extent(1) + s - 1) >> shift,
-                (extent(2) + s - 1) >> shift,
-            ]
+            std::array::from_fn(|a| (extent[a] + (1 << shift) - 1) >> shift)
         };
-        // Extents are below 2^33, so 2^35 blocks of 2^3 always fit the loop below.
-        while blocks(shift).iter().map(|&b| b as f64).product::<f64>() > MAX_BLOCKS as f64 {
-            shift += 1;
-        }
-        let n = blocks(shift);
-        let total = (n[0] * n[1] * n[2]) as usize;
-        let mut occ = Occupancy { lo, shift, n, bits: vec![0; total.div_ceil(64)] };
+        let mut fine = Level::new(FINE_SHIFT, blocks(FINE_SHIFT));
         grid.for_each_band_voxel(&mut |c, _| {
-            let b =
-                |v: i32, a: usize| ((v as i64 - 1 - lo[a]) >> shift, (v as i64 - lo[a]) >> shift);
+            let b = |v: i32, a: usize| {
+                ((v as i64 - 1 - lo[a]) >> FINE_SHIFT, (v as i64 - lo[a]) >> FINE_SHIFT)
+            };
             let (x0, x1) = b(c.x, 0);
             let (y0, y1) = b(c.y, 1);
             let (z0, z1) = b(c.z, 2);
             for z in [z0, z1] {
                 for y in [y0, y1] {
                     for x in [x0, x1] {
-                        let i = (x + n[0] * (y + n[1] * z)) as usize;
-                        occ.bits[i >> 6] |= 1 << (i & 63);
+                        fine.set([x, y, z]);
                     }
                 }
             }
         });
-        occ
-    }
-
-    #[inline]
-    fn get(&self, b: [i64; 3]) -> bool {
-        let i = (b[0] + self.n[0] * (b[1] + self.n[1] * b[2])) as usize;
-        self.bits[i >> 6] & (1 << (i & 63)) != 0
+        let mut levels = vec![fine];
+        loop {
+            let last = levels.last().expect("one level");
+            if last.n.iter().all(|&n| n <= TOP_BLOCKS) {
+                break;
+            }
+            let shift = last.shift + LEVEL_SHIFT;
+            let mut up = Level::new(shift, blocks(shift));
+            for b in last.occupied() {
+                up.set(b.map(|v| v >> LEVEL_SHIFT));
+            }
+            levels.push(up);
+        }
+        Occupancy { lo, levels }
     }
 }
 
@@ -337,7 +413,7 @@ fn at(o: [f64; 3], d: [f64; 3], t: f64) -> [f64; 3] {
 }
 
 /// Finds the first zero of the interpolant along `o + t d` (voxel space, `d` a unit
-/// vector) for `t` in `[t0, t1]`, walking only the occupied blocks.
+/// vector) for `t` in `[t0, t1]`, marching only through occupied finest blocks.
 pub(crate) fn trace<G: Source + ?Sized>(
     occ: &Occupancy,
     s: &mut Sampler<'_, G>,
@@ -346,12 +422,13 @@ pub(crate) fn trace<G: Source + ?Sized>(
     t0: f64,
     t1: f64,
 ) -> Option<f64> {
-    let size = (1i64 << occ.shift) as f64;
-    // Clip to the bitmap's box (slab test).
+    let top = occ.levels.len() - 1;
+    let size = (1i64 << FINE_SHIFT) as f64;
+    // Clip to the box of the finest level (slab test); the coarser levels cover it.
     let (mut ta, mut tb) = (t0, t1);
     for a in 0..3 {
         let lo = occ.lo[a] as f64;
-        let hi = lo + size * occ.n[a] as f64;
+        let hi = lo + size * occ.levels[0].n[a] as f64;
         if d[a] == 0.0 {
             if o[a] < lo || o[a] > hi {
                 return None;
@@ -365,25 +442,52 @@ pub(crate) fn trace<G: Source + ?Sized>(
     if ta.is_nan() || tb.is_nan() || ta >= tb {
         return None;
     }
-    // 3D DDA over the blocks (Amanatides and Woo).
+    s.samples = 0;
+    let n = occ.levels[top].n;
+    let mut run = None;
+    let bmax = [n[0] - 1, n[1] - 1, n[2] - 1];
+    walk(occ, top, [0; 3], bmax, s, o, d, ta, tb, &mut run)
+        .or_else(|| run.and_then(|start| march(s, o, d, start, tb)))
+}
+
+/// 3D DDA (Amanatides and Woo) over the blocks `bmin..=bmax` of level `k` along the ray
+/// for `t` in `[ta, tb]`: descends into occupied blocks. Consecutive occupied finest
+/// blocks form one run (`run` holds its start, across levels), marched when the ray
+/// enters an empty block: one sphere trace per run instead of a restart per block.
+#[allow(clippy::too_many_arguments)]
+fn walk<G: Source + ?Sized>(
+    occ: &Occupancy,
+    k: usize,
+    bmin: [i64; 3],
+    bmax: [i64; 3],
+    s: &mut Sampler<'_, G>,
+    o: [f64; 3],
+    d: [f64; 3],
+    ta: f64,
+    tb: f64,
+    run: &mut Option<f64>,
+) -> Option<f64> {
+    let level = &occ.levels[k];
+    let size = (1i64 << level.shift) as f64;
     let p = at(o, d, ta);
     let mut b = [0i64; 3];
     let mut next = [f64::INFINITY; 3];
-    let mut delta = [f64::INFINITY; 3];
     let mut stride = [0i64; 3];
+    // Where the ray leaves block `b` through its face on axis `a`. Computed afresh for
+    // every block (not accumulated), so a face shared by two levels gives the same bits
+    // at both and consecutive marched intervals meet exactly.
+    let face = |a: usize, b: i64| {
+        (occ.lo[a] as f64 + size * (b + (d[a] > 0.0) as i64) as f64 - o[a]) / d[a]
+    };
     for a in 0..3 {
         let rel = ((p[a] - occ.lo[a] as f64) / size).floor();
-        b[a] = (rel as i64).clamp(0, occ.n[a] - 1);
+        b[a] = (rel as i64).clamp(bmin[a], bmax[a]);
         if d[a] != 0.0 {
             stride[a] = if d[a] > 0.0 { 1 } else { -1 };
-            let face = occ.lo[a] as f64 + size * (b[a] + (d[a] > 0.0) as i64) as f64;
-            next[a] = (face - o[a]) / d[a];
-            delta[a] = size / d[a].abs();
+            next[a] = face(a, b[a]);
         }
     }
     let mut t = ta;
-    let mut run: Option<f64> = None;
-    s.samples = 0;
     loop {
         let a = if next[0] <= next[1] && next[0] <= next[2] {
             0
@@ -393,24 +497,38 @@ pub(crate) fn trace<G: Source + ?Sized>(
             2
         };
         let exit = next[a].min(tb);
-        if occ.get(b) {
-            run.get_or_insert(t);
-        } else if let Some(start) = run.take() {
-            if let Some(hit) = march(s, o, d, start, t) {
-                return Some(hit);
+        if exit > t {
+            if !level.get(b) {
+                if let Some(start) = run.take() {
+                    let hit = march(s, o, d, start, t);
+                    if hit.is_some() || s.samples > MAX_SAMPLES {
+                        return hit;
+                    }
+                }
+            } else if k == 0 {
+                run.get_or_insert(t);
+            } else {
+                let cmin = b.map(|v| v << LEVEL_SHIFT);
+                let lower = &occ.levels[k - 1].n;
+                let cmax: [i64; 3] = std::array::from_fn(|i| {
+                    ((b[i] << LEVEL_SHIFT) + (1 << LEVEL_SHIFT) - 1).min(lower[i] - 1)
+                });
+                let hit = walk(occ, k - 1, cmin, cmax, s, o, d, t, exit, run);
+                if hit.is_some() || s.samples > MAX_SAMPLES {
+                    return hit;
+                }
             }
         }
         if exit >= tb {
-            break;
+            return None;
         }
         b[a] += stride[a];
-        if b[a] < 0 || b[a] >= occ.n[a] {
-            break;
+        if b[a] < bmin[a] || b[a] > bmax[a] {
+            return None;
         }
         t = exit;
-        next[a] += delta[a];
+        next[a] = face(a, b[a]);
     }
-    run.and_then(|start| march(s, o, d, start, tb))
 }
 
 /// Sphere tracing over `[ta, tb]`, then root refinement at the first sign change.
