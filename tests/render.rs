@@ -226,13 +226,13 @@ fn renders_near_the_coordinate_limit() {
     assert!(image.depth(16, 12).is_some());
 }
 
-/// Two small spheres 2^29 voxels apart: empty space between them is skipped level by
+/// Two small spheres 2^29 voxels apart along every axis: empty space between them is skipped level by
 /// level (a walk over it would take hours), and a frame box around one of them shows it
 /// where the analytic sphere is.
 #[test]
 fn far_apart_parts_render_quickly() {
     let far = (1 << 28) as f64;
-    let (a, b) = ([-far, 3.0, 0.5], [far, -2.0, 1.5]);
+    let (a, b) = ([-far, 3.0 - far, 0.5 - far], [far, far - 2.0, far + 1.5]);
     let r = 6.0;
     let shape = Shape::Union(vec![
         Shape::Sphere { center: a, radius: r },

@@ -5,10 +5,13 @@
 //! the zero set of the trilinear interpolant of the grid's values; like the paper, every
 //! query is a random access that reads the stored value inside the band and ±γ outside.
 //!
-//! * **Empty space** is skipped with a coarse [`Occupancy`] bitmap built from the band
-//!   voxels: a ray is clipped to its box and walked block by block (a 3D DDA), and only
-//!   runs of occupied blocks are marched. Outside them every cell has eight non-band
-//!   corners of one sign, so the interpolant has no zero there.
+//! * **Empty space** is skipped with an [`Occupancy`] pyramid built from the band voxels
+//!   (8³-voxel blocks, then 8× coarser levels): a ray is clipped to its box and walked
+//!   block by block (a 3D DDA per level), descending only into occupied blocks, and only
+//!   runs of occupied finest blocks are marched. Outside them every cell has eight
+//!   non-band corners of one sign (the band separates inside from outside), so the
+//!   interpolant has no zero there. This is the tile list's sparsity at a coarser grain;
+//!   the paper's H-RLE grid plays the same part (its "acceleration structure").
 //! * **Inside occupied blocks** the ray is sphere traced (the paper's "adaptive stepping
 //!   based on the magnitude of the level set values"): a step of `SAFETY · |φ|`. The
 //!   interpolant of a distance field changes by at most one voxel per voxel along each
@@ -213,7 +216,8 @@ impl Level {
     }
 
     fn set(&mut self, b: [i64; 3]) {
-        let i = self.index(b);
+        // Only a dense level's index is computed: a hashed level's could overflow.
+        let i = matches!(self.blocks, Blocks::Dense(_)).then(|| self.index(b)).unwrap_or(0);
         match &mut self.blocks {
             Blocks::Dense(bits) => bits[i >> 6] |= 1 << (i & 63),
             Blocks::Sparse(set) => {
