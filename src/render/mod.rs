@@ -4,8 +4,10 @@
 //!
 //! * [`render_tiles`] / [`render_dtgrid`] trace one primary ray per sub-pixel through a
 //!   [`Camera`] that frames the level set (or a given [`FrameBox`]); see the `trace`
-//!   module docs in the source for the marching (empty-space skipping over a coarse
-//!   occupancy of the band, sphere tracing with steps of ½|φ|, root refinement).
+//!   module docs in the source for the marching (empty-space skipping over an occupancy
+//!   pyramid of the band, sphere tracing with steps of ½|φ|, root refinement).
+//! * The default camera frames the box of the voxels inside the level set (grown by one
+//!   voxel), i.e. the surface's box rather than the band's, which is γ wider.
 //! * Shading: one directional light (Lambert, a Blinn–Phong highlight, ambient), a ground
 //!   plane under the object with shadow rays, a sky gradient behind. Normals are central
 //!   differences of the trilinear interpolant.
@@ -333,7 +335,7 @@ const SHININESS: i32 = 48;
 const SHADOW_OFFSET: f64 = 0.5;
 
 /// Everything a pixel needs, in voxel space (see `trace`).
-struct Scene<G: ?Sized> {
+struct Scene {
     occ: Occupancy,
     /// Eye in voxel space.
     eye: [f64; 3],
@@ -347,7 +349,6 @@ struct Scene<G: ?Sized> {
     /// Distance over which the ground fades into the horizon, in voxels.
     fade: f64,
     shadows: bool,
-    grid: std::marker::PhantomData<fn(&G)>,
 }
 
 fn render<G: Source + ?Sized>(
@@ -382,7 +383,7 @@ fn render<G: Source + ?Sized>(
         opts.light_elevation_deg.to_radians(),
     );
     let diag = dot(sub(frame.hi, frame.lo), sub(frame.hi, frame.lo)).sqrt() / h;
-    let scene = Scene::<G> {
+    let scene = Scene {
         occ: Occupancy::build(grid, &summary),
         eye: to_voxel(camera.eye),
         camera,
@@ -391,7 +392,6 @@ fn render<G: Source + ?Sized>(
         h,
         fade: 4.0 * diag.max(1.0),
         shadows: opts.shadows,
-        grid: std::marker::PhantomData,
     };
     let (w, ht) = (opts.width as usize, opts.height as usize);
     let mut rgb = vec![0u8; 3 * w * ht];
@@ -407,9 +407,16 @@ fn render<G: Source + ?Sized>(
     Ok(Image { width: opts.width, height: opts.height, rgb, depth, camera })
 }
 
-impl<G: Source + ?Sized> Scene<G> {
+impl Scene {
     /// One image row: colours (averaged over `n²` sub-pixel rays) and centre-ray depths.
-    fn row(&self, s: &mut Sampler<'_, G>, y: u32, n: u32, rgb: &mut [u8], depth: &mut [f64]) {
+    fn row<G: Source + ?Sized>(
+        &self,
+        s: &mut Sampler<'_, G>,
+        y: u32,
+        n: u32,
+        rgb: &mut [u8],
+        depth: &mut [f64],
+    ) {
         for x in 0..self.camera.width {
             let mut sum = [0.0; 3];
             let mut centre = None;
@@ -439,7 +446,11 @@ impl<G: Source + ?Sized> Scene<G> {
 
     /// Linear colour seen along the primary ray `d` from the eye, and the distance to the
     /// level set in voxels if it hits it.
-    fn shade(&self, s: &mut Sampler<'_, G>, d: [f64; 3]) -> ([f64; 3], Option<f64>) {
+    fn shade<G: Source + ?Sized>(
+        &self,
+        s: &mut Sampler<'_, G>,
+        d: [f64; 3],
+    ) -> ([f64; 3], Option<f64>) {
         let o = self.eye;
         let t_ground = match self.ground {
             Some(z) if d[2] < 0.0 && o[2] > z => (z - o[2]) / d[2],
@@ -481,7 +492,7 @@ impl<G: Source + ?Sized> Scene<G> {
     }
 
     /// Whether the light reaches voxel-space point `p` (no level set in between).
-    fn visible(&self, s: &mut Sampler<'_, G>, p: [f64; 3]) -> bool {
+    fn visible<G: Source + ?Sized>(&self, s: &mut Sampler<'_, G>, p: [f64; 3]) -> bool {
         !self.shadows || trace(&self.occ, s, p, self.light, 0.0, f64::INFINITY).is_none()
     }
 }
