@@ -33,6 +33,7 @@ pub mod fsutil;
 pub mod grid;
 pub mod info;
 pub mod npy;
+pub mod render;
 pub mod sample;
 pub mod scenario;
 pub mod shapes;
