@@ -456,3 +456,21 @@ fn run_reinitialises_by_fast_marching_on_both_grids() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("sparse grids"), "{}", stderr(&o));
 }
+
+#[test]
+fn run_writes_render_frames() {
+    let (o, dir) = run_ok(
+        &["sphere", "--size", "32", "--steps", "4", "--render-every", "2"],
+        "run-render-frames",
+    );
+    for step in [0, 2, 4] {
+        let f = dir.join(format!("render-{step:06}.png"));
+        let bytes = std::fs::read(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    assert!(!dir.join("render-000001.png").exists());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("wrote 3 frame file(s)"));
+    let o = levelset(&["run", "sphere", "--grid", "dense", "--render-every", "1", "--quiet"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sparse grid"), "{}", stderr(&o));
+}

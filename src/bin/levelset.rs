@@ -176,6 +176,10 @@ struct RunArgs {
     #[arg(long, value_name = "K", default_value_t = 10, requires = "reinit",
           value_parser = clap::value_parser!(u64).range(1..))]
     every: u64,
+    /// Write a ray-traced image DIR/render-NNNNNN.png of step 0 and every K-th step (a
+    /// fixed camera framing the initial surface with a margin; sparse grids).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u64).range(1..))]
+    render_every: Option<u64>,
     /// Output directory (created if needed).
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
@@ -484,6 +488,59 @@ fn run_speedup(a: &BenchArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// The frames `levelset run` writes while it steps (`--render-every`).
+struct Frames {
+    dir: PathBuf,
+    render_every: Option<u64>,
+    /// The camera's frame box, fixed at the first frame.
+    frame: Option<sparse_levelset::render::FrameBox>,
+    written: usize,
+}
+
+impl Frames {
+    fn new(a: &RunArgs) -> Result<Frames, String> {
+        if a.render_every.is_some() && matches!(a.grid, GridArg::Dense) {
+            return Err("--render-every needs a sparse grid (--grid tiles or dtgrid)".into());
+        }
+        Ok(Frames { dir: a.out.clone(), render_every: a.render_every, frame: None, written: 0 })
+    }
+
+    fn write(
+        &mut self,
+        sim: &sparse_levelset::evolve::Simulation,
+    ) -> Result<(), sparse_levelset::evolve::EvolveError> {
+        use sparse_levelset::evolve::EvolveError;
+        use sparse_levelset::render::{render_dtgrid, render_tiles, FrameBox, RenderOptions};
+        let step = sim.steps();
+        if !self.render_every.is_some_and(|k| step.is_multiple_of(k)) {
+            return Ok(());
+        }
+        let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("frame {step}: {e}"));
+        if self.frame.is_none() {
+            // The initial surface's box with a margin of half its extent on every side:
+            // the camera stays put while the interface moves within it.
+            let (lo, hi) = sim.band_bounding_box().ok_or_else(|| output(&"empty level set"))?;
+            let spec = sim.spec();
+            let (l, h) = (spec.world(lo), spec.world(hi));
+            let m: [f64; 3] = std::array::from_fn(|i| 0.5 * (h[i] - l[i]));
+            self.frame = Some(FrameBox {
+                lo: std::array::from_fn(|i| l[i] - m[i]),
+                hi: std::array::from_fn(|i| h[i] + m[i]),
+            });
+        }
+        let opts = RenderOptions { frame: self.frame, ..RenderOptions::default() };
+        let image = match (sim.tiles(), sim.dtgrid()) {
+            (Some(t), _) => render_tiles(t, &opts),
+            (_, Some(d)) => render_dtgrid(d, &opts),
+            _ => return Err(output(&"rendering needs a sparse grid")),
+        }
+        .map_err(|e| output(&e))?;
+        image.write_png(&self.dir.join(format!("render-{step:06}.png"))).map_err(|e| output(&e))?;
+        self.written += 1;
+        Ok(())
+    }
+}
+
 fn run_scenario(a: &RunArgs) -> Result<(), String> {
     use indicatif::{ProgressBar, ProgressStyle};
     use sparse_levelset::evolve::{GridKind, Integrator, Lanes, SpatialScheme};
@@ -547,8 +604,10 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
             .expect("valid template"),
     );
     bar.set_message(format!("{} on {}", kind.name(), scenario.params.grid));
-    let (summary, sim) =
-        scenario.run(|f| bar.set_position((f * 1000.0) as u64)).map_err(|e| e.to_string())?;
+    let mut frames = Frames::new(a)?;
+    let (summary, sim) = scenario
+        .run_with(|f| bar.set_position((f * 1000.0) as u64), |sim| frames.write(sim))
+        .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let last = summary.records.last().expect("records");
     outln!(
@@ -569,6 +628,9 @@ fn run_scenario(a: &RunArgs) -> Result<(), String> {
     );
     if let (Some(h), Some(p)) = (summary.volume_ratio_half_period, summary.volume_ratio_period) {
         outln!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
+    }
+    if frames.written > 0 {
+        outln!("wrote {} frame file(s) to {}", frames.written, a.out.display());
     }
     write_json(&a.out.join("summary.json"), &summary)?;
     if a.export_npy {

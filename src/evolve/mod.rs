@@ -557,7 +557,8 @@ impl Simulation {
         Ok(sim)
     }
 
-    fn spec(&self) -> GridSpec {
+    /// The grid's voxel size, origin and band half-width.
+    pub fn spec(&self) -> GridSpec {
         self.rep.get().spec()
     }
 
