@@ -31,6 +31,7 @@ pub mod evolve;
 pub mod fsutil;
 pub mod grid;
 pub mod info;
+pub mod mesh;
 pub mod npy;
 pub mod sample;
 pub mod scenario;
