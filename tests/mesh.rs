@@ -341,12 +341,20 @@ fn bad_input_is_an_error() {
     assert!(NdField::new(&[2; 6], 1, vec![0.0; 64]).is_err(), "n = 6");
     assert!(NdField::new(&[2; 3], 3, vec![0.0; 24]).is_err(), "m = n");
     assert!(NdField::new(&[2, 0, 2], 1, vec![]).is_err(), "empty axis");
-    let mut d = DenseField::new(Coord::new(-3, 0, 2), [4, 4, 4], 1.0).unwrap();
-    d.set(Coord::new(-1, 1, 3), f32::INFINITY).unwrap();
     let spec = GridSpec::default();
-    assert!(matches!(isosurface_dense(&d, &spec, 0.0), Err(MeshError::NonFiniteAt { .. })));
+    // ±∞ is a far-away distance (as read_npy accepts it), NaN an error.
+    let mut d = DenseField::from_fn(Coord::new(-3, 0, 2), [9, 8, 9], |c| {
+        let r = [c.x + 0, c.y - 4, c.z - 6].map(|v| v as f32);
+        (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt() - 2.5
+    })
+    .unwrap();
+    d.set(Coord::new(0, 4, 6), f32::NEG_INFINITY).unwrap();
+    d.set(Coord::new(-3, 0, 2), f32::INFINITY).unwrap();
+    d.set(Coord::new(2, 4, 6), f32::INFINITY).unwrap();
+    let m = isosurface_dense(&d, &spec, 0.0).unwrap();
+    assert!(m.is_closed_manifold() && m.positions.iter().flatten().all(|c| c.is_finite()));
     d.set(Coord::new(-1, 1, 3), f32::NAN).unwrap();
-    assert!(isosurface_dense(&d, &spec, 0.0).is_err());
+    assert!(matches!(isosurface_dense(&d, &spec, 0.0), Err(MeshError::NaN { .. })));
     let tiles =
         tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
     assert!(isosurface_tiles(&tiles, f64::NAN).is_err());
@@ -366,4 +374,65 @@ fn bad_input_is_an_error() {
     assert!(!bad.is_closed_manifold());
     assert!(bad.write(&tmp("bad.ply"), None).is_err());
     assert!(!tmp("bad.ply").exists());
+}
+
+fn levelset(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().unwrap()
+}
+
+#[test]
+fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
+    let ok = |args: &[&str]| {
+        let o = levelset(args);
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let fails = |args: &[&str], msg: &str| {
+        let o = levelset(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("error:") && err.contains(msg), "{args:?}: {err}");
+    };
+    let out = tmp("cli_torus.obj");
+    let s = ok(&[
+        "mesh", "--shape", "torus", "--major-radius", "12", "--minor-radius", "4", "-o",
+        out.to_str().unwrap(), "--quiet",
+    ]);
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 0"), "{s}");
+    assert!(std::fs::metadata(&out).unwrap().len() > 0);
+
+    // A ball in a dense field with voxel size 0.5: radius 4.5 world units.
+    let ball = DenseField::from_fn(Coord::new(0, 0, 0), [24, 22, 23], |c| {
+        let d = [c.x as f64 - 11.3, c.y as f64 - 10.6, c.z as f64 - 11.1];
+        (0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 4.5) as f32
+    })
+    .unwrap();
+    let npy = tmp("ball.npy");
+    sparse_levelset::npy::write_npy(&npy, &ball).unwrap();
+    let ply = tmp("ball.ply");
+    let s = ok(&["mesh", "--input", npy.to_str().unwrap(), "--voxel-size", "0.5", "-o", ply.to_str().unwrap()]);
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
+    let m = isosurface_dense(&ball, &GridSpec::new(0.5, [0.0; 3], 3.0).unwrap(), 0.0).unwrap();
+    assert!(s.contains(&format!("{} vertices, {} triangles", m.num_vertices(), m.num_triangles())));
+    close("ball volume", m.enclosed_volume(), 4.0 / 3.0 * PI * 4.5f64.powi(3), 2e-2);
+
+    let mut bad = ball.clone();
+    bad.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
+    let nan = tmp("nan.npy");
+    sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
+    fails(&["mesh", "--input", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
+    let empty = tmp("empty.npy");
+    sparse_levelset::npy::write_npy(&empty, &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap())
+        .unwrap();
+    fails(&["mesh", "--input", empty.to_str().unwrap(), "-o", ply.to_str().unwrap()], "no surface");
+    let trunc = tmp("trunc.npy");
+    let bytes = std::fs::read(&npy).unwrap();
+    std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
+    fails(&["mesh", "--input", trunc.to_str().unwrap(), "-o", ply.to_str().unwrap()], "");
+    fails(&["mesh", "-o", tmp("x.stl").to_str().unwrap()], "unknown mesh format");
+    fails(&["mesh", "--radius=-5", "-o", ply.to_str().unwrap()], "");
+    fails(&["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()], "outside the band");
+    fails(&["mesh", "--voxel-size", "0", "-o", ply.to_str().unwrap()], "voxel size");
+    // The failed runs left the earlier file alone.
+    assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());
 }

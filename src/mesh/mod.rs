@@ -62,9 +62,9 @@ pub enum MeshError {
     /// A NaN or infinite value in an n-dimensional field (index of the grid point).
     #[error("value at grid point {index} is not finite")]
     NonFinite { index: usize },
-    /// A NaN or infinite value in a dense 3D field.
-    #[error("value {value} at voxel {coord} is not finite")]
-    NonFiniteAt { coord: Coord, value: f32 },
+    /// A NaN in a dense 3D field.
+    #[error("the value at voxel {coord} is NaN")]
+    NaN { coord: Coord },
     /// More vertices or triangles than a format or index type holds.
     #[error("mesh too large: {0}")]
     TooLarge(String),

@@ -360,22 +360,21 @@ fn gather_tiles(grid: &TileGrid, pos: usize) -> Block {
 /// The isosurface φ = `iso` of a dense field, voxel size and origin from `spec` (the
 /// field's own origin places it on the voxel grid). Values beyond the array read as
 /// `iso + γ` (outside; for iso = 0 the `+γ` of [`crate::build::tiles_from_dense`]), so a
-/// surface that reaches the array's boundary is closed along it. On the same values the
-/// mesh is the one [`isosurface_tiles`] makes (same cells, same arithmetic). Errors on a
-/// non-finite value or iso.
+/// surface that reaches the array's boundary is closed along it. ±∞ is a far-away
+/// distance (as in [`crate::npy::read_npy`]) and reads as `iso ± γ`. On the same values
+/// the mesh is the one [`isosurface_tiles`] makes (same cells, same arithmetic). Errors
+/// on NaN or a non-finite iso.
 pub fn isosurface_dense(
     field: &DenseField,
     spec: &GridSpec,
     iso: f64,
 ) -> Result<TriangleMesh, MeshError> {
     check_iso(iso)?;
-    if let Some(i) = field.data().iter().position(|v| !v.is_finite()) {
-        return Err(MeshError::NonFiniteAt {
-            coord: field.coord_of(i).expect("index in range"),
-            value: field.data()[i],
-        });
+    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
+        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
     }
     let outside = (iso + spec.gamma() as f64) as f32;
+    let inside = (iso - spec.gamma() as f64) as f32;
     let o = field.origin();
     let hi = field.max_coord();
     let lo = [o.x as i64 - 1, o.y as i64 - 1, o.z as i64 - 1];
@@ -389,7 +388,12 @@ pub fn isosurface_dense(
     let value = |c: [i64; 3]| -> f32 {
         let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);
         if c.iter().all(|&v| ok(v)) {
-            field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)).unwrap_or(outside)
+            match field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)) {
+                Some(v) if v == f32::INFINITY => outside,
+                Some(v) if v == f32::NEG_INFINITY => inside,
+                Some(v) => v,
+                None => outside,
+            }
         } else {
             outside
         }

@@ -17,7 +17,9 @@
 //! (checked by a test against transcriptions of the tables). For the (3,3) row of Table 4
 //! the paper prints a Delaunay triangulation instead; the staircase has the same count
 //! (Corollary 3.2: 6) and is used here because a staircase triangulation restricts to every
-//! face as the staircase triangulation of that face. Two simplices sharing a face therefore
+//! face as the staircase triangulation of that face, and the paper's row does not fit with
+//! its neighbours: with it in place (negatives, then positives, each in list order) the
+//! R⁵, m = 3 complex of `tests/mesh.rs` is not closed. Two simplices sharing a face therefore
 //! cut it identically, which is what makes welded output conforming and closed — also for
 //! codimension m ≥ 2, where the pieces of one cut are cut again (Sec. 4) and the path
 //! order of the pieces' vertices is the list order of the next cut. The path order is
