@@ -46,9 +46,11 @@ fn close(what: &str, got: f64, exact: f64, rel: f64) {
 #[test]
 fn sphere_r100_closed_manifold_area_volume() {
     let r = 100.0;
-    let tiles =
-        tiles_from_shape(&Shape::Sphere { center: [0.3, -0.2, 0.1], radius: r }, GridSpec::default())
-            .unwrap();
+    let tiles = tiles_from_shape(
+        &Shape::Sphere { center: [0.3, -0.2, 0.1], radius: r },
+        GridSpec::default(),
+    )
+    .unwrap();
     let t0 = std::time::Instant::now();
     let m = isosurface_tiles(&tiles, 0.0).unwrap();
     println!(
@@ -115,11 +117,9 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
 
 #[test]
 fn same_bytes_for_one_and_two_threads() {
-    let tiles = tiles_from_shape(
-        &Shape::spiral_default([0.5, 0.0, -0.5], 30.0, 20.0),
-        GridSpec::default(),
-    )
-    .unwrap();
+    let tiles =
+        tiles_from_shape(&Shape::spiral_default([0.5, 0.0, -0.5], 30.0, 20.0), GridSpec::default())
+            .unwrap();
     let mut files = Vec::new();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -138,8 +138,8 @@ fn level_set_near_the_i32_limit() {
     // neighbours are beyond the representable range and read as outside.
     let o = -(i32::MAX as f64) + 12.0;
     let spec = GridSpec::new(1.0, [o, o, 0.0], 3.0).unwrap();
-    let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0, 0.0, 0.0], radius: 6.0 }, spec)
-        .unwrap();
+    let tiles =
+        tiles_from_shape(&Shape::Sphere { center: [0.0, 0.0, 0.0], radius: 6.0 }, spec).unwrap();
     let m = isosurface_tiles(&tiles, 0.0).unwrap();
     assert!(m.is_closed_manifold());
     assert_eq!(m.euler_characteristic(), 2);
@@ -173,10 +173,12 @@ fn fast_3d_path_matches_the_general_construction() {
             })
             .collect(),
         normals: vec![[0.0; 3]; c.num_vertices()],
-        triangles: (0..c.num_simplices()).map(|s| {
-            let t = c.simplex(s);
-            [t[0], t[1], t[2]]
-        }).collect(),
+        triangles: (0..c.num_simplices())
+            .map(|s| {
+                let t = c.simplex(s);
+                [t[0], t[1], t[2]]
+            })
+            .collect(),
     };
     assert_eq!(canonical(&fast), canonical(&general));
     assert!(c.stats.max_simplices_per_cell <= cell_simplex_bound(3, 1));
@@ -194,7 +196,12 @@ fn two_spheres_in_r4_meet_in_a_closed_2_sphere() {
     })
     .unwrap();
     let c = isosurface_nd(&f).unwrap();
-    println!("R^4 spheres: {} vertices, {} triangles, {:?}", c.num_vertices(), c.num_simplices(), c.stats);
+    println!(
+        "R^4 spheres: {} vertices, {} triangles, {:?}",
+        c.num_vertices(),
+        c.num_simplices(),
+        c.stats
+    );
     assert_eq!(c.simplex_dim(), 2);
     assert!(c.num_simplices() > 100);
     assert!(c.is_closed() && c.is_consistently_oriented());
@@ -308,7 +315,9 @@ fn mesh_files() {
     let b = std::fs::read(&p).unwrap();
     let h = header_end(&b);
     let head = std::str::from_utf8(&b[..h]).unwrap();
-    assert!(head.contains("binary_little_endian") && head.contains(&format!("element vertex {nv}\n")));
+    assert!(
+        head.contains("binary_little_endian") && head.contains(&format!("element vertex {nv}\n"))
+    );
     assert_eq!(b.len() - h, nv * 24 + nf * 13);
     // First vertex round-trips bitwise.
     let x = f32::from_le_bytes(b[h..h + 4].try_into().unwrap());
@@ -336,7 +345,10 @@ fn mesh_files() {
 
 #[test]
 fn bad_input_is_an_error() {
-    assert!(matches!(NdField::new(&[3, 3], 1, vec![0.0, 1.0, f64::NAN, 0., 0., 0., 0., 0., 0.]), Err(MeshError::NonFinite { index: 2 })));
+    assert!(matches!(
+        NdField::new(&[3, 3], 1, vec![0.0, 1.0, f64::NAN, 0., 0., 0., 0., 0., 0.]),
+        Err(MeshError::NonFinite { index: 2 })
+    ));
     assert!(NdField::new(&[3, 3], 1, vec![0.0; 8]).is_err(), "wrong length");
     assert!(NdField::new(&[2; 6], 1, vec![0.0; 64]).is_err(), "n = 6");
     assert!(NdField::new(&[2; 3], 3, vec![0.0; 24]).is_err(), "m = n");
@@ -344,7 +356,7 @@ fn bad_input_is_an_error() {
     let spec = GridSpec::default();
     // ±∞ is a far-away distance (as read_npy accepts it), NaN an error.
     let mut d = DenseField::from_fn(Coord::new(-3, 0, 2), [9, 8, 9], |c| {
-        let r = [c.x + 0, c.y - 4, c.z - 6].map(|v| v as f32);
+        let r = [c.x, c.y - 4, c.z - 6].map(|v| v as f32);
         (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt() - 2.5
     })
     .unwrap();
@@ -355,14 +367,18 @@ fn bad_input_is_an_error() {
     assert!(m.is_closed_manifold() && m.positions.iter().flatten().all(|c| c.is_finite()));
     d.set(Coord::new(-1, 1, 3), f32::NAN).unwrap();
     assert!(matches!(isosurface_dense(&d, &spec, 0.0), Err(MeshError::NaN { .. })));
-    let tiles =
-        tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
+    let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
     assert!(isosurface_tiles(&tiles, f64::NAN).is_err());
     assert!(isosurface_tiles(&tiles, 3.0).is_err(), "iso at γ");
     // Empty level sets give empty meshes, which are not closed manifolds.
     let m = isosurface_tiles(&sparse_levelset::tiles::TileGrid::new(spec), 0.0).unwrap();
     assert!(m.is_empty() && !m.is_closed_manifold());
-    let m = isosurface_dense(&DenseField::new(Coord::new(0, 0, 0), [3, 3, 3], 2.0).unwrap(), &spec, 0.0).unwrap();
+    let m = isosurface_dense(
+        &DenseField::new(Coord::new(0, 0, 0), [3, 3, 3], 2.0).unwrap(),
+        &spec,
+        0.0,
+    )
+    .unwrap();
     assert!(m.is_empty());
     let m = isosurface_tiles(&tiles, 0.0).unwrap();
     assert!(matches!(m.write(&tmp("x.stl"), None), Err(MeshError::UnknownFormat(_))));
@@ -395,8 +411,16 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     };
     let out = tmp("cli_torus.obj");
     let s = ok(&[
-        "mesh", "--shape", "torus", "--major-radius", "12", "--minor-radius", "4", "-o",
-        out.to_str().unwrap(), "--quiet",
+        "mesh",
+        "--shape",
+        "torus",
+        "--major-radius",
+        "12",
+        "--minor-radius",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
     ]);
     assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 0"), "{s}");
     assert!(std::fs::metadata(&out).unwrap().len() > 0);
@@ -410,7 +434,15 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let npy = tmp("ball.npy");
     sparse_levelset::npy::write_npy(&npy, &ball).unwrap();
     let ply = tmp("ball.ply");
-    let s = ok(&["mesh", "--input", npy.to_str().unwrap(), "--voxel-size", "0.5", "-o", ply.to_str().unwrap()]);
+    let s = ok(&[
+        "mesh",
+        "--input",
+        npy.to_str().unwrap(),
+        "--voxel-size",
+        "0.5",
+        "-o",
+        ply.to_str().unwrap(),
+    ]);
     assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
     let m = isosurface_dense(&ball, &GridSpec::new(0.5, [0.0; 3], 3.0).unwrap(), 0.0).unwrap();
     assert!(s.contains(&format!("{} vertices, {} triangles", m.num_vertices(), m.num_triangles())));
@@ -422,8 +454,11 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
     fails(&["mesh", "--input", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
     let empty = tmp("empty.npy");
-    sparse_levelset::npy::write_npy(&empty, &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap())
-        .unwrap();
+    sparse_levelset::npy::write_npy(
+        &empty,
+        &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap(),
+    )
+    .unwrap();
     fails(&["mesh", "--input", empty.to_str().unwrap(), "-o", ply.to_str().unwrap()], "no surface");
     let trunc = tmp("trunc.npy");
     let bytes = std::fs::read(&npy).unwrap();
@@ -431,7 +466,10 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     fails(&["mesh", "--input", trunc.to_str().unwrap(), "-o", ply.to_str().unwrap()], "");
     fails(&["mesh", "-o", tmp("x.stl").to_str().unwrap()], "unknown mesh format");
     fails(&["mesh", "--radius=-5", "-o", ply.to_str().unwrap()], "");
-    fails(&["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()], "outside the band");
+    fails(
+        &["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()],
+        "outside the band",
+    );
     fails(&["mesh", "--voxel-size", "0", "-o", ply.to_str().unwrap()], "voxel size");
     // The failed runs left the earlier file alone.
     assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());

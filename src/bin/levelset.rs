@@ -601,8 +601,10 @@ fn run_mesh(a: &MeshArgs) -> Result<(), String> {
             sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
         bar.set_length(tiles.len() as u64);
         bar.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles")
-                .expect("valid template"),
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles",
+            )
+            .expect("valid template"),
         );
         let m = mesh::isosurface_tiles_with_progress(&tiles, a.iso, &|k| bar.inc(k as u64))
             .map_err(|e| e.to_string())?;

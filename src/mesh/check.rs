@@ -55,9 +55,7 @@ impl TriangleMesh {
             .collect();
         link.sort_unstable();
         link.chunk_by(|a, b| a.0 == b.0).all(|fan| {
-            let next = |b: u32| {
-                fan.binary_search_by(|x| x.1.cmp(&b)).ok().map(|i| fan[i].2)
-            };
+            let next = |b: u32| fan.binary_search_by(|x| x.1.cmp(&b)).ok().map(|i| fan[i].2);
             let start = fan[0].1;
             let mut cur = start;
             for step in 1..=fan.len() {
@@ -107,7 +105,11 @@ impl TriangleMesh {
                     [q[0] as f64 - r[0], q[1] as f64 - r[1], q[2] as f64 - r[2]]
                 };
                 let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-                let bc = [b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]];
+                let bc = [
+                    b[1] * c[2] - b[2] * c[1],
+                    b[2] * c[0] - b[0] * c[2],
+                    b[0] * c[1] - b[1] * c[0],
+                ];
                 (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / 6.0
             })
             .sum()

@@ -43,7 +43,9 @@ impl TriangleMesh {
                 self.positions.len()
             )));
         }
-        if let Some(t) = self.triangles.iter().find(|t| t.iter().any(|&v| v as usize >= self.positions.len())) {
+        if let Some(t) =
+            self.triangles.iter().find(|t| t.iter().any(|&v| v as usize >= self.positions.len()))
+        {
             return Err(MeshError::InvalidParameter(format!(
                 "triangle {t:?} indexes beyond {} vertices",
                 self.positions.len()

@@ -34,9 +34,7 @@ mod surface;
 pub mod tables;
 
 pub use io::MeshFormat;
-pub use simplicial::{
-    cell_simplex_bound, isosurface_nd, ComplexStats, NdField, SimplicialComplex,
-};
+pub use simplicial::{cell_simplex_bound, isosurface_nd, ComplexStats, NdField, SimplicialComplex};
 pub use surface::{
     isosurface_dense, isosurface_dtgrid, isosurface_tiles, isosurface_tiles_with_progress,
 };

@@ -260,8 +260,9 @@ pub(crate) fn permutations(n: usize) -> Vec<(Vec<usize>, i8)> {
     fn rec(cur: &mut Vec<usize>, used: &mut [bool], out: &mut Vec<(Vec<usize>, i8)>) {
         let n = used.len();
         if cur.len() == n {
-            let inversions =
-                (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).filter(|&(i, j)| cur[i] > cur[j]);
+            let inversions = (0..n)
+                .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+                .filter(|&(i, j)| cur[i] > cur[j]);
             let sign = if inversions.count() % 2 == 0 { 1 } else { -1 };
             out.push((cur.clone(), sign));
             return;
@@ -365,13 +366,16 @@ pub fn isosurface_nd(field: &NdField) -> Result<SimplicialComplex, MeshError> {
         .map(|c| (0..n).filter(|&i| c & (1 << i) != 0).map(|i| strides[i]).sum())
         .collect();
     let perms = permutations(n);
-    let mut nodes =
-        Nodes { n, m, pos: Vec::new(), val: Vec::new(), ids: HashMap::new() };
+    let mut nodes = Nodes { n, m, pos: Vec::new(), val: Vec::new(), ids: HashMap::new() };
     let mut stats = ComplexStats::default();
     let mut out: Vec<(Vec<u32>, i8)> = Vec::new();
     let cells: Vec<usize> = field.dims.iter().map(|&d| d.saturating_sub(1)).collect();
     if cells.contains(&0) {
-        return Ok(SimplicialComplex { ambient_dim: n, simplex_len: n - m + 1, ..Default::default() });
+        return Ok(SimplicialComplex {
+            ambient_dim: n,
+            simplex_len: n - m + 1,
+            ..Default::default()
+        });
     }
     let mut a = vec![0usize; n];
     let mut current: Vec<(Vec<u32>, i8)> = Vec::new();
@@ -380,7 +384,8 @@ pub fn isosurface_nd(field: &NdField) -> Result<SimplicialComplex, MeshError> {
         let base: usize = a.iter().zip(&strides).map(|(x, s)| x * s).sum();
         // A cell is cut only if every component changes sign over its corners.
         let crosses = (0..m).all(|r| {
-            let neg = corner_offset.iter().filter(|&&o| field.values[(base + o) * m + r] < 0.0).count();
+            let neg =
+                corner_offset.iter().filter(|&&o| field.values[(base + o) * m + r] < 0.0).count();
             neg != 0 && neg != corners
         });
         if crosses {

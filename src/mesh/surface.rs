@@ -225,35 +225,55 @@ fn edge_vertex(
     (edge_key(lower, dir), pos, nrm)
 }
 
-/// Merges the tiles' parts in tile order into one welded mesh.
+/// Merges the tiles' parts in tile order into one welded mesh: all vertex copies sorted
+/// by key (copies of one key are bitwise equal), numbered in key order, and every part's
+/// local indices mapped through that numbering.
 fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
-    let mut all: Vec<(u128, [f32; 3], [f32; 3])> =
-        parts.iter().flat_map(|p| p.verts.iter().copied()).collect();
-    all.par_sort_unstable_by_key(|v| v.0);
-    if cfg!(debug_assertions) {
-        for w in all.windows(2) {
-            if w[0].0 == w[1].0 {
-                let bits = |v: &(u128, [f32; 3], [f32; 3])| (v.1.map(f32::to_bits), v.2.map(f32::to_bits));
-                debug_assert_eq!(bits(&w[0]), bits(&w[1]), "copies of a vertex differ");
-            }
+    let mut offsets = Vec::with_capacity(parts.len() + 1);
+    offsets.push(0usize);
+    for p in &parts {
+        offsets.push(offsets.last().unwrap() + p.verts.len());
+    }
+    let copies = *offsets.last().unwrap();
+    if copies > u32::MAX as usize {
+        return Err(MeshError::TooLarge(format!("{copies} vertex copies")));
+    }
+    // (key, index of the copy in part order)
+    let mut order: Vec<(u128, u32)> = parts
+        .iter()
+        .zip(&offsets)
+        .flat_map(|(p, &o)| p.verts.iter().enumerate().map(move |(i, v)| (v.0, (o + i) as u32)))
+        .collect();
+    order.par_sort_unstable();
+    let copy = |i: u32| {
+        let p = offsets.partition_point(|&o| o <= i as usize) - 1;
+        &parts[p].verts[i as usize - offsets[p]]
+    };
+    let mut remap = vec![0u32; copies];
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut last = None;
+    for &(key, i) in &order {
+        if last != Some(key) {
+            let v = copy(i);
+            positions.push(v.1);
+            normals.push(v.2);
+            last = Some(key);
+        } else if cfg!(debug_assertions) {
+            let (a, b) = (copy(i), (positions.last().unwrap(), normals.last().unwrap()));
+            let bits = |p: &[f32; 3], n: &[f32; 3]| (p.map(f32::to_bits), n.map(f32::to_bits));
+            debug_assert_eq!(bits(&a.1, &a.2), bits(b.0, b.1), "copies of a vertex differ");
         }
+        remap[i as usize] = (positions.len() - 1) as u32;
     }
-    all.dedup_by_key(|v| v.0);
-    if all.len() > u32::MAX as usize {
-        return Err(MeshError::TooLarge(format!("{} vertices", all.len())));
-    }
-    let keys: Vec<u128> = all.iter().map(|v| v.0).collect();
     let triangles: Vec<[u32; 3]> = parts
         .par_iter()
-        .flat_map_iter(|p| {
-            let keys = &keys;
-            p.tris.iter().map(move |t| {
-                t.map(|l| keys.binary_search(&p.verts[l as usize].0).expect("vertex merged") as u32)
-            })
+        .zip(&offsets[..parts.len()])
+        .flat_map_iter(|(p, &o)| {
+            let remap = &remap;
+            p.tris.iter().map(move |t| t.map(|l| remap[o + l as usize]))
         })
         .collect();
-    let positions = all.iter().map(|v| v.1).collect();
-    let normals = all.iter().map(|v| v.2).collect();
     let mut mesh = TriangleMesh { positions, normals, triangles };
     mesh.fill_missing_normals();
     Ok(mesh)
@@ -298,13 +318,9 @@ pub fn isosurface_tiles_with_progress(
         .enumerate()
         .map_init(Scratch::new, |scratch, (ci, chunk)| {
             let mut part = Part::default();
-            for (k, _) in chunk.iter().enumerate() {
+            for k in 0..chunk.len() {
                 let block = gather_tiles(grid, ci * CHUNK + k);
-                let mut p = Part::default();
-                mesh_block(&block, iso, &spec, scratch, &mut p);
-                let off = part.verts.len() as u32;
-                part.verts.extend(p.verts);
-                part.tris.extend(p.tris.into_iter().map(|t| t.map(|l| l + off)));
+                mesh_block(&block, iso, &spec, scratch, &mut part);
             }
             progress(chunk.len());
             part
@@ -383,7 +399,9 @@ pub fn isosurface_dense(
     let thi = hi.map(|c| c.div_euclid(4));
     let in_range = |t: [i64; 3]| (0..3).all(|a| (tlo[a]..=thi[a]).contains(&t[a]));
     let tiles: Vec<[i64; 3]> = (tlo[2]..=thi[2])
-        .flat_map(|z| (tlo[1]..=thi[1]).flat_map(move |y| (tlo[0]..=thi[0]).map(move |x| [x, y, z])))
+        .flat_map(|z| {
+            (tlo[1]..=thi[1]).flat_map(move |y| (tlo[0]..=thi[0]).map(move |x| [x, y, z]))
+        })
         .collect();
     let value = |c: [i64; 3]| -> f32 {
         let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);

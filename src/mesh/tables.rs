@@ -156,10 +156,12 @@ pub(crate) fn determinant(mut m: Vec<Vec<f64>>) -> f64 {
             det = -det;
         }
         det *= m[c][c];
-        for r in c + 1..n {
-            let f = m[r][c] / m[c][c];
-            for cc in c..n {
-                m[r][cc] -= f * m[c][cc];
+        let (top, rest) = m.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for row in rest {
+            let f = row[c] / pivot[c];
+            for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
             }
         }
     }
@@ -228,7 +230,8 @@ mod tests {
     fn paper_pieces(p: usize, q: usize, rows: Row) -> (usize, u32, Vec<Vec<(u8, u8)>>) {
         let k = p + q - 1;
         let mask = (1u32 << p) - 1;
-        let pieces = rows.iter().map(|r| r.iter().map(|&(i, j)| (i - 1, j - 1)).collect()).collect();
+        let pieces =
+            rows.iter().map(|r| r.iter().map(|&(i, j)| (i - 1, j - 1)).collect()).collect();
         (k, mask, pieces)
     }
 
@@ -236,7 +239,8 @@ mod tests {
     fn staircase_matches_tables_1_to_4() {
         for &(p, q, rows) in PAPER {
             let (k, mask, paper) = paper_pieces(p, q, rows);
-            let ours: Vec<Vec<(u8, u8)>> = pieces(k, mask).iter().map(|x| x.pairs.clone()).collect();
+            let ours: Vec<Vec<(u8, u8)>> =
+                pieces(k, mask).iter().map(|x| x.pairs.clone()).collect();
             assert_eq!(ours.len(), corollary_3_2(p, q), "({p},{q})");
             assert_eq!(paper.len(), corollary_3_2(p, q), "paper ({p},{q})");
             // Both triangulate the section: pieces are non-degenerate and their volumes add
