@@ -21,7 +21,7 @@ use super::{MeshError, TriangleMesh};
 use crate::dense::DenseField;
 use crate::dtgrid::DtGrid;
 use crate::grid::GridSpec;
-use crate::tiles::{Tile, TileGrid, TILE_MAX, TILE_MIN};
+use crate::tiles::{NeighbourCursor, Neighbours, Tile, TileGrid, TILE_MAX, TILE_MIN};
 use crate::Coord;
 use rayon::prelude::*;
 
@@ -244,7 +244,7 @@ fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
         .zip(&offsets)
         .flat_map(|(p, &o)| p.verts.iter().enumerate().map(move |(i, v)| (v.0, (o + i) as u32)))
         .collect();
-    order.par_sort_unstable();
+    order.par_sort_unstable_by_key(|e| e.0);
     let copy = |i: u32| {
         let p = offsets.partition_point(|&o| o <= i as usize) - 1;
         &parts[p].verts[i as usize - offsets[p]]
@@ -318,8 +318,10 @@ pub fn isosurface_tiles_with_progress(
         .enumerate()
         .map_init(Scratch::new, |scratch, (ci, chunk)| {
             let mut part = Part::default();
-            for k in 0..chunk.len() {
-                let block = gather_tiles(grid, ci * CHUNK + k);
+            let start = ci * CHUNK;
+            let cursor = NeighbourCursor::new(coords, start, start + chunk.len());
+            for nbrs in cursor {
+                let block = gather_tiles(grid, &nbrs);
                 mesh_block(&block, iso, &spec, scratch, &mut part);
             }
             progress(chunk.len());
@@ -335,26 +337,27 @@ pub fn isosurface_dtgrid(grid: &DtGrid, iso: f64) -> Result<TriangleMesh, MeshEr
     isosurface_tiles(&crate::build::tiles_from_dtgrid(grid), iso)
 }
 
-fn gather_tiles(grid: &TileGrid, pos: usize) -> Block {
-    let t = grid.tile_coords()[pos];
+/// The block of the tile at `nbrs.pos`, its neighbours found by the list walk of
+/// Algorithm 1 ([`NeighbourCursor`]) rather than by a search each.
+fn gather_tiles(grid: &TileGrid, nbrs: &Neighbours) -> Block {
+    let t = nbrs.coord;
     let tile = [t.x as i64, t.y as i64, t.z as i64];
     let mut stored = [false; 27];
     let mut src: [Option<&Tile>; 27] = [None; 27];
     // Beyond the representable tiles the grid is outside.
     let mut bg = [grid.gamma(); 27];
     for n in 0..27 {
+        if let Some(p) = nbrs.get(n) {
+            stored[n] = true;
+            src[n] = Some(grid.tile(p));
+            continue;
+        }
         let d = [(n % 3) as i64 - 1, ((n / 3) % 3) as i64 - 1, (n / 9) as i64 - 1];
         let nt = [tile[0] + d[0], tile[1] + d[1], tile[2] + d[2]];
         if nt.iter().all(|&c| (TILE_MIN as i64..=TILE_MAX as i64).contains(&c)) {
-            let c = Coord::new(nt[0] as i32, nt[1] as i32, nt[2] as i32);
-            match grid.find_tile(c) {
-                Ok(p) => {
-                    stored[n] = true;
-                    src[n] = Some(grid.tile(p));
-                }
-                // An absent tile reads ±γ with the sign the grid records for it.
-                Err(_) => bg[n] = grid.value(Coord::new(4 * c.x, 4 * c.y, 4 * c.z)),
-            }
+            // An absent tile reads ±γ with the sign the grid records for it.
+            let c = Coord::new(4 * nt[0] as i32, 4 * nt[1] as i32, 4 * nt[2] as i32);
+            bg[n] = grid.value(c);
         }
     }
     let split: [(i64, usize); B] = std::array::from_fn(axis_split);
