@@ -353,6 +353,7 @@ fn bad_input_is_an_error() {
     assert!(NdField::new(&[2; 6], 1, vec![0.0; 64]).is_err(), "n = 6");
     assert!(NdField::new(&[2; 3], 3, vec![0.0; 24]).is_err(), "m = n");
     assert!(NdField::new(&[2, 0, 2], 1, vec![]).is_err(), "empty axis");
+    assert!(NdField::from_fn(&[1 << 20, 1 << 20, 1 << 20], 1, |_, _| {}).is_err(), "too many");
     let spec = GridSpec::default();
     // ±∞ is a far-away distance (as read_npy accepts it), NaN an error.
     let mut d = DenseField::from_fn(Coord::new(-3, 0, 2), [9, 8, 9], |c| {

@@ -82,8 +82,14 @@ impl NdField {
         components: usize,
         mut f: impl FnMut(&[usize], &mut [f64]),
     ) -> Result<Self, MeshError> {
-        let total: usize = dims.iter().product();
-        let mut values = vec![0.0; total.saturating_mul(components)];
+        let total = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+        let len = total.and_then(|t| t.checked_mul(components)).filter(|&l| l <= u32::MAX as usize);
+        let Some(len) = len else {
+            return Err(MeshError::InvalidParameter(format!(
+                "dims {dims:?} with {components} components: more than 2^32 values"
+            )));
+        };
+        let mut values = vec![0.0; len];
         let mut x = vec![0usize; dims.len()];
         for chunk in values.chunks_exact_mut(components.max(1)) {
             f(&x, chunk);
@@ -428,6 +434,10 @@ pub fn isosurface_nd(field: &NdField) -> Result<SimplicialComplex, MeshError> {
                 out.append(&mut current);
             }
             stats.max_simplices_per_cell = stats.max_simplices_per_cell.max(in_cell);
+            // Node ids are u32; a cell adds at most a few thousand nodes.
+            if nodes.pos.len() / n > (u32::MAX - (1 << 20)) as usize {
+                return Err(MeshError::TooLarge(format!("more than {} vertices", u32::MAX)));
+            }
         }
         for (xi, &d) in a.iter_mut().zip(&cells) {
             *xi += 1;
