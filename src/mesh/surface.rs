@@ -7,8 +7,11 @@
 //! (125 cells). A cell belongs to the tile holding its first corner (corner order
 //! x, y, z bits) that lies in a stored tile, so every cell with a stored corner is meshed
 //! exactly once, including cells that straddle tiles or touch absent tiles (which read
-//! ±γ). Each tile gathers the values of its 8³ neighbourhood (the cells' corners plus one
-//! voxel for the central-difference normals) from its 26 neighbour tiles once.
+//! ±γ). Cells with no stored corner are not meshed: their corners read ±γ, and a sign
+//! change between absent tiles would need band voxels there, which a valid band has. Each
+//! tile gathers the values of its 8³ neighbourhood (the cells' corners plus one voxel for
+//! the central-difference normals) from its 26 neighbour tiles, found by the list walk of
+//! Algorithm 1.
 //!
 //! # Welding and determinism
 //! A vertex lies on a Kuhn edge from a voxel to voxel + d, d ∈ {0,1}³ \ {0}; its key is
