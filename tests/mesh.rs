@@ -102,6 +102,12 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
         let mt = isosurface_tiles(&tiles, 0.0).unwrap();
         assert!(mt.is_closed_manifold(), "{shape:?}");
+        // The box's faces lie on voxel planes: φ = 0 exactly at voxels, so vertices sit
+        // on voxels (the ε rule keeps them distinct and the mesh closed).
+        let on_voxel =
+            |p: &[f32; 3]| (0..3).all(|a| ((p[a] as f64 - spec.origin[a]) / 0.5).fract() == 0.0);
+        let exact = mt.positions.iter().filter(|p| on_voxel(p)).count();
+        assert_eq!(exact > 1000, matches!(shape, Shape::Box { .. }), "{shape:?}: {exact}");
         let (lo, hi) = tiles.bounding_box().unwrap();
         let origin = Coord::new(lo.x - 3, lo.y - 3, lo.z - 3);
         let dims = [hi.x - lo.x + 7, hi.y - lo.y + 7, hi.z - lo.z + 7].map(|d| d as usize);
