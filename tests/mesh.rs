@@ -478,6 +478,9 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
         "outside the band",
     );
     fails(&["mesh", "--voxel-size", "0", "-o", ply.to_str().unwrap()], "voxel size");
+    fails(&["mesh", "--center", "1,2", "-o", ply.to_str().unwrap()], "three comma-separated");
+    let s = ok(&["mesh", "--center", "-5.5,2,-3", "--radius", "6", "-o", out.to_str().unwrap()]);
+    assert!(s.contains("closed manifold: yes"), "{s}");
     // The failed runs left the earlier file alone.
     assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());
 }

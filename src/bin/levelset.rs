@@ -273,10 +273,12 @@ struct MeshArgs {
     #[arg(long, default_value_t = 20.0)]
     minor_radius: f64,
     /// Ellipsoid radii "a,b,c".
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [100.0, 70.0, 50.0])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [100.0, 70.0, 50.0])]
     radii: Vec<f64>,
     /// Box half extents "a,b,c".
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [60.0, 45.0, 30.0])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [60.0, 45.0, 30.0])]
     half_extents: Vec<f64>,
     /// Spiral extrusion depth.
     #[arg(long, default_value_t = 40.0)]
@@ -288,7 +290,8 @@ struct MeshArgs {
     #[arg(long)]
     thickness: Option<f64>,
     /// Shape centre "x,y,z" in world units.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [0.0, 0.0, 0.0])]
     center: Vec<f64>,
     /// Voxel edge length in world units (also of the --input field).
     #[arg(long, default_value_t = 1.0)]
@@ -577,6 +580,13 @@ fn run_mesh(a: &MeshArgs) -> Result<(), String> {
         (path.display().to_string(), m)
     } else {
         let kind = a.shape.unwrap_or(ShapeKind::Sphere);
+        for (name, v) in
+            [("center", &a.center), ("radii", &a.radii), ("half-extents", &a.half_extents)]
+        {
+            if v.len() != 3 {
+                return Err(format!("--{name} takes three comma-separated numbers \"x,y,z\""));
+            }
+        }
         let shape_args = InfoArgs {
             field: None,
             shape: Some(kind),
