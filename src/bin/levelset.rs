@@ -50,6 +50,9 @@ enum Command {
     Distance(DistanceArgs),
     /// Ray-trace the zero level set of a shape or a dense .npy field into a PNG.
     Render(RenderArgs),
+    /// Mesh the zero set of a shape or a dense .npy field (simplicial isosurfacing on the
+    /// Kuhn triangulation) into a PLY or OBJ file and report its size and checks.
+    Mesh(MeshArgs),
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -335,6 +338,64 @@ struct RenderArgs {
     /// No shadow rays.
     #[arg(long)]
     no_shadows: bool,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct MeshArgs {
+    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units).
+    #[arg(long, value_name = "FIELD.npy", conflicts_with = "shape")]
+    input: Option<PathBuf>,
+    /// Analytic shape to mesh (default: sphere, when no --input is given).
+    #[arg(long, value_enum)]
+    shape: Option<ShapeKind>,
+    /// Sphere radius, or the spiral's outer radius [default: sphere 100, spiral 50].
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Torus radius of the centre circle.
+    #[arg(long, default_value_t = 80.0)]
+    major_radius: f64,
+    /// Torus tube radius.
+    #[arg(long, default_value_t = 20.0)]
+    minor_radius: f64,
+    /// Ellipsoid radii "a,b,c".
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [100.0, 70.0, 50.0])]
+    radii: Vec<f64>,
+    /// Box half extents "a,b,c".
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [60.0, 45.0, 30.0])]
+    half_extents: Vec<f64>,
+    /// Spiral extrusion depth.
+    #[arg(long, default_value_t = 40.0)]
+    depth: f64,
+    /// Spiral turns (a multiple of 0.5).
+    #[arg(long, default_value_t = 2.0)]
+    turns: f64,
+    /// Spiral arm thickness [default: radius / 5].
+    #[arg(long)]
+    thickness: Option<f64>,
+    /// Shape centre "x,y,z" in world units.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [0.0, 0.0, 0.0])]
+    center: Vec<f64>,
+    /// Voxel edge length in world units (also of the --input field).
+    #[arg(long, default_value_t = 1.0)]
+    voxel_size: f32,
+    /// Band half-width γ in voxels.
+    #[arg(long, default_value_t = 3.0)]
+    half_width: f32,
+    /// The isovalue to mesh, in world units (inside the band, |iso| < γ, for shapes).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    iso: f64,
+    /// Output mesh: FILE.ply (binary unless --ascii) or FILE.obj.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Write ASCII PLY instead of binary.
+    #[arg(long)]
+    ascii: bool,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -761,6 +822,87 @@ fn run_render(a: &RenderArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn run_mesh(a: &MeshArgs) -> Result<(), String> {
+    use indicatif::{ProgressBar, ProgressStyle};
+    use sparse_levelset::mesh::{self, MeshFormat};
+    let format = MeshFormat::from_path(&a.output, a.ascii).map_err(|e| e.to_string())?;
+    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    if !a.iso.is_finite() {
+        return Err(format!("--iso must be finite, got {}", a.iso));
+    }
+    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let start = std::time::Instant::now();
+    let (source, m) = if let Some(path) = &a.input {
+        bar.set_message(format!("reading {}", path.display()));
+        let field = sparse_levelset::npy::read_npy(path).map_err(|e| e.to_string())?;
+        bar.set_message("meshing");
+        let m = mesh::isosurface_dense(&field, &spec, a.iso)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        (path.display().to_string(), m)
+    } else {
+        let kind = a.shape.unwrap_or(ShapeKind::Sphere);
+        for (name, v) in
+            [("center", &a.center), ("radii", &a.radii), ("half-extents", &a.half_extents)]
+        {
+            if v.len() != 3 {
+                return Err(format!("--{name} takes three comma-separated numbers \"x,y,z\""));
+            }
+        }
+        let shape_args = InfoArgs {
+            field: None,
+            shape: Some(kind),
+            radius: a.radius,
+            major_radius: a.major_radius,
+            minor_radius: a.minor_radius,
+            radii: a.radii.clone(),
+            half_extents: a.half_extents.clone(),
+            depth: a.depth,
+            turns: a.turns,
+            thickness: a.thickness,
+            center: a.center.clone(),
+            voxel_size: a.voxel_size,
+            half_width: a.half_width,
+            json: false,
+        };
+        let shape = shape_of(&shape_args, kind);
+        shape.validate().map_err(|e| e.to_string())?;
+        sparse_levelset::build::check_band_fits(&shape, &spec, 1.0).map_err(|e| e.to_string())?;
+        bar.set_message("building tiles");
+        let tiles =
+            sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
+        bar.set_length(tiles.len() as u64);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles",
+            )
+            .expect("valid template"),
+        );
+        let m = mesh::isosurface_tiles_with_progress(&tiles, a.iso, &|k| bar.inc(k as u64))
+            .map_err(|e| e.to_string())?;
+        (format!("{kind:?}").to_lowercase(), m)
+    };
+    bar.finish_and_clear();
+    if m.is_empty() {
+        return Err(format!("{source}: the level set has no surface at iso = {}", a.iso));
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    m.write(&a.output, Some(format)).map_err(|e| e.to_string())?;
+    let closed = m.is_closed_manifold();
+    outln!(
+        "{source}: {} vertices, {} triangles, area {:.6e}, enclosed volume {:.6e}, closed \
+         manifold: {}, Euler characteristic {} ({seconds:.3} s from input to mesh)",
+        m.num_vertices(),
+        m.num_triangles(),
+        m.area(),
+        m.enclosed_volume(),
+        if closed { "yes" } else { "no" },
+        m.euler_characteristic()
+    );
+    outln!("wrote {} ({format:?})", a.output.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -775,6 +917,7 @@ fn main() -> ExitCode {
         Some(Command::Run(a)) => run_scenario(&a),
         Some(Command::Distance(a)) => run_distance(&a),
         Some(Command::Render(a)) => run_render(&a),
+        Some(Command::Mesh(a)) => run_mesh(&a),
         None => run_bench(&BenchArgs { reps: 9, ..Default::default() }),
     };
     match result {

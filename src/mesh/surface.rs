@@ -1,0 +1,452 @@
+//! Triangle meshes of 3D level sets on the sparse grids and on dense fields: the n = 3,
+//! m = 1 case of [`super::isosurface_nd`] (Kuhn triangulation of each cell into six
+//! tetrahedra, Sec. 2.1; Table 2 via [`super::tables`]), run tile by tile in parallel.
+//!
+//! # Which cells, which tile
+//! A tile processes the cells whose lower corner lies in the tile or one voxel before it
+//! (125 cells). A cell belongs to the tile holding its first corner (corner order
+//! x, y, z bits) that lies in a stored tile, so every cell with a stored corner is meshed
+//! exactly once, including cells that straddle tiles or touch absent tiles (which read
+//! ±γ). Cells with no stored corner are not meshed: their corners read ±γ, and a sign
+//! change between absent tiles would need band voxels there, which a valid band has. Each
+//! tile gathers the values of its 8³ neighbourhood (the cells' corners plus one voxel for
+//! the central-difference normals) from its 26 neighbour tiles, found by the list walk of
+//! Algorithm 1.
+//!
+//! # Welding and determinism
+//! A vertex lies on a Kuhn edge from a voxel to voxel + d, d ∈ {0,1}³ \ {0}; its key is
+//! (voxel, d). Every tile that computes a vertex computes it from the same values with
+//! the same arithmetic, so copies are bitwise equal; the merged vertex list is sorted by
+//! key ((z, y, x) of the voxel, then d), so the mesh is the same for any thread count.
+
+use super::tables::pieces;
+use super::{MeshError, TriangleMesh};
+use crate::dense::DenseField;
+use crate::dtgrid::DtGrid;
+use crate::grid::GridSpec;
+use crate::tiles::{NeighbourCursor, Neighbours, Tile, TileGrid, TILE_MAX, TILE_MIN};
+use crate::Coord;
+use rayon::prelude::*;
+
+/// Side of the gathered block: a tile (4) plus 2 voxels before and after.
+const B: usize = 8;
+const BLOCK: usize = B * B * B;
+
+/// The six Kuhn tetrahedra of a cell: corner bit masks v₀ ⊂ v₁ ⊂ v₂ ⊂ v₃ (bit 0 = +x,
+/// 1 = +y, 2 = +z) and the sign of the permutation, i.e. the orientation of that vertex
+/// order (Sec. 2.1).
+const KUHN: [([u8; 4], i8); 6] = {
+    // Permutations of the axes in lexicographic order with their signs.
+    const PERMS: [([u8; 3], i8); 6] = [
+        ([0, 1, 2], 1),
+        ([0, 2, 1], -1),
+        ([1, 0, 2], -1),
+        ([1, 2, 0], 1),
+        ([2, 0, 1], 1),
+        ([2, 1, 0], -1),
+    ];
+    let mut out = [([0u8; 4], 0i8); 6];
+    let mut i = 0;
+    while i < 6 {
+        let (p, s) = PERMS[i];
+        let a = 1u8 << p[0];
+        let b = a | 1 << p[1];
+        out[i] = ([0, a, b, 7], s);
+        i += 1;
+    }
+    out
+};
+
+/// Offset in the block along one axis → (neighbour tile step −1..=1, local index).
+const fn axis_split(o: usize) -> (i64, usize) {
+    let c = o as i64 - 2;
+    (c.div_euclid(4), c.rem_euclid(4) as usize)
+}
+
+#[inline(always)]
+fn bidx(x: usize, y: usize, z: usize) -> usize {
+    x + B * (y + B * z)
+}
+
+/// Neighbour index of a block offset triple in the 3×3×3 tile neighbourhood.
+#[inline(always)]
+fn nbr_of(x: usize, y: usize, z: usize) -> usize {
+    let d = |o: usize| (axis_split(o).0 + 1) as usize;
+    d(x) + 3 * d(y) + 9 * d(z)
+}
+
+const BIAS: i64 = 1 << 33;
+
+/// Sort key of a Kuhn edge: voxel (z, y, x) then direction bits.
+#[inline]
+fn edge_key(v: [i64; 3], dir: u8) -> u128 {
+    let f = |c: i64| (c + BIAS) as u128;
+    (f(v[2]) << 73) | (f(v[1]) << 38) | (f(v[0]) << 3) | dir as u128
+}
+
+/// What one tile produced: its vertices (key, position, normal) and its triangles in
+/// local vertex indices.
+#[derive(Default)]
+struct Part {
+    verts: Vec<(u128, [f32; 3], [f32; 3])>,
+    tris: Vec<[u32; 3]>,
+}
+
+/// The neighbourhood of one tile: 8³ values and which of the 27 tiles are "stored"
+/// (own cells).
+struct Block {
+    tile: [i64; 3],
+    values: [f32; BLOCK],
+    stored: [bool; 27],
+}
+
+/// Scratch reused across the tiles one worker handles.
+struct Scratch {
+    /// Local vertex index of (edge lower corner offset − 1, direction), or `u32::MAX`.
+    slot: Vec<u32>,
+    used: Vec<usize>,
+}
+
+impl Scratch {
+    fn new() -> Self {
+        Scratch { slot: vec![u32::MAX; 6 * 6 * 6 * 8], used: Vec::new() }
+    }
+}
+
+/// Meshes the cells a block owns into `part`. `iso` is subtracted from every value.
+fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part: &mut Part) {
+    // Early out: no sign change anywhere in the block.
+    let first = (b.values[0] as f64) < iso;
+    if b.values.iter().all(|&v| ((v as f64) < iso) == first) {
+        return;
+    }
+    let h = spec.voxel_size as f64;
+    let base = [4 * b.tile[0] - 2, 4 * b.tile[1] - 2, 4 * b.tile[2] - 2];
+    let corner_off = |c: u8| [(c & 1) as usize, ((c >> 1) & 1) as usize, ((c >> 2) & 1) as usize];
+    for oz in 1..6 {
+        for oy in 1..6 {
+            for ox in 1..6 {
+                let mut v = [0f64; 8];
+                let mut neg = 0u8;
+                for c in 0..8u8 {
+                    let d = corner_off(c);
+                    v[c as usize] = b.values[bidx(ox + d[0], oy + d[1], oz + d[2])] as f64 - iso;
+                    neg |= ((v[c as usize] < 0.0) as u8) << c;
+                }
+                if neg == 0 || neg == 0xff {
+                    continue;
+                }
+                if ox == 1 || oy == 1 || oz == 1 {
+                    let owner = (0..8u8)
+                        .map(|c| {
+                            let d = corner_off(c);
+                            nbr_of(ox + d[0], oy + d[1], oz + d[2])
+                        })
+                        .find(|&n| b.stored[n]);
+                    if owner != Some(13) {
+                        continue;
+                    }
+                }
+                for (tet, sign) in KUHN {
+                    let mask = (0..4).fold(0u32, |m, i| m | (((neg >> tet[i]) & 1) as u32) << i);
+                    for piece in pieces(3, mask) {
+                        let mut tri = [0u32; 3];
+                        for (w, &(i, j)) in tri.iter_mut().zip(&piece.pairs) {
+                            let (cn, cp) = (tet[i as usize], tet[j as usize]);
+                            let (lo, hi) = if i < j { (cn, cp) } else { (cp, cn) };
+                            let dl = corner_off(lo);
+                            let (lx, ly, lz) = (ox + dl[0], oy + dl[1], oz + dl[2]);
+                            let dir = hi ^ lo;
+                            let s = (((lz - 1) * 6 + (ly - 1)) * 6 + (lx - 1)) * 8 + dir as usize;
+                            if scratch.slot[s] == u32::MAX {
+                                scratch.slot[s] = part.verts.len() as u32;
+                                scratch.used.push(s);
+                                let dn = corner_off(cn);
+                                let dp = corner_off(cp);
+                                let pn = [ox + dn[0], oy + dn[1], oz + dn[2]];
+                                let pp = [ox + dp[0], oy + dp[1], oz + dp[2]];
+                                part.verts.push(edge_vertex(b, base, pn, pp, iso, spec, h, dir));
+                            }
+                            *w = scratch.slot[s];
+                        }
+                        if (sign < 0) != piece.flip {
+                            tri.swap(0, 1);
+                        }
+                        part.tris.push(tri);
+                    }
+                }
+            }
+        }
+    }
+    for &s in &scratch.used {
+        scratch.slot[s] = u32::MAX;
+    }
+    scratch.used.clear();
+}
+
+/// The vertex of eq. (2) on the edge from block offset `pn` (φ < iso) to `pp` (φ ≥ iso),
+/// with its normal: the central-difference gradient at both ends, interpolated, unit.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn edge_vertex(
+    b: &Block,
+    base: [i64; 3],
+    pn: [usize; 3],
+    pp: [usize; 3],
+    iso: f64,
+    spec: &GridSpec,
+    h: f64,
+    dir: u8,
+) -> (u128, [f32; 3], [f32; 3]) {
+    let val = |p: [usize; 3]| b.values[bidx(p[0], p[1], p[2])] as f64;
+    let (vn, vp) = (val(pn) - iso, val(pp) - iso);
+    let t = vn / (vn - vp);
+    let grad = |p: [usize; 3]| -> [f64; 3] {
+        let mut g = [0.0; 3];
+        for (a, ga) in g.iter_mut().enumerate() {
+            let (mut lo, mut hi) = (p, p);
+            lo[a] -= 1;
+            hi[a] += 1;
+            *ga = val(hi) - val(lo);
+        }
+        g
+    };
+    let (gn, gp) = (grad(pn), grad(pp));
+    let mut pos = [0f32; 3];
+    let mut nrm = [0f64; 3];
+    for a in 0..3 {
+        let xn = (base[a] + pn[a] as i64) as f64;
+        let xp = (base[a] + pp[a] as i64) as f64;
+        let x = xn + t * (xp - xn);
+        pos[a] = (spec.origin[a] + h * x) as f32;
+        nrm[a] = gn[a] + t * (gp[a] - gn[a]);
+    }
+    let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
+    let nrm = if len > 0.0 && len.is_finite() { nrm.map(|c| (c / len) as f32) } else { [0.0; 3] };
+    let lower = if pn.iter().zip(&pp).all(|(a, b)| a <= b) { pn } else { pp };
+    let lower = [0, 1, 2].map(|a| base[a] + lower[a] as i64);
+    (edge_key(lower, dir), pos, nrm)
+}
+
+/// Merges the tiles' parts in tile order into one welded mesh: all vertex copies sorted
+/// by key (copies of one key are bitwise equal), numbered in key order, and every part's
+/// local indices mapped through that numbering.
+fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
+    let mut offsets = Vec::with_capacity(parts.len() + 1);
+    offsets.push(0usize);
+    for p in &parts {
+        offsets.push(offsets.last().unwrap() + p.verts.len());
+    }
+    let copies = *offsets.last().unwrap();
+    if copies > u32::MAX as usize {
+        return Err(MeshError::TooLarge(format!("{copies} vertex copies")));
+    }
+    // (key, index of the copy in part order)
+    let mut order: Vec<(u128, u32)> = parts
+        .iter()
+        .zip(&offsets)
+        .flat_map(|(p, &o)| p.verts.iter().enumerate().map(move |(i, v)| (v.0, (o + i) as u32)))
+        .collect();
+    order.par_sort_unstable_by_key(|e| e.0);
+    let copy = |i: u32| {
+        let p = offsets.partition_point(|&o| o <= i as usize) - 1;
+        &parts[p].verts[i as usize - offsets[p]]
+    };
+    let mut remap = vec![0u32; copies];
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut last = None;
+    for &(key, i) in &order {
+        if last != Some(key) {
+            let v = copy(i);
+            positions.push(v.1);
+            normals.push(v.2);
+            last = Some(key);
+        } else if cfg!(debug_assertions) {
+            let (a, b) = (copy(i), (positions.last().unwrap(), normals.last().unwrap()));
+            let bits = |p: &[f32; 3], n: &[f32; 3]| (p.map(f32::to_bits), n.map(f32::to_bits));
+            debug_assert_eq!(bits(&a.1, &a.2), bits(b.0, b.1), "copies of a vertex differ");
+        }
+        remap[i as usize] = (positions.len() - 1) as u32;
+    }
+    let triangles: Vec<[u32; 3]> = parts
+        .par_iter()
+        .zip(&offsets[..parts.len()])
+        .flat_map_iter(|(p, &o)| {
+            let remap = &remap;
+            p.tris.iter().map(move |t| t.map(|l| remap[o + l as usize]))
+        })
+        .collect();
+    let mut mesh = TriangleMesh { positions, normals, triangles };
+    mesh.fill_missing_normals();
+    Ok(mesh)
+}
+
+fn check_iso(iso: f64) -> Result<(), MeshError> {
+    if iso.is_finite() {
+        Ok(())
+    } else {
+        Err(MeshError::InvalidParameter(format!("iso value must be finite, got {iso}")))
+    }
+}
+
+/// The isosurface φ = `iso` of a tile grid as one welded, outward-oriented triangle mesh
+/// in world coordinates (see the module docs for the cells, welding and determinism).
+/// Values exactly equal to `iso` count as outside (the ε rule of Sec. 3), so the mesh of a
+/// level set inside the band is closed and manifold; `iso` must lie strictly inside
+/// (−γ, γ), where the band carries the surface. An empty level set gives an empty mesh.
+pub fn isosurface_tiles(grid: &TileGrid, iso: f64) -> Result<TriangleMesh, MeshError> {
+    isosurface_tiles_with_progress(grid, iso, &|_| {})
+}
+
+/// [`isosurface_tiles`] reporting progress: `progress(k)` is called after every finished
+/// chunk of k tiles (from worker threads; the sum of all k is the tile count).
+pub fn isosurface_tiles_with_progress(
+    grid: &TileGrid,
+    iso: f64,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<TriangleMesh, MeshError> {
+    check_iso(iso)?;
+    let g = grid.gamma() as f64;
+    if iso.abs() >= g {
+        return Err(MeshError::InvalidParameter(format!(
+            "iso value {iso} is outside the band (-{g}, {g}) that carries the level set"
+        )));
+    }
+    let spec = *grid.spec();
+    let coords = grid.tile_coords();
+    const CHUNK: usize = 64;
+    let parts: Vec<Part> = coords
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map_init(Scratch::new, |scratch, (ci, chunk)| {
+            let mut part = Part::default();
+            let start = ci * CHUNK;
+            let cursor = NeighbourCursor::new(coords, start, start + chunk.len());
+            for nbrs in cursor {
+                let block = gather_tiles(grid, &nbrs);
+                mesh_block(&block, iso, &spec, scratch, &mut part);
+            }
+            progress(chunk.len());
+            part
+        })
+        .collect();
+    merge(parts)
+}
+
+/// The isosurface of a DT-Grid, through its tile grid ([`crate::build::tiles_from_dtgrid`],
+/// same values, same mesh as [`isosurface_tiles`] on the equivalent tiles).
+pub fn isosurface_dtgrid(grid: &DtGrid, iso: f64) -> Result<TriangleMesh, MeshError> {
+    isosurface_tiles(&crate::build::tiles_from_dtgrid(grid), iso)
+}
+
+/// The block of the tile at `nbrs.pos`, its neighbours found by the list walk of
+/// Algorithm 1 ([`NeighbourCursor`]) rather than by a search each.
+fn gather_tiles(grid: &TileGrid, nbrs: &Neighbours) -> Block {
+    let t = nbrs.coord;
+    let tile = [t.x as i64, t.y as i64, t.z as i64];
+    let mut stored = [false; 27];
+    let mut src: [Option<&Tile>; 27] = [None; 27];
+    // Beyond the representable tiles the grid is outside.
+    let mut bg = [grid.gamma(); 27];
+    for n in 0..27 {
+        if let Some(p) = nbrs.get(n) {
+            stored[n] = true;
+            src[n] = Some(grid.tile(p));
+            continue;
+        }
+        let d = [(n % 3) as i64 - 1, ((n / 3) % 3) as i64 - 1, (n / 9) as i64 - 1];
+        let nt = [tile[0] + d[0], tile[1] + d[1], tile[2] + d[2]];
+        if nt.iter().all(|&c| (TILE_MIN as i64..=TILE_MAX as i64).contains(&c)) {
+            // An absent tile reads ±γ with the sign the grid records for it.
+            let c = Coord::new(4 * nt[0] as i32, 4 * nt[1] as i32, 4 * nt[2] as i32);
+            bg[n] = grid.value(c);
+        }
+    }
+    let split: [(i64, usize); B] = std::array::from_fn(axis_split);
+    let mut values = [0f32; BLOCK];
+    for z in 0..B {
+        for y in 0..B {
+            for x in 0..B {
+                let n = ((split[x].0 + 1) + 3 * (split[y].0 + 1) + 9 * (split[z].0 + 1)) as usize;
+                values[bidx(x, y, z)] = match src[n] {
+                    Some(tile) => tile.0[split[x].1 + 4 * split[y].1 + 16 * split[z].1],
+                    None => bg[n],
+                };
+            }
+        }
+    }
+    Block { tile, values, stored }
+}
+
+/// The isosurface φ = `iso` of a dense field, voxel size and origin from `spec` (the
+/// field's own origin places it on the voxel grid). Values beyond the array read as
+/// `iso + γ` (outside; for iso = 0 the `+γ` of [`crate::build::tiles_from_dense`]), so a
+/// surface that reaches the array's boundary is closed along it. ±∞ is a far-away
+/// distance (as in [`crate::npy::read_npy`]) and reads as `iso ± γ`. On the same values
+/// the mesh is the one [`isosurface_tiles`] makes (same cells, same arithmetic). Errors
+/// on NaN or a non-finite iso.
+pub fn isosurface_dense(
+    field: &DenseField,
+    spec: &GridSpec,
+    iso: f64,
+) -> Result<TriangleMesh, MeshError> {
+    check_iso(iso)?;
+    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
+        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    let outside = (iso + spec.gamma() as f64) as f32;
+    let inside = (iso - spec.gamma() as f64) as f32;
+    let o = field.origin();
+    let hi = field.max_coord();
+    let lo = [o.x as i64 - 1, o.y as i64 - 1, o.z as i64 - 1];
+    let hi = [hi.x as i64, hi.y as i64, hi.z as i64];
+    let tlo = lo.map(|c| c.div_euclid(4));
+    let thi = hi.map(|c| c.div_euclid(4));
+    let in_range = |t: [i64; 3]| (0..3).all(|a| (tlo[a]..=thi[a]).contains(&t[a]));
+    let tiles: Vec<[i64; 3]> = (tlo[2]..=thi[2])
+        .flat_map(|z| {
+            (tlo[1]..=thi[1]).flat_map(move |y| (tlo[0]..=thi[0]).map(move |x| [x, y, z]))
+        })
+        .collect();
+    let value = |c: [i64; 3]| -> f32 {
+        let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);
+        if c.iter().all(|&v| ok(v)) {
+            match field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)) {
+                Some(v) if v == f32::INFINITY => outside,
+                Some(v) if v == f32::NEG_INFINITY => inside,
+                Some(v) => v,
+                None => outside,
+            }
+        } else {
+            outside
+        }
+    };
+    let parts: Vec<Part> = tiles
+        .par_iter()
+        .map_init(Scratch::new, |scratch, &tile| {
+            let mut stored = [false; 27];
+            for (n, s) in stored.iter_mut().enumerate() {
+                let d = [(n % 3) as i64 - 1, ((n / 3) % 3) as i64 - 1, (n / 9) as i64 - 1];
+                *s = in_range([tile[0] + d[0], tile[1] + d[1], tile[2] + d[2]]);
+            }
+            let mut values = [0f32; BLOCK];
+            for z in 0..B {
+                for y in 0..B {
+                    for x in 0..B {
+                        let c = [
+                            4 * tile[0] - 2 + x as i64,
+                            4 * tile[1] - 2 + y as i64,
+                            4 * tile[2] - 2 + z as i64,
+                        ];
+                        values[bidx(x, y, z)] = value(c);
+                    }
+                }
+            }
+            let mut part = Part::default();
+            mesh_block(&Block { tile, values, stored }, iso, spec, scratch, &mut part);
+            part
+        })
+        .collect();
+    merge(parts)
+}
