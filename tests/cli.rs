@@ -458,9 +458,9 @@ fn run_reinitialises_by_fast_marching_on_both_grids() {
 }
 
 #[test]
-fn run_writes_render_frames() {
+fn run_writes_render_and_mesh_frames() {
     let (o, dir) = run_ok(
-        &["sphere", "--size", "32", "--steps", "4", "--render-every", "2"],
+        &["sphere", "--size", "32", "--steps", "4", "--render-every", "2", "--mesh-every", "4"],
         "run-render-frames",
     );
     for step in [0, 2, 4] {
@@ -468,8 +468,14 @@ fn run_writes_render_frames() {
         let bytes = std::fs::read(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     }
+    for step in [0, 4] {
+        let f = dir.join(format!("mesh-{step:06}.ply"));
+        let bytes = std::fs::read(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    }
     assert!(!dir.join("render-000001.png").exists());
-    assert!(String::from_utf8_lossy(&o.stdout).contains("wrote 3 frame file(s)"));
+    assert!(!dir.join("mesh-000002.ply").exists());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("wrote 5 frame file(s)"));
     let o = levelset(&["run", "sphere", "--grid", "dense", "--render-every", "1", "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("sparse grid"), "{}", stderr(&o));

@@ -183,6 +183,10 @@ struct RunArgs {
     /// fixed camera framing the initial surface with a margin; sparse grids).
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u64).range(1..))]
     render_every: Option<u64>,
+    /// Write the zero level set as a binary PLY mesh DIR/mesh-NNNNNN.ply of step 0 and
+    /// every K-th step (sparse grids).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u64).range(1..))]
+    mesh_every: Option<u64>,
     /// Output directory (created if needed).
     #[arg(long, value_name = "DIR", default_value = "out")]
     out: PathBuf,
@@ -549,10 +553,11 @@ fn run_speedup(a: &BenchArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// The frames `levelset run` writes while it steps (`--render-every`).
+/// The frames `levelset run` writes while it steps (`--render-every`, `--mesh-every`).
 struct Frames {
     dir: PathBuf,
     render_every: Option<u64>,
+    mesh_every: Option<u64>,
     /// The camera's frame box, fixed at the first frame.
     frame: Option<sparse_levelset::render::FrameBox>,
     written: usize,
@@ -560,22 +565,63 @@ struct Frames {
 
 impl Frames {
     fn new(a: &RunArgs) -> Result<Frames, String> {
-        if a.render_every.is_some() && matches!(a.grid, GridArg::Dense) {
-            return Err("--render-every needs a sparse grid (--grid tiles or dtgrid)".into());
+        if (a.render_every.is_some() || a.mesh_every.is_some()) && matches!(a.grid, GridArg::Dense)
+        {
+            return Err(
+                "--render-every and --mesh-every need a sparse grid (--grid tiles or dtgrid)"
+                    .into(),
+            );
         }
-        Ok(Frames { dir: a.out.clone(), render_every: a.render_every, frame: None, written: 0 })
+        Ok(Frames {
+            dir: a.out.clone(),
+            render_every: a.render_every,
+            mesh_every: a.mesh_every,
+            frame: None,
+            written: 0,
+        })
     }
 
     fn write(
         &mut self,
         sim: &sparse_levelset::evolve::Simulation,
     ) -> Result<(), sparse_levelset::evolve::EvolveError> {
+        let step = sim.steps();
+        if self.mesh_every.is_some_and(|k| step.is_multiple_of(k)) {
+            self.write_mesh(sim)?;
+        }
+        if self.render_every.is_some_and(|k| step.is_multiple_of(k)) {
+            self.write_render(sim)?;
+        }
+        Ok(())
+    }
+
+    fn write_mesh(
+        &mut self,
+        sim: &sparse_levelset::evolve::Simulation,
+    ) -> Result<(), sparse_levelset::evolve::EvolveError> {
+        use sparse_levelset::evolve::EvolveError;
+        use sparse_levelset::mesh::{isosurface_dtgrid, isosurface_tiles, MeshFormat};
+        let step = sim.steps();
+        let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("mesh {step}: {e}"));
+        let mesh = match (sim.tiles(), sim.dtgrid()) {
+            (Some(t), _) => isosurface_tiles(t, 0.0),
+            (_, Some(d)) => isosurface_dtgrid(d, 0.0),
+            _ => return Err(output(&"meshing needs a sparse grid")),
+        }
+        .map_err(|e| output(&e))?;
+        mesh.write(&self.dir.join(format!("mesh-{step:06}.ply")), Some(MeshFormat::PlyBinary))
+            .map_err(|e| output(&e))?;
+        self.written += 1;
+        Ok(())
+    }
+
+    fn write_render(
+        &mut self,
+        sim: &sparse_levelset::evolve::Simulation,
+    ) -> Result<(), sparse_levelset::evolve::EvolveError> {
         use sparse_levelset::evolve::EvolveError;
         use sparse_levelset::render::{render_dtgrid, render_tiles, FrameBox, RenderOptions};
         let step = sim.steps();
-        if !self.render_every.is_some_and(|k| step.is_multiple_of(k)) {
-            return Ok(());
-        }
         let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("frame {step}: {e}"));
         if self.frame.is_none() {
             // The initial surface's box with a margin of half its extent on every side:
