@@ -480,3 +480,21 @@ fn run_writes_render_and_mesh_frames() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("sparse grid"), "{}", stderr(&o));
 }
+
+#[test]
+fn shape_vectors_take_comma_separated_negative_numbers() {
+    let o = levelset(&[
+        "info",
+        "--shape",
+        "box",
+        "--center",
+        "-5.5,2,-3",
+        "--half-extents",
+        "10,8,6",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = levelset(&["info", "--shape", "ellipsoid", "--radii", "1,2"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("three comma-separated numbers"), "{}", stderr(&o));
+}

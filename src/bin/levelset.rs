@@ -256,12 +256,10 @@ enum ShapeKind {
     Spiral,
 }
 
+/// An analytic shape and its parameters (shared by `info`, `render` and `mesh`).
 #[derive(Args)]
-struct InfoArgs {
-    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units).
-    #[arg(conflicts_with = "shape")]
-    field: Option<PathBuf>,
-    /// Analytic shape to build (default: sphere, when no field is given).
+struct ShapeArgs {
+    /// Analytic shape (default: sphere, when no field is given).
     #[arg(long, value_enum)]
     shape: Option<ShapeKind>,
     /// Sphere radius, or the spiral's outer radius [default: sphere 100, spiral 50].
@@ -274,10 +272,12 @@ struct InfoArgs {
     #[arg(long, default_value_t = 20.0)]
     minor_radius: f64,
     /// Ellipsoid radii "a,b,c".
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [100.0, 70.0, 50.0])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [100.0, 70.0, 50.0])]
     radii: Vec<f64>,
     /// Box half extents "a,b,c".
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [60.0, 45.0, 30.0])]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [60.0, 45.0, 30.0])]
     half_extents: Vec<f64>,
     /// Spiral extrusion depth (papers: 40 for radius 50).
     #[arg(long, default_value_t = 40.0)]
@@ -288,9 +288,58 @@ struct InfoArgs {
     /// Spiral arm thickness [default: radius / 5].
     #[arg(long)]
     thickness: Option<f64>,
-    /// Shape centre "x,y,z" in world units.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
+    /// Shape centre "x,y,z" in world units (negative values are fine: --center -5,2,-3).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          default_values_t = [0.0, 0.0, 0.0])]
     center: Vec<f64>,
+}
+
+impl ShapeArgs {
+    /// The kind asked for (sphere by default).
+    fn kind(&self) -> ShapeKind {
+        self.shape.unwrap_or(ShapeKind::Sphere)
+    }
+
+    /// The shape, validated; vectors must have three components.
+    fn build(&self) -> Result<Shape, String> {
+        let a = self;
+        let v3 = |name: &str, v: &[f64]| -> Result<[f64; 3], String> {
+            <[f64; 3]>::try_from(v)
+                .map_err(|_| format!("--{name} takes three comma-separated numbers \"x,y,z\""))
+        };
+        let center = v3("center", &a.center)?;
+        let shape = match a.kind() {
+            ShapeKind::Sphere => Shape::Sphere { center, radius: a.radius.unwrap_or(100.0) },
+            ShapeKind::Torus => {
+                Shape::Torus { center, major_radius: a.major_radius, minor_radius: a.minor_radius }
+            }
+            ShapeKind::Box => {
+                Shape::Box { center, half_extents: v3("half-extents", &a.half_extents)? }
+            }
+            ShapeKind::Ellipsoid => Shape::Ellipsoid { center, radii: v3("radii", &a.radii)? },
+            ShapeKind::Spiral => {
+                let radius = a.radius.unwrap_or(50.0);
+                Shape::Spiral {
+                    center,
+                    radius,
+                    depth: a.depth,
+                    turns: a.turns,
+                    thickness: a.thickness.unwrap_or(radius / 5.0),
+                }
+            }
+        };
+        shape.validate().map_err(|e| e.to_string())?;
+        Ok(shape)
+    }
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units).
+    #[arg(conflicts_with = "shape")]
+    field: Option<PathBuf>,
+    #[command(flatten)]
+    shape: ShapeArgs,
     /// Voxel edge length in world units.
     #[arg(long, default_value_t = 1.0)]
     voxel_size: f32,
@@ -352,39 +401,8 @@ struct MeshArgs {
     /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units).
     #[arg(long, value_name = "FIELD.npy", conflicts_with = "shape")]
     input: Option<PathBuf>,
-    /// Analytic shape to mesh (default: sphere, when no --input is given).
-    #[arg(long, value_enum)]
-    shape: Option<ShapeKind>,
-    /// Sphere radius, or the spiral's outer radius [default: sphere 100, spiral 50].
-    #[arg(long)]
-    radius: Option<f64>,
-    /// Torus radius of the centre circle.
-    #[arg(long, default_value_t = 80.0)]
-    major_radius: f64,
-    /// Torus tube radius.
-    #[arg(long, default_value_t = 20.0)]
-    minor_radius: f64,
-    /// Ellipsoid radii "a,b,c".
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
-          default_values_t = [100.0, 70.0, 50.0])]
-    radii: Vec<f64>,
-    /// Box half extents "a,b,c".
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
-          default_values_t = [60.0, 45.0, 30.0])]
-    half_extents: Vec<f64>,
-    /// Spiral extrusion depth.
-    #[arg(long, default_value_t = 40.0)]
-    depth: f64,
-    /// Spiral turns (a multiple of 0.5).
-    #[arg(long, default_value_t = 2.0)]
-    turns: f64,
-    /// Spiral arm thickness [default: radius / 5].
-    #[arg(long)]
-    thickness: Option<f64>,
-    /// Shape centre "x,y,z" in world units.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
-          default_values_t = [0.0, 0.0, 0.0])]
-    center: Vec<f64>,
+    #[command(flatten)]
+    shape: ShapeArgs,
     /// Voxel edge length in world units (also of the --input field).
     #[arg(long, default_value_t = 1.0)]
     voxel_size: f32,
@@ -405,32 +423,6 @@ struct MeshArgs {
     quiet: bool,
 }
 
-fn arr3(v: &[f64]) -> [f64; 3] {
-    [v[0], v[1], v[2]]
-}
-
-fn shape_of(a: &InfoArgs, kind: ShapeKind) -> Shape {
-    let center = arr3(&a.center);
-    match kind {
-        ShapeKind::Sphere => Shape::Sphere { center, radius: a.radius.unwrap_or(100.0) },
-        ShapeKind::Torus => {
-            Shape::Torus { center, major_radius: a.major_radius, minor_radius: a.minor_radius }
-        }
-        ShapeKind::Box => Shape::Box { center, half_extents: arr3(&a.half_extents) },
-        ShapeKind::Ellipsoid => Shape::Ellipsoid { center, radii: arr3(&a.radii) },
-        ShapeKind::Spiral => {
-            let radius = a.radius.unwrap_or(50.0);
-            Shape::Spiral {
-                center,
-                radius,
-                depth: a.depth,
-                turns: a.turns,
-                thickness: a.thickness.unwrap_or(radius / 5.0),
-            }
-        }
-    }
-}
-
 fn run_info(a: &InfoArgs) -> Result<InfoReport, String> {
     let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     if let Some(path) = &a.field {
@@ -438,9 +430,8 @@ fn run_info(a: &InfoArgs) -> Result<InfoReport, String> {
         return info_from_dense(&path.display().to_string(), &field, spec)
             .map_err(|e| format!("{}: {e}", path.display()));
     }
-    let kind = a.shape.unwrap_or(ShapeKind::Sphere);
-    let shape = shape_of(a, kind);
-    shape.validate().map_err(|e| e.to_string())?;
+    let kind = a.shape.kind();
+    let shape = a.shape.build()?;
     sparse_levelset::build::check_band_fits(&shape, &spec, 1.0).map_err(|e| e.to_string())?;
     let name = format!("{kind:?}").to_lowercase();
     info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())
@@ -816,9 +807,8 @@ fn run_render(a: &RenderArgs) -> Result<(), String> {
             .map_err(|e| format!("{}: {e}", path.display()))?;
         (path.display().to_string(), tiles)
     } else {
-        let kind = i.shape.unwrap_or(ShapeKind::Sphere);
-        let shape = shape_of(i, kind);
-        shape.validate().map_err(|e| e.to_string())?;
+        let kind = i.shape.kind();
+        let shape = i.shape.build()?;
         build::check_band_fits(&shape, &spec, 1.0).map_err(|e| e.to_string())?;
         let tiles = build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
         (format!("{kind:?}").to_lowercase(), tiles)
@@ -887,32 +877,8 @@ fn run_mesh(a: &MeshArgs) -> Result<(), String> {
             .map_err(|e| format!("{}: {e}", path.display()))?;
         (path.display().to_string(), m)
     } else {
-        let kind = a.shape.unwrap_or(ShapeKind::Sphere);
-        for (name, v) in
-            [("center", &a.center), ("radii", &a.radii), ("half-extents", &a.half_extents)]
-        {
-            if v.len() != 3 {
-                return Err(format!("--{name} takes three comma-separated numbers \"x,y,z\""));
-            }
-        }
-        let shape_args = InfoArgs {
-            field: None,
-            shape: Some(kind),
-            radius: a.radius,
-            major_radius: a.major_radius,
-            minor_radius: a.minor_radius,
-            radii: a.radii.clone(),
-            half_extents: a.half_extents.clone(),
-            depth: a.depth,
-            turns: a.turns,
-            thickness: a.thickness,
-            center: a.center.clone(),
-            voxel_size: a.voxel_size,
-            half_width: a.half_width,
-            json: false,
-        };
-        let shape = shape_of(&shape_args, kind);
-        shape.validate().map_err(|e| e.to_string())?;
+        let kind = a.shape.kind();
+        let shape = a.shape.build()?;
         sparse_levelset::build::check_band_fits(&shape, &spec, 1.0).map_err(|e| e.to_string())?;
         bar.set_message("building tiles");
         let tiles =
