@@ -142,11 +142,11 @@ impl<C: Cost> Marcher<C> {
         inside: bool,
     ) -> Result<(), FmmError> {
         let id = self.store.find_or_insert(c) as usize;
-        if self.store.state[id] & 3 == FROZEN {
+        if self.store.vox[id].state & 3 == FROZEN {
             return Ok(());
         }
-        self.store.value[id] = value;
-        self.store.state[id] = FROZEN | if inside { INSIDE } else { 0 };
+        self.store.vox[id].value = value;
+        self.store.vox[id].state = FROZEN | if inside { INSIDE } else { 0 };
         self.initial.push(c);
         self.check_memory()
     }
@@ -234,13 +234,13 @@ impl<C: Cost> Marcher<C> {
         let mut trial = Vec::new();
         for &c in &initial {
             let id = self.store.find(c).expect("frozen voxels are stored") as usize;
-            let inside = self.store.state[id] & INSIDE;
+            let inside = self.store.vox[id].state & INSIDE;
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
                     let nid = self.store.step_or_insert(id as u32, axis, d, n) as usize;
-                    if self.store.state[nid] == FAR {
-                        self.store.state[nid] = TRIAL | inside;
+                    if self.store.vox[nid].state == FAR {
+                        self.store.vox[nid].state = TRIAL | inside;
                         trial.push(n);
                     }
                 }
@@ -250,9 +250,9 @@ impl<C: Cost> Marcher<C> {
         self.initial = initial;
         for &c in &trial {
             let id = self.store.find(c).expect("trial voxels are stored");
-            let inside = self.store.state[id as usize] & INSIDE != 0;
+            let inside = self.store.vox[id as usize].state & INSIDE != 0;
             let t = self.update::<SECOND>(c, id, inside)?;
-            self.store.handle[id as usize] = self.heap.push(t, c, id);
+            self.store.vox[id as usize].handle = self.heap.push(t, c, id);
         }
         // The loop.
         while let Some(key) = self.heap.peek_key() {
@@ -260,28 +260,28 @@ impl<C: Cost> Marcher<C> {
                 break;
             }
             let (t, c, id) = self.heap.pop().expect("non-empty");
-            let inside_bit = self.store.state[id as usize] & INSIDE;
+            let inside_bit = self.store.vox[id as usize].state & INSIDE;
             let inside = inside_bit != 0;
-            self.store.state[id as usize] = FROZEN | inside_bit;
-            self.store.value[id as usize] = if inside { -t } else { t };
+            self.store.vox[id as usize].state = FROZEN | inside_bit;
+            self.store.vox[id as usize].value = if inside { -t } else { t };
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
                     let nid = self.store.step_or_insert(id, axis, d, n) as usize;
-                    match self.store.state[nid] & 3 {
+                    match self.store.vox[nid].state & 3 {
                         FROZEN => {}
                         TRIAL => {
-                            let inside_n = self.store.state[nid] & INSIDE != 0;
+                            let inside_n = self.store.vox[nid].state & INSIDE != 0;
                             let t = self.update::<SECOND>(n, nid as u32, inside_n)?;
-                            let h = self.store.handle[nid];
+                            let h = self.store.vox[nid].handle;
                             if self.heap.key(h) != t {
                                 self.heap.update(h, t);
                             }
                         }
                         _ => {
-                            self.store.state[nid] = TRIAL | inside_bit;
+                            self.store.vox[nid].state = TRIAL | inside_bit;
                             let t = self.update::<SECOND>(n, nid as u32, inside)?;
-                            self.store.handle[nid] = self.heap.push(t, n, nid as u32);
+                            self.store.vox[nid].handle = self.heap.push(t, n, nid as u32);
                         }
                     }
                 }
