@@ -164,6 +164,11 @@ impl<C: Cost> Marcher<C> {
     /// resets `val2` when the *other* neighbour of the axis is not frozen, which would
     /// throw away a valid second-order difference; the text of Sec. 4 does not, and
     /// neither does this.)
+    ///
+    /// Neighbours are read through the store without range or domain checks: only
+    /// voxels inside the domain and the i32 range are ever frozen (the march creates
+    /// voxels through [`Marcher::step`]), and no block beyond the range exists, so a
+    /// neighbour that does not exist never reads as frozen.
     #[inline]
     fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
@@ -173,19 +178,13 @@ impl<C: Cost> Marcher<C> {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                if self.step(c, axis, d).is_none() {
-                    continue;
-                }
                 let Some(t1) = self.store.frozen_step(id, axis, d) else { continue };
                 let t1 = s * t1;
                 if t1 < v1 {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some(t2) = self
-                            .step(c, axis, 2 * d)
-                            .and_then(|_| self.store.frozen_step(id, axis, 2 * d))
-                        {
+                        if let Some(t2) = self.store.frozen_step(id, axis, 2 * d) {
                             let t2 = s * t2;
                             if t2 <= t1 {
                                 v2 = Some(t2);

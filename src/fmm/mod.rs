@@ -20,9 +20,9 @@
 //! * **Interface initialisation**: the frozen set is every voxel with a 6-neighbour of
 //!   the other sign (Sec. 4, the ellipsoid experiment), on both sides. The paper gives
 //!   these voxels exact foot-point distances; from a sampled field they get `|φ|/|∇φ|`
-//!   (central differences), capped by the linearly interpolated edge crossings (see
-//!   [`FmmOptions`]). Inside and outside march separately (arrival time `−φ` inside,
-//!   `φ` outside), so signs are preserved.
+//!   (central differences; one-sided next to a clamped ±γ value), capped by the linearly
+//!   interpolated zero crossings on the voxel's edges. Inside and outside march
+//!   separately (arrival time `−φ` inside, `φ` outside), so signs are preserved.
 //! * **Determinism**: the march is sequential and heap ties are broken by coordinate,
 //!   so the result does not depend on the thread count, on insertion order or on the
 //!   input grid type: tiles and DT-Grid give the same values bit for bit.
@@ -67,7 +67,7 @@ pub enum Order {
     /// First-order one-sided differences (Sec. 3).
     First,
     /// Second-order one-sided differences where the voxel two steps away is frozen,
-    /// first order elsewhere (Sec. 4, the "high accuracy" FMM).
+    /// first order elsewhere (Sec. 4, the "high accuracy" FMM). The default.
     #[default]
     Second,
 }
