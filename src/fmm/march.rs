@@ -3,7 +3,7 @@
 //! Appendix A (second order, the "high accuracy" FMM).
 
 use super::heap::IndexedHeap;
-use super::store::{Store, FAR, FROZEN, INSIDE, TRIAL};
+use super::store::{Store, FAR, FROZEN, INITIAL, INSIDE, TRIAL};
 use super::FmmError;
 use crate::coord::Coord;
 
@@ -146,7 +146,7 @@ impl<C: Cost> Marcher<C> {
             return Ok(());
         }
         self.store.vox[id].value = value;
-        self.store.vox[id].state = FROZEN | if inside { INSIDE } else { 0 };
+        self.store.vox[id].state = FROZEN | INITIAL | if inside { INSIDE } else { 0 };
         self.initial.push(c);
         self.check_memory()
     }
@@ -169,24 +169,37 @@ impl<C: Cost> Marcher<C> {
     /// voxels inside the domain and the i32 range are ever frozen (the march creates
     /// voxels through [`Marcher::step`]), and no block beyond the range exists, so a
     /// neighbour that does not exist never reads as frozen.
+    ///
+    /// A voxel reads only frozen voxels of its own side, and the initial (interface)
+    /// voxels of either side, whose signed values continue the distance across the
+    /// interface (they serve as `G[x−2]` of the second-order difference). Should the
+    /// input have a sign change the interface layer missed (a band that does not separate
+    /// inside from outside), the two sides still cannot feed each other beyond that
+    /// layer, so arrival times keep growing away from it and the march stays within the
+    /// half-width.
     #[inline]
     fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
+        let side = if inside { INSIDE } else { 0 };
+        let usable = |st: u8| st & INITIAL != 0 || st & INSIDE == side;
         let mut terms = [Term { a: 0.0, k: 0.0 }; 3];
         let mut n = 0;
         for axis in 0..3 {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                let Some(t1) = self.store.frozen_step(id, axis, d) else { continue };
+                let Some((t1, st1)) = self.store.frozen_step(id, axis, d) else { continue };
+                if !usable(st1) {
+                    continue;
+                }
                 let t1 = s * t1;
                 if t1 < v1 {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some(t2) = self.store.frozen_step(id, axis, 2 * d) {
+                        if let Some((t2, st2)) = self.store.frozen_step(id, axis, 2 * d) {
                             let t2 = s * t2;
-                            if t2 <= t1 {
+                            if usable(st2) && t2 <= t1 {
                                 v2 = Some(t2);
                             }
                         }
@@ -201,7 +214,11 @@ impl<C: Cost> Marcher<C> {
                 n += 1;
             }
         }
-        debug_assert!(n > 0, "update of a voxel without a frozen neighbour");
+        if n == 0 {
+            // Only reachable from a frozen neighbour of the other side (an interface the
+            // initialisation missed): no usable value, so the voxel stays out of reach.
+            return Ok(f64::INFINITY);
+        }
         let cost = self.cost.cost(c)?;
         Ok(solve_terms(&mut terms[..n], cost))
     }
@@ -229,7 +246,11 @@ impl<C: Cost> Marcher<C> {
         // Initialisation: every non-frozen neighbour of the frozen set becomes trial with
         // the value computed from all frozen voxels (so the order of `initial` does not
         // matter).
-        let initial = std::mem::take(&mut self.initial);
+        // Sorted, so that a voxel next to initial voxels of both sides (possible only when
+        // the input's interface layer is incomplete) takes its side by coordinate order,
+        // whatever order the input listed them in.
+        let mut initial = std::mem::take(&mut self.initial);
+        initial.sort_unstable();
         let mut trial = Vec::new();
         for &c in &initial {
             let id = self.store.find(c).expect("frozen voxels are stored") as usize;

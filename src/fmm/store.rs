@@ -25,6 +25,8 @@ pub(crate) const TRIAL: u8 = 1;
 pub(crate) const FROZEN: u8 = 2;
 /// Flag bit: the voxel lies on the inside (φ < 0); its arrival time is −φ.
 pub(crate) const INSIDE: u8 = 4;
+/// Flag bit: the voxel belongs to the initial frozen set (the interface layer).
+pub(crate) const INITIAL: u8 = 8;
 const STATE_MASK: u8 = 3;
 /// No block.
 const NONE: u32 = u32::MAX;
@@ -190,17 +192,13 @@ impl Store {
         }
     }
 
-    /// The value of the voxel `d` steps along `axis` from voxel `id`, if it is frozen.
+    /// The value and full state of the voxel `d` steps along `axis` from voxel `id`, if
+    /// it is frozen.
     #[inline(always)]
-    pub(crate) fn frozen_step(&self, id: u32, axis: usize, d: i32) -> Option<f64> {
+    pub(crate) fn frozen_step(&self, id: u32, axis: usize, d: i32) -> Option<(f64, u8)> {
         let nid = self.step(id, axis, d)?;
-        (self.state_of(nid) == FROZEN).then(|| self.vox[nid as usize].value)
-    }
-
-    /// State of voxel `id` without the inside flag.
-    #[inline]
-    pub(crate) fn state_of(&self, id: u32) -> u8 {
-        self.vox[id as usize].state & STATE_MASK
+        let v = &self.vox[nid as usize];
+        (v.state & STATE_MASK == FROZEN).then_some((v.value, v.state))
     }
 
     /// Block coordinates sorted in [`Coord`] order, with their block indices.
