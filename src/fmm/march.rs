@@ -51,7 +51,20 @@ pub(crate) struct Term {
 #[inline]
 pub(crate) fn solve_terms(terms: &mut [Term], cost: f64) -> f64 {
     debug_assert!(!terms.is_empty() && terms.len() <= 3);
-    terms.sort_unstable_by(|x, y| x.k.total_cmp(&y.k));
+    // Sorting network for at most three terms (a library sort call costs more here).
+    let n = terms.len();
+    let mut swap = |i: usize, j: usize| {
+        if terms[j].k < terms[i].k {
+            terms.swap(i, j);
+        }
+    };
+    if n >= 2 {
+        swap(0, 1);
+    }
+    if n == 3 {
+        swap(1, 2);
+        swap(0, 1);
+    }
     let k0 = terms[0].k;
     let c2 = cost * cost;
     let mut n = terms.len();
@@ -246,11 +259,7 @@ impl<C: Cost> Marcher<C> {
         // Initialisation: every non-frozen neighbour of the frozen set becomes trial with
         // the value computed from all frozen voxels (so the order of `initial` does not
         // matter).
-        // Sorted, so that a voxel next to initial voxels of both sides (possible only when
-        // the input's interface layer is incomplete) takes its side by coordinate order,
-        // whatever order the input listed them in.
-        let mut initial = std::mem::take(&mut self.initial);
-        initial.sort_unstable();
+        let initial = std::mem::take(&mut self.initial);
         let mut trial = Vec::new();
         for &c in &initial {
             let id = self.store.find(c).expect("frozen voxels are stored") as usize;
@@ -259,9 +268,15 @@ impl<C: Cost> Marcher<C> {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
                     let nid = self.store.step_or_insert(id as u32, axis, d, n) as usize;
-                    if self.store.vox[nid].state == FAR {
-                        self.store.vox[nid].state = TRIAL | inside;
+                    let st = &mut self.store.vox[nid].state;
+                    if *st == FAR {
+                        *st = TRIAL | inside;
                         trial.push(n);
+                    } else if *st & 3 == TRIAL {
+                        // Next to initial voxels of both sides (only when the input's
+                        // interface layer missed a sign change): outside wins, whatever
+                        // the order of `initial`.
+                        *st &= !INSIDE | inside;
                     }
                 }
             }
