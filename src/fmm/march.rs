@@ -3,7 +3,7 @@
 //! Appendix A (second order, the "high accuracy" FMM).
 
 use super::heap::IndexedHeap;
-use super::store::{Store, FAR, FROZEN, INSIDE, TRIAL};
+use super::store::{Store, FAR, FROZEN, INITIAL, INSIDE, TRIAL};
 use super::FmmError;
 use crate::coord::Coord;
 
@@ -51,7 +51,20 @@ pub(crate) struct Term {
 #[inline]
 pub(crate) fn solve_terms(terms: &mut [Term], cost: f64) -> f64 {
     debug_assert!(!terms.is_empty() && terms.len() <= 3);
-    terms.sort_unstable_by(|x, y| x.k.total_cmp(&y.k));
+    // Sorting network for at most three terms (a library sort call costs more here).
+    let n = terms.len();
+    let mut swap = |i: usize, j: usize| {
+        if terms[j].k < terms[i].k {
+            terms.swap(i, j);
+        }
+    };
+    if n >= 2 {
+        swap(0, 1);
+    }
+    if n == 3 {
+        swap(1, 2);
+        swap(0, 1);
+    }
     let k0 = terms[0].k;
     let c2 = cost * cost;
     let mut n = terms.len();
@@ -142,11 +155,11 @@ impl<C: Cost> Marcher<C> {
         inside: bool,
     ) -> Result<(), FmmError> {
         let id = self.store.find_or_insert(c) as usize;
-        if self.store.state[id] & 3 == FROZEN {
+        if self.store.vox[id].state & 3 == FROZEN {
             return Ok(());
         }
-        self.store.value[id] = value;
-        self.store.state[id] = FROZEN | if inside { INSIDE } else { 0 };
+        self.store.vox[id].value = value;
+        self.store.vox[id].state = FROZEN | INITIAL | if inside { INSIDE } else { 0 };
         self.initial.push(c);
         self.check_memory()
     }
@@ -164,30 +177,42 @@ impl<C: Cost> Marcher<C> {
     /// resets `val2` when the *other* neighbour of the axis is not frozen, which would
     /// throw away a valid second-order difference; the text of Sec. 4 does not, and
     /// neither does this.)
+    ///
+    /// Neighbours are read through the store without range or domain checks: only
+    /// voxels inside the domain and the i32 range are ever frozen (the march creates
+    /// voxels through [`Marcher::step`]), and no block beyond the range exists, so a
+    /// neighbour that does not exist never reads as frozen.
+    ///
+    /// A voxel reads only frozen voxels of its own side, and the initial (interface)
+    /// voxels of either side, whose signed values continue the distance across the
+    /// interface (they serve as `G[x−2]` of the second-order difference). Should the
+    /// input have a sign change the interface layer missed (a band that does not separate
+    /// inside from outside), the two sides still cannot feed each other beyond that
+    /// layer, so arrival times keep growing away from it and the march stays within the
+    /// half-width.
     #[inline]
     fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
+        let side = if inside { INSIDE } else { 0 };
+        let usable = |st: u8| st & INITIAL != 0 || st & INSIDE == side;
         let mut terms = [Term { a: 0.0, k: 0.0 }; 3];
         let mut n = 0;
         for axis in 0..3 {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                if self.step(c, axis, d).is_none() {
+                let Some((t1, st1)) = self.store.frozen_step(id, axis, d) else { continue };
+                if !usable(st1) {
                     continue;
                 }
-                let Some(t1) = self.store.frozen_step(id, axis, d) else { continue };
                 let t1 = s * t1;
                 if t1 < v1 {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some(t2) = self
-                            .step(c, axis, 2 * d)
-                            .and_then(|_| self.store.frozen_step(id, axis, 2 * d))
-                        {
+                        if let Some((t2, st2)) = self.store.frozen_step(id, axis, 2 * d) {
                             let t2 = s * t2;
-                            if t2 <= t1 {
+                            if usable(st2) && t2 <= t1 {
                                 v2 = Some(t2);
                             }
                         }
@@ -202,7 +227,11 @@ impl<C: Cost> Marcher<C> {
                 n += 1;
             }
         }
-        debug_assert!(n > 0, "update of a voxel without a frozen neighbour");
+        if n == 0 {
+            // Only reachable from a frozen neighbour of the other side (an interface the
+            // initialisation missed): no usable value, so the voxel stays out of reach.
+            return Ok(f64::INFINITY);
+        }
         let cost = self.cost.cost(c)?;
         Ok(solve_terms(&mut terms[..n], cost))
     }
@@ -234,14 +263,20 @@ impl<C: Cost> Marcher<C> {
         let mut trial = Vec::new();
         for &c in &initial {
             let id = self.store.find(c).expect("frozen voxels are stored") as usize;
-            let inside = self.store.state[id] & INSIDE;
+            let inside = self.store.vox[id].state & INSIDE;
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
                     let nid = self.store.step_or_insert(id as u32, axis, d, n) as usize;
-                    if self.store.state[nid] == FAR {
-                        self.store.state[nid] = TRIAL | inside;
+                    let st = &mut self.store.vox[nid].state;
+                    if *st == FAR {
+                        *st = TRIAL | inside;
                         trial.push(n);
+                    } else if *st & 3 == TRIAL {
+                        // Next to initial voxels of both sides (only when the input's
+                        // interface layer missed a sign change): outside wins, whatever
+                        // the order of `initial`.
+                        *st &= !INSIDE | inside;
                     }
                 }
             }
@@ -250,9 +285,9 @@ impl<C: Cost> Marcher<C> {
         self.initial = initial;
         for &c in &trial {
             let id = self.store.find(c).expect("trial voxels are stored");
-            let inside = self.store.state[id as usize] & INSIDE != 0;
+            let inside = self.store.vox[id as usize].state & INSIDE != 0;
             let t = self.update::<SECOND>(c, id, inside)?;
-            self.store.handle[id as usize] = self.heap.push(t, c, id);
+            self.store.vox[id as usize].handle = self.heap.push(t, c, id);
         }
         // The loop.
         while let Some(key) = self.heap.peek_key() {
@@ -260,28 +295,28 @@ impl<C: Cost> Marcher<C> {
                 break;
             }
             let (t, c, id) = self.heap.pop().expect("non-empty");
-            let inside_bit = self.store.state[id as usize] & INSIDE;
+            let inside_bit = self.store.vox[id as usize].state & INSIDE;
             let inside = inside_bit != 0;
-            self.store.state[id as usize] = FROZEN | inside_bit;
-            self.store.value[id as usize] = if inside { -t } else { t };
+            self.store.vox[id as usize].state = FROZEN | inside_bit;
+            self.store.vox[id as usize].value = if inside { -t } else { t };
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
                     let nid = self.store.step_or_insert(id, axis, d, n) as usize;
-                    match self.store.state[nid] & 3 {
+                    match self.store.vox[nid].state & 3 {
                         FROZEN => {}
                         TRIAL => {
-                            let inside_n = self.store.state[nid] & INSIDE != 0;
+                            let inside_n = self.store.vox[nid].state & INSIDE != 0;
                             let t = self.update::<SECOND>(n, nid as u32, inside_n)?;
-                            let h = self.store.handle[nid];
+                            let h = self.store.vox[nid].handle;
                             if self.heap.key(h) != t {
                                 self.heap.update(h, t);
                             }
                         }
                         _ => {
-                            self.store.state[nid] = TRIAL | inside_bit;
+                            self.store.vox[nid].state = TRIAL | inside_bit;
                             let t = self.update::<SECOND>(n, nid as u32, inside)?;
-                            self.store.handle[nid] = self.heap.push(t, n, nid as u32);
+                            self.store.vox[nid].handle = self.heap.push(t, n, nid as u32);
                         }
                     }
                 }

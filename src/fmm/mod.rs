@@ -20,9 +20,9 @@
 //! * **Interface initialisation**: the frozen set is every voxel with a 6-neighbour of
 //!   the other sign (Sec. 4, the ellipsoid experiment), on both sides. The paper gives
 //!   these voxels exact foot-point distances; from a sampled field they get `|φ|/|∇φ|`
-//!   (central differences), capped by the linearly interpolated edge crossings (see
-//!   [`FmmOptions`]). Inside and outside march separately (arrival time `−φ` inside,
-//!   `φ` outside), so signs are preserved.
+//!   (central differences; one-sided next to a clamped ±γ value), capped by the linearly
+//!   interpolated zero crossings on the voxel's edges. Inside and outside march
+//!   separately (arrival time `−φ` inside, `φ` outside), so signs are preserved.
 //! * **Determinism**: the march is sequential and heap ties are broken by coordinate,
 //!   so the result does not depend on the thread count, on insertion order or on the
 //!   input grid type: tiles and DT-Grid give the same values bit for bit.
@@ -67,7 +67,7 @@ pub enum Order {
     /// First-order one-sided differences (Sec. 3).
     First,
     /// Second-order one-sided differences where the voxel two steps away is frozen,
-    /// first order elsewhere (Sec. 4, the "high accuracy" FMM).
+    /// first order elsewhere (Sec. 4, the "high accuracy" FMM). The default.
     #[default]
     Second,
 }
@@ -145,9 +145,9 @@ fn band_tiles<C: Cost>(
         let mut band = false;
         for (l, v) in tile.0.iter_mut().enumerate() {
             let id = b * TILE_LEN as u32 + l as u32;
-            let s = m.store.state[id as usize];
+            let s = m.store.vox[id as usize].state;
             *v = match s & 3 {
-                FROZEN => ((m.store.value[id as usize] * h) as f32).clamp(-g, g),
+                FROZEN => ((m.store.vox[id as usize].value * h) as f32).clamp(-g, g),
                 TRIAL => spec.background(s & INSIDE != 0),
                 _ => spec.background(inside(store::Store::voxel(t, l))),
             };
@@ -272,9 +272,9 @@ pub fn distance_dense(
     for (t, b) in m.store.sorted_blocks() {
         for l in 0..TILE_LEN {
             let id = (b * TILE_LEN as u32 + l as u32) as usize;
-            if m.store.state[id] & 3 == FROZEN {
+            if m.store.vox[id].state & 3 == FROZEN {
                 let c = store::Store::voxel(t, l);
-                let v = ((m.store.value[id] * h) as f32).clamp(-g, g);
+                let v = ((m.store.vox[id].value * h) as f32).clamp(-g, g);
                 out.set(c, v)?;
             }
         }
@@ -391,9 +391,9 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
     for (t, b) in m.store.sorted_blocks() {
         for l in 0..TILE_LEN {
             let id = (b * TILE_LEN as u32 + l as u32) as usize;
-            if m.store.state[id] & 3 == FROZEN && m.store.value[id] <= max_time {
+            if m.store.vox[id].state & 3 == FROZEN && m.store.vox[id].value <= max_time {
                 coords.push(store::Store::voxel(t, l));
-                times.push(m.store.value[id]);
+                times.push(m.store.vox[id].value);
             }
         }
     }

@@ -25,6 +25,8 @@ pub(crate) const TRIAL: u8 = 1;
 pub(crate) const FROZEN: u8 = 2;
 /// Flag bit: the voxel lies on the inside (φ < 0); its arrival time is −φ.
 pub(crate) const INSIDE: u8 = 4;
+/// Flag bit: the voxel belongs to the initial frozen set (the interface layer).
+pub(crate) const INITIAL: u8 = 8;
 const STATE_MASK: u8 = 3;
 /// No block.
 const NONE: u32 = u32::MAX;
@@ -63,6 +65,20 @@ impl Hasher for CoordHasher {
     }
 }
 
+/// One voxel of the store.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Voxel {
+    /// The signed value in march units (φ / h for distances, T for arrival times); set
+    /// when the voxel is frozen.
+    pub value: f64,
+    /// The voxel's heap handle while trial.
+    pub handle: u32,
+    /// [`FAR`] / [`TRIAL`] / [`FROZEN`], plus [`INSIDE`].
+    pub state: u8,
+}
+
+const FAR_VOXEL: Voxel = Voxel { value: 0.0, handle: u32::MAX, state: FAR };
+
 type BlockMap = HashMap<Coord, u32, BuildHasherDefault<CoordHasher>>;
 
 /// Voxels touched by a march (see the module docs). A voxel id is `block · 64 + local`.
@@ -74,13 +90,9 @@ pub(crate) struct Store {
     /// −z, +z ([`NONE`] while absent), kept up to date when blocks are created, so a
     /// step across a block face needs no hash lookup.
     links: Vec<[u32; 6]>,
-    /// Per voxel: the signed value in march units (φ / h for distances, T for arrival
-    /// times); meaningful for trial and frozen voxels.
-    pub(crate) value: Vec<f64>,
-    /// Per voxel: [`FAR`] / [`TRIAL`] / [`FROZEN`], plus [`INSIDE`].
-    pub(crate) state: Vec<u8>,
-    /// Per voxel: its heap handle while trial.
-    pub(crate) handle: Vec<u32>,
+    /// Per voxel: value, state and heap handle together (an update reads the state and
+    /// value of a neighbour: one cache line, not two).
+    pub(crate) vox: Vec<Voxel>,
     /// The last block looked up: (block coordinate, block index).
     cache: Cell<(Coord, u32)>,
 }
@@ -91,9 +103,7 @@ impl Store {
             blocks: BlockMap::default(),
             block_coords: Vec::new(),
             links: Vec::new(),
-            value: Vec::new(),
-            state: Vec::new(),
-            handle: Vec::new(),
+            vox: Vec::new(),
             cache: Cell::new((Coord::new(i32::MIN, i32::MIN, i32::MIN), u32::MAX)),
         }
     }
@@ -104,7 +114,7 @@ impl Store {
     }
 
     /// Bytes per block of the per-voxel arrays (for memory checks).
-    pub(crate) const BLOCK_BYTES: usize = TILE_LEN * (8 + 1 + 4) + 32;
+    pub(crate) const BLOCK_BYTES: usize = TILE_LEN * std::mem::size_of::<Voxel>() + 56;
 
     #[inline]
     fn block(&self, t: Coord) -> Option<u32> {
@@ -146,10 +156,8 @@ impl Store {
                     }
                 }
                 self.links.push(links);
-                let n = self.value.len() + TILE_LEN;
-                self.value.resize(n, 0.0);
-                self.state.resize(n, FAR);
-                self.handle.resize(n, u32::MAX);
+                let n = self.vox.len() + TILE_LEN;
+                self.vox.resize(n, FAR_VOXEL);
                 self.cache.set((t, b));
                 b
             }
@@ -184,17 +192,13 @@ impl Store {
         }
     }
 
-    /// The value of the voxel `d` steps along `axis` from voxel `id`, if it is frozen.
+    /// The value and full state of the voxel `d` steps along `axis` from voxel `id`, if
+    /// it is frozen.
     #[inline(always)]
-    pub(crate) fn frozen_step(&self, id: u32, axis: usize, d: i32) -> Option<f64> {
+    pub(crate) fn frozen_step(&self, id: u32, axis: usize, d: i32) -> Option<(f64, u8)> {
         let nid = self.step(id, axis, d)?;
-        (self.state_of(nid) == FROZEN).then(|| self.value[nid as usize])
-    }
-
-    /// State of voxel `id` without the inside flag.
-    #[inline]
-    pub(crate) fn state_of(&self, id: u32) -> u8 {
-        self.state[id as usize] & STATE_MASK
+        let v = &self.vox[nid as usize];
+        (v.state & STATE_MASK == FROZEN).then_some((v.value, v.state))
     }
 
     /// Block coordinates sorted in [`Coord`] order, with their block indices.
