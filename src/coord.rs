@@ -97,6 +97,16 @@ impl fmt::Display for Coord {
     }
 }
 
+/// The six face neighbours' offsets, in the order −x, +x, −y, +y, −z, +z.
+pub const FACE_OFFSETS: [Coord; 6] = [
+    Coord::new(-1, 0, 0),
+    Coord::new(1, 0, 0),
+    Coord::new(0, -1, 0),
+    Coord::new(0, 1, 0),
+    Coord::new(0, 0, -1),
+    Coord::new(0, 0, 1),
+];
+
 /// The 27 offsets of the 3×3×3 neighbourhood in lexicographic order; index
 /// `d = 9 (dz+1) + 3 (dy+1) + (dx+1)`, so [`MID`] = 13 is the centre and the opposite
 /// direction of `d` is `26 - d` (the tile paper's `reverse`, Sec. 4.6.3).

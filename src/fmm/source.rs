@@ -15,14 +15,7 @@ use crate::tiles::{local_index, voxel_of, TileGrid};
 /// Six neighbour values in the order −x, +x, −y, +y, −z, +z; `None` beyond the domain.
 pub(crate) type Star = [Option<f32>; 6];
 
-const OFFSETS: [Coord; 6] = [
-    Coord::new(-1, 0, 0),
-    Coord::new(1, 0, 0),
-    Coord::new(0, -1, 0),
-    Coord::new(0, 1, 0),
-    Coord::new(0, 0, -1),
-    Coord::new(0, 0, 1),
-];
+use crate::coord::FACE_OFFSETS as OFFSETS;
 
 /// An input level set (φ < 0 inside, world units).
 pub(crate) trait Source {

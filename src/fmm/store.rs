@@ -30,14 +30,7 @@ pub(crate) const INITIAL: u8 = 8;
 const STATE_MASK: u8 = 3;
 /// No block.
 const NONE: u32 = u32::MAX;
-const FACES: [Coord; 6] = [
-    Coord::new(-1, 0, 0),
-    Coord::new(1, 0, 0),
-    Coord::new(0, -1, 0),
-    Coord::new(0, 1, 0),
-    Coord::new(0, 0, -1),
-    Coord::new(0, 0, 1),
-];
+use crate::coord::FACE_OFFSETS as FACES;
 
 /// FxHash-style hasher for block coordinates (three `i32` writes); the hash needs no
 /// resistance against adversarial keys, only speed.
