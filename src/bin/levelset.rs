@@ -572,69 +572,58 @@ impl Frames {
         })
     }
 
+    /// Writes the frames due at the simulation's current step.
     fn write(
-        &mut self,
-        sim: &sparse_levelset::evolve::Simulation,
-    ) -> Result<(), sparse_levelset::evolve::EvolveError> {
-        let step = sim.steps();
-        if self.mesh_every.is_some_and(|k| step.is_multiple_of(k)) {
-            self.write_mesh(sim)?;
-        }
-        if self.render_every.is_some_and(|k| step.is_multiple_of(k)) {
-            self.write_render(sim)?;
-        }
-        Ok(())
-    }
-
-    fn write_mesh(
         &mut self,
         sim: &sparse_levelset::evolve::Simulation,
     ) -> Result<(), sparse_levelset::evolve::EvolveError> {
         use sparse_levelset::evolve::EvolveError;
         use sparse_levelset::mesh::{isosurface_dtgrid, isosurface_tiles, MeshFormat};
-        let step = sim.steps();
-        let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("mesh {step}: {e}"));
-        let mesh = match (sim.tiles(), sim.dtgrid()) {
-            (Some(t), _) => isosurface_tiles(t, 0.0),
-            (_, Some(d)) => isosurface_dtgrid(d, 0.0),
-            _ => return Err(output(&"meshing needs a sparse grid")),
-        }
-        .map_err(|e| output(&e))?;
-        mesh.write(&self.dir.join(format!("mesh-{step:06}.ply")), Some(MeshFormat::PlyBinary))
-            .map_err(|e| output(&e))?;
-        self.written += 1;
-        Ok(())
-    }
-
-    fn write_render(
-        &mut self,
-        sim: &sparse_levelset::evolve::Simulation,
-    ) -> Result<(), sparse_levelset::evolve::EvolveError> {
-        use sparse_levelset::evolve::EvolveError;
         use sparse_levelset::render::{render_dtgrid, render_tiles, FrameBox, RenderOptions};
         let step = sim.steps();
-        let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("frame {step}: {e}"));
-        if self.frame.is_none() {
-            // The initial surface's box with a margin of half its extent on every side:
-            // the camera stays put while the interface moves within it.
-            let (lo, hi) = sim.band_bounding_box().ok_or_else(|| output(&"empty level set"))?;
-            let spec = sim.spec();
-            let (l, h) = (spec.world(lo), spec.world(hi));
-            let m: [f64; 3] = std::array::from_fn(|i| 0.5 * (h[i] - l[i]));
-            self.frame = Some(FrameBox {
-                lo: std::array::from_fn(|i| l[i] - m[i]),
-                hi: std::array::from_fn(|i| h[i] + m[i]),
-            });
+        let due = |every: Option<u64>| every.is_some_and(|k| step.is_multiple_of(k));
+        let (mesh_due, render_due) = (due(self.mesh_every), due(self.render_every));
+        if !mesh_due && !render_due {
+            return Ok(());
         }
-        let opts = RenderOptions { frame: self.frame, ..RenderOptions::default() };
-        let image = match (sim.tiles(), sim.dtgrid()) {
-            (Some(t), _) => render_tiles(t, &opts),
-            (_, Some(d)) => render_dtgrid(d, &opts),
-            _ => return Err(output(&"rendering needs a sparse grid")),
+        let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("step {step}: {e}"));
+        let (tiles, dt) = (sim.tiles(), sim.dtgrid());
+        if tiles.is_none() && dt.is_none() {
+            return Err(output(&"frames need a sparse grid"));
         }
-        .map_err(|e| output(&e))?;
-        image.write_png(&self.dir.join(format!("render-{step:06}.png"))).map_err(|e| output(&e))?;
-        self.written += 1;
+        if mesh_due {
+            let mesh = match tiles {
+                Some(t) => isosurface_tiles(t, 0.0),
+                None => isosurface_dtgrid(dt.expect("checked above"), 0.0),
+            }
+            .map_err(|e| output(&e))?;
+            let path = self.dir.join(format!("mesh-{step:06}.ply"));
+            mesh.write(&path, Some(MeshFormat::PlyBinary)).map_err(|e| output(&e))?;
+            self.written += 1;
+        }
+        if render_due {
+            if self.frame.is_none() {
+                // The initial surface's box with a margin of half its extent on every
+                // side: the camera stays put while the interface moves within it.
+                let (lo, hi) = sim.band_bounding_box().ok_or_else(|| output(&"empty level set"))?;
+                let spec = sim.spec();
+                let (l, h) = (spec.world(lo), spec.world(hi));
+                let m: [f64; 3] = std::array::from_fn(|i| 0.5 * (h[i] - l[i]));
+                self.frame = Some(FrameBox {
+                    lo: std::array::from_fn(|i| l[i] - m[i]),
+                    hi: std::array::from_fn(|i| h[i] + m[i]),
+                });
+            }
+            let opts = RenderOptions { frame: self.frame, ..RenderOptions::default() };
+            let image = match tiles {
+                Some(t) => render_tiles(t, &opts),
+                None => render_dtgrid(dt.expect("checked above"), &opts),
+            }
+            .map_err(|e| output(&e))?;
+            let path = self.dir.join(format!("render-{step:06}.png"));
+            image.write_png(&path).map_err(|e| output(&e))?;
+            self.written += 1;
+        }
         Ok(())
     }
 }
