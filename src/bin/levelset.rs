@@ -583,7 +583,8 @@ impl Frames {
         let step = sim.steps();
         let due = |every: Option<u64>| every.is_some_and(|k| step.is_multiple_of(k));
         let (mesh_due, render_due) = (due(self.mesh_every), due(self.render_every));
-        if !mesh_due && !render_due {
+        // A collapsed interface has no surface to mesh or show.
+        if (!mesh_due && !render_due) || sim.collapsed() {
             return Ok(());
         }
         let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("step {step}: {e}"));

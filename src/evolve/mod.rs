@@ -342,6 +342,10 @@ pub enum EvolveError {
     DenseBoxTooSmall { voxel: Coord },
     #[error("reinitialisation: {0}")]
     Reinit(#[from] crate::fmm::FmmError),
+    /// The periodic reinitialisation after step `step` failed; the step itself was taken
+    /// (time and step count advanced) and its band is kept as it was.
+    #[error("step {step} was taken, but the reinitialisation after it failed: {reason}")]
+    ReinitFailed { step: u64, reason: String },
     /// Writing an output of the run (a mesh or image frame) failed.
     #[error("output: {0}")]
     Output(String),
@@ -598,23 +602,25 @@ impl Simulation {
     pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
         let opts = crate::fmm::FmmOptions { order, half_width: None };
         let pool = &self.settings.pool;
-        match &mut self.rep {
+        // The new representation replaces the current one only once it is complete: on an
+        // error the simulation is unchanged.
+        let mut rep = match &self.rep {
             Rep::Tiles(t) => {
                 let grid = in_pool(pool, || crate::fmm::reinitialize_tiles(&t.grid, &opts))?;
-                let lanes = t.lanes;
-                *t = in_pool(pool, || TilesRep::new(grid, lanes));
+                Rep::Tiles(in_pool(pool, || TilesRep::new(grid, t.lanes)))
             }
             Rep::DtGrid(d) => {
-                **d = DtRep::new(crate::fmm::reinitialize_dtgrid(&d.grid, &opts)?);
+                Rep::DtGrid(Box::new(DtRep::new(crate::fmm::reinitialize_dtgrid(&d.grid, &opts)?)))
             }
             Rep::Dense(_) => {
                 return Err(EvolveError::InvalidParameter(
                     "reinitialisation by fast marching runs on the sparse grids".into(),
                 ))
             }
-        }
-        let rep = self.rep.get_mut();
-        in_pool(pool, || rep.finish_step())?;
+        };
+        let r = rep.get_mut();
+        in_pool(pool, || r.finish_step())?;
+        self.rep = rep;
         Ok(())
     }
 
@@ -845,7 +851,12 @@ impl Simulation {
         self.collapsed = rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0);
         if let Some(r) = self.settings.reinit {
             if !self.collapsed && self.steps.is_multiple_of(r.every) {
-                self.reinitialize(r.order)?;
+                // The step stands; a failed reinitialisation leaves its result as it is
+                // and is reported.
+                self.reinitialize(r.order).map_err(|e| EvolveError::ReinitFailed {
+                    step: self.steps,
+                    reason: e.to_string(),
+                })?;
             }
         }
         Ok(StepReport {

@@ -356,7 +356,8 @@ impl<F: Fn([f64; 3]) -> f64> Cost for SpeedCost<F> {
 }
 
 /// Computes [`ArrivalTimes`] from `seeds` with speed `speed(x)` until `max_time`
-/// (`spec` places the voxels in world space; its half-width is not used).
+/// (`spec` places the voxels in world space; its half-width is not used). A voxel that
+/// appears more than once in `seeds` starts at the smallest of its times.
 ///
 /// Errors: no seeds, a non-finite seed time, `max_time` not finite, F ≤ 0 or not finite
 /// at a voxel the march reaches ([`FmmError::BadSpeed`]), a march that would exceed the
@@ -381,8 +382,12 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
         }
         cost.cost(c)?;
     }
+    // A voxel seeded twice keeps its smallest time, whatever the order of `seeds`.
+    let mut sorted = seeds.to_vec();
+    sorted.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    sorted.dedup_by_key(|s| s.0);
     let mut m = Marcher::new(order == Order::Second, None, cost);
-    for &(c, t) in seeds {
+    for &(c, t) in &sorted {
         m.freeze_initial(c, t, false)?;
     }
     m.run(max_time)?;

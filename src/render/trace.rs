@@ -158,7 +158,8 @@ pub(crate) fn summarise<G: Source + ?Sized>(grid: &G) -> Option<BandSummary> {
             bottom_z: f64::INFINITY,
         });
         grow(&mut b.lo, &mut b.hi, p);
-        if v > 0.0 {
+        // φ = 0 counts as outside, as on the grids, in fast marching and the evolution.
+        if v >= 0.0 {
             b.any_outside = true;
         } else {
             b.bottom_z = b.bottom_z.min(p[2] as f64 + v as f64 / h);
