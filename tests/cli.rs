@@ -2,25 +2,15 @@
 //! output, and clear errors with a non-zero exit on bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn levelset(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().expect("binary runs")
-}
+mod common;
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{levelset, stderr, tmp};
 
 fn json(o: &Output) -> serde_json::Value {
     assert!(o.status.success(), "failed: {}", stderr(o));
     serde_json::from_slice(&o.stdout).expect("valid JSON")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("levelset-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
 }
 
 /// A .npy v1.0 file with the given dtype descriptor, shape and raw little-endian data.

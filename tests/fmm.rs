@@ -13,6 +13,8 @@ use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::Coord;
 use std::time::Instant;
 
+mod common;
+
 const AXES: [Coord; 3] = [Coord::new(1, 0, 0), Coord::new(0, 1, 0), Coord::new(0, 0, 1)];
 
 fn add(a: Coord, b: Coord) -> Coord {
@@ -438,18 +440,8 @@ fn bad_input_is_an_error() {
 }
 
 mod cli {
-    use std::path::PathBuf;
-    use std::process::{Command, Output};
 
-    fn levelset(args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().expect("binary runs")
-    }
-
-    fn tmp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("levelset-fmm-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
-    }
+    use super::common::{levelset, tmp};
 
     #[test]
     fn distance_command() {

@@ -12,13 +12,10 @@ use sparse_levelset::mesh::{
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
 use std::f64::consts::PI;
-use std::path::PathBuf;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("levelset-mesh-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
+mod common;
+
+use common::{levelset, tmp};
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
@@ -399,10 +396,6 @@ fn bad_input_is_an_error() {
     assert!(!tmp("bad.ply").exists());
 }
 
-fn levelset(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().unwrap()
-}
-
 #[test]
 fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let ok = |args: &[&str]| {
@@ -433,13 +426,8 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     assert!(std::fs::metadata(&out).unwrap().len() > 0);
 
     // A ball in a dense field with voxel size 0.5: radius 4.5 world units.
-    let ball = DenseField::from_fn(Coord::new(0, 0, 0), [24, 22, 23], |c| {
-        let d = [c.x as f64 - 11.3, c.y as f64 - 10.6, c.z as f64 - 11.1];
-        (0.5 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 4.5) as f32
-    })
-    .unwrap();
-    let npy = tmp("ball.npy");
-    sparse_levelset::npy::write_npy(&npy, &ball).unwrap();
+    let ball = common::ball([24, 22, 23], [11.3, 10.6, 11.1], 9.0, 0.5);
+    let npy = common::npy("ball.npy", &ball);
     let ply = tmp("ball.ply");
     let s = ok(&[
         "mesh",

@@ -9,14 +9,10 @@ use sparse_levelset::render::{self, FrameBox, Image, RenderError, RenderOptions}
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::Coord;
-use std::path::PathBuf;
-use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("levelset-render-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+mod common;
+
+use common::{levelset, tmp};
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -260,10 +256,6 @@ fn far_apart_parts_render_quickly() {
     assert!(start.elapsed().as_secs_f64() < 20.0, "{:?}", start.elapsed());
 }
 
-fn levelset(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().expect("binary runs")
-}
-
 #[test]
 fn cli_renders_shapes_and_fields_and_rejects_bad_input() {
     let out = tmp("cli-torus.png");
@@ -293,13 +285,8 @@ fn cli_renders_shapes_and_fields_and_rejects_bad_input() {
     assert_eq!((reader.info().width, reader.info().height), (48, 36));
 
     // A dense field: a sphere of radius 6 sampled on a 20³ box, via --input.
-    let field = DenseField::from_fn(Coord::new(0, 0, 0), [20, 20, 20], |c| {
-        let d = [c.x as f32 - 9.5, c.y as f32 - 9.5, c.z as f32 - 9.5];
-        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 6.0
-    })
-    .unwrap();
-    let npy = tmp("ball.npy");
-    sparse_levelset::npy::write_npy(&npy, &field).unwrap();
+    let field = common::ball([20, 20, 20], [9.5; 3], 6.0, 1.0);
+    let npy = common::npy("ball.npy", &field);
     let out2 = tmp("cli-ball.png");
     let o = levelset(&[
         "render",
