@@ -56,7 +56,7 @@ use crate::coord::Coord;
 use crate::dense::DenseField;
 use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
-use crate::tiles::{Tile, TileGrid, TILE_LEN};
+use crate::tiles::{voxel_of, Tile, TileGrid, TILE_LEN};
 use march::{Cost, Marcher, UnitCost};
 use source::{freeze_interface, DenseSource, Source};
 use store::{FROZEN, INSIDE, TRIAL};
@@ -149,7 +149,7 @@ fn band_tiles<C: Cost>(
             *v = match s & 3 {
                 FROZEN => ((m.store.vox[id as usize].value * h) as f32).clamp(-g, g),
                 TRIAL => spec.background(s & INSIDE != 0),
-                _ => spec.background(inside(store::Store::voxel(t, l))),
+                _ => spec.background(inside(voxel_of(t, l))),
             };
             band |= v.abs() < g;
         }
@@ -160,63 +160,12 @@ fn band_tiles<C: Cost>(
     out
 }
 
-/// Visits the voxels of sorted tiles in [`Coord`] order (slab by slab, voxel row by
-/// voxel row), like [`TileGrid::for_each_voxel_sorted`].
-fn for_each_sorted(tiles: &[(Coord, Tile)], mut f: impl FnMut(Coord, f32)) {
-    let n = tiles.len();
-    let mut slab = 0;
-    while slab < n {
-        let tz = tiles[slab].0.z;
-        let mut slab_end = slab;
-        while slab_end < n && tiles[slab_end].0.z == tz {
-            slab_end += 1;
-        }
-        for lz in 0..4 {
-            let mut row = slab;
-            while row < slab_end {
-                let ty = tiles[row].0.y;
-                let mut row_end = row;
-                while row_end < slab_end && tiles[row_end].0.y == ty {
-                    row_end += 1;
-                }
-                for ly in 0..4 {
-                    for (t, tile) in &tiles[row..row_end] {
-                        for lx in 0..4 {
-                            let l = store::Store::local(lx, ly, lz);
-                            f(store::Store::voxel(*t, l), tile.0[l]);
-                        }
-                    }
-                }
-                row = row_end;
-            }
-        }
-        slab = slab_end;
-    }
-}
-
 fn to_tiles(
     tiles: Vec<(Coord, Tile)>,
     spec: GridSpec,
     inside: impl Fn(Coord) -> bool,
 ) -> Result<TileGrid, FmmError> {
-    Ok(TileGrid::from_sorted_tiles(spec, tiles, |t| inside(store::Store::voxel(t, 0)))?)
-}
-
-fn to_dtgrid(tiles: &[(Coord, Tile)], spec: GridSpec) -> Result<DtGrid, FmmError> {
-    let g = spec.gamma();
-    let mut dt = DtGrid::new(spec);
-    let mut err = None;
-    for_each_sorted(tiles, |c, v| {
-        if v.abs() < g && err.is_none() {
-            if let Err(e) = dt.push(c, v) {
-                err = Some(e);
-            }
-        }
-    });
-    match err {
-        Some(e) => Err(e.into()),
-        None => Ok(dt),
-    }
+    Ok(TileGrid::from_sorted_tiles(spec, tiles, |t| inside(voxel_of(t, 0)))?)
 }
 
 /// Reinitialises the band of a tile grid to a signed distance, or widens/narrows it:
@@ -239,7 +188,9 @@ pub fn reinitialize_tiles(grid: &TileGrid, opts: &FmmOptions) -> Result<TileGrid
 pub fn reinitialize_dtgrid(grid: &DtGrid, opts: &FmmOptions) -> Result<DtGrid, FmmError> {
     let spec = output_spec(grid.spec(), opts)?;
     let m = march_distance(grid, opts.order, spec.half_width)?;
-    to_dtgrid(&band_tiles(&m, &spec, |c| Source::inside(grid, c)), spec)
+    let inside = |c: Coord| Source::inside(grid, c);
+    // The marched band as tiles, then the DT-Grid's band voxels in order from them.
+    Ok(crate::build::dtgrid_from_tiles(&to_tiles(band_tiles(&m, &spec, inside), spec, inside)?))
 }
 
 /// The signed distance to the zero level set of a dense field, like scikit-fmm's
@@ -273,7 +224,7 @@ pub fn distance_dense(
         for l in 0..TILE_LEN {
             let id = (b * TILE_LEN as u32 + l as u32) as usize;
             if m.store.vox[id].state & 3 == FROZEN {
-                let c = store::Store::voxel(t, l);
+                let c = voxel_of(t, l);
                 let v = ((m.store.vox[id].value * h) as f32).clamp(-g, g);
                 out.set(c, v)?;
             }
@@ -397,7 +348,7 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
         for l in 0..TILE_LEN {
             let id = (b * TILE_LEN as u32 + l as u32) as usize;
             if m.store.vox[id].state & 3 == FROZEN && m.store.vox[id].value <= max_time {
-                coords.push(store::Store::voxel(t, l));
+                coords.push(voxel_of(t, l));
                 times.push(m.store.vox[id].value);
             }
         }

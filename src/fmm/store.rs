@@ -14,7 +14,7 @@
 //! bounding box.
 
 use crate::coord::Coord;
-use crate::tiles::{local_index, tile_of, voxel_of, TILE_LEN};
+use crate::tiles::{tile_of, TILE_LEN};
 use std::cell::Cell;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -200,17 +200,5 @@ impl Store {
             self.block_coords.iter().enumerate().map(|(b, &t)| (t, b as u32)).collect();
         v.sort_unstable_by_key(|&(t, _)| t);
         v
-    }
-
-    /// The voxel coordinate of local index `l` of block `t`.
-    #[inline]
-    pub(crate) fn voxel(t: Coord, l: usize) -> Coord {
-        voxel_of(t, l)
-    }
-
-    /// Local index of (lx, ly, lz).
-    #[inline]
-    pub(crate) fn local(lx: i32, ly: i32, lz: i32) -> usize {
-        local_index(lx, ly, lz)
     }
 }
