@@ -291,27 +291,5 @@ pub fn check_band_fits(shape: &Shape, spec: &GridSpec, copies: f64) -> Result<()
     let area = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[0] * e[2]);
     // Tiles pad the band to whole tiles: about 4 tile layers of 64 voxels per 16 voxels of area.
     let tile_bytes = area * (2.0 * spec.half_width as f64 + 8.0) * 4.0 * 1.5;
-    check_bytes_fit(tile_bytes * copies.max(1.0), "the band of this shape")
-}
-
-/// Refuses to allocate `bytes` when they exceed 70 % of the memory available now (8 GiB
-/// assumed where `/proc/meminfo` cannot be read); `what` names the allocation.
-pub fn check_bytes_fit(bytes: f64, what: &str) -> Result<(), GridError> {
-    let limit = available_memory().unwrap_or(8 << 30) as f64 * 0.7;
-    if bytes.is_finite() && bytes <= limit {
-        return Ok(());
-    }
-    Err(GridError::InvalidParameter(format!(
-        "{what} needs about {:.1} GiB but about {:.1} GiB of memory is available: use a \
-         smaller shape or a larger voxel size",
-        bytes / (1u64 << 30) as f64,
-        limit / (1u64 << 30) as f64
-    )))
-}
-
-fn available_memory() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    crate::memory::check(tile_bytes * copies.max(1.0), "the band of this shape")
 }

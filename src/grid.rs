@@ -131,4 +131,12 @@ pub enum GridError {
     /// A parameter outside its documented domain.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// An allocation the machine cannot hold, refused before it was made
+    /// ([`crate::memory::check`]).
+    #[error(
+        "{what} needs about {} but only about {} of memory may be used",
+        crate::memory::gib(*needed),
+        crate::memory::gib(*limit)
+    )]
+    OutOfMemory { what: String, needed: u64, limit: u64 },
 }

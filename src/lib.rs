@@ -32,6 +32,7 @@ pub mod fmm;
 pub mod fsutil;
 pub mod grid;
 pub mod info;
+pub mod memory;
 pub mod mesh;
 pub mod npy;
 pub mod render;

@@ -141,7 +141,7 @@ impl<C: Cost> Marcher<C> {
         if blocks >= self.next_memory_check {
             self.next_memory_check = blocks + MEMORY_CHECK_BLOCKS;
             let bytes = (self.next_memory_check * Store::BLOCK_BYTES) as f64;
-            crate::build::check_bytes_fit(bytes, "the fast-marching band")?;
+            crate::memory::check(bytes, "the fast-marching band")?;
         }
         Ok(())
     }
