@@ -4,7 +4,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use sparse_levelset::bench::{dtgrid_smooth7, dtgrid_star19, tiles_smooth7, tiles_star19};
-use sparse_levelset::build::{dtgrid_from_tiles, tiles_from_shape};
+use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
@@ -16,7 +16,7 @@ fn grids(c: &mut Criterion) {
         ("spiral_r50", Shape::spiral_default([0.0; 3], 50.0, 40.0)),
     ] {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
-        let dt = dtgrid_from_tiles(&tiles);
+        let dt = dtgrid_from(&tiles);
         let band = dt.len() as u64;
         let tvox = tiles.stored_voxels() as u64;
 

@@ -3,9 +3,9 @@
 //! (primary rays; shadow rays come on top) so times convert to rays per second.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sparse_levelset::build::{dtgrid_from_tiles, tiles_from_shape};
+use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::render::{render_dtgrid, render_tiles, RenderOptions};
+use sparse_levelset::render::{render, RenderOptions};
 use sparse_levelset::shapes::Shape;
 
 fn render(c: &mut Criterion) {
@@ -16,15 +16,15 @@ fn render(c: &mut Criterion) {
         ("spiral_r50", Shape::spiral_default([0.0; 3], 50.0, 40.0)),
     ] {
         let tiles = tiles_from_shape(&shape, GridSpec::default()).unwrap();
-        let dt = dtgrid_from_tiles(&tiles);
+        let dt = dtgrid_from(&tiles);
         let mut g = c.benchmark_group(format!("render/{name}"));
         g.sample_size(10);
         g.throughput(Throughput::Elements(rays));
         g.bench_function(BenchmarkId::new("tiles", format!("{rays}rays")), |b| {
-            b.iter(|| render_tiles(&tiles, &opts).unwrap())
+            b.iter(|| render(&tiles, &opts).unwrap())
         });
         g.bench_function(BenchmarkId::new("dtgrid", format!("{rays}rays")), |b| {
-            b.iter(|| render_dtgrid(&dt, &opts).unwrap())
+            b.iter(|| render(&dt, &opts).unwrap())
         });
         g.finish();
     }

@@ -9,67 +9,12 @@
 use crate::coord::Coord;
 use crate::dense::DenseField;
 use crate::dtgrid::DtGrid;
-use crate::grid::{GridError, GridSpec, MemoryReport};
+use crate::grid::{GridError, GridSpec};
+use crate::levelset::{Accessor, LevelSet};
 use crate::sample::{sample_band_tiles, sample_shape_tiles};
 use crate::shapes::Shape;
 use crate::tiles::{tile_of, voxel_of, Tile, TileGrid};
 use rayon::prelude::*;
-
-/// What every sparse grid answers; lets tools and tests treat both grids alike.
-pub trait SparseGrid: Sync {
-    fn spec(&self) -> GridSpec;
-    /// Value at any voxel: stored, or ±γ outside the band.
-    fn value(&self, voxel: Coord) -> f32;
-    /// Inclusive voxel bounding box of the stored voxels.
-    fn bounding_box(&self) -> Option<(Coord, Coord)>;
-    /// Stored voxels with |φ| < γ.
-    fn band_voxels(&self) -> usize;
-    /// Stored voxels (tile padding included for tiles).
-    fn stored_voxels(&self) -> usize;
-    fn memory(&self) -> MemoryReport;
-}
-
-impl SparseGrid for TileGrid {
-    fn spec(&self) -> GridSpec {
-        *TileGrid::spec(self)
-    }
-    fn value(&self, voxel: Coord) -> f32 {
-        TileGrid::value(self, voxel)
-    }
-    fn bounding_box(&self) -> Option<(Coord, Coord)> {
-        TileGrid::bounding_box(self)
-    }
-    fn band_voxels(&self) -> usize {
-        TileGrid::band_voxels(self)
-    }
-    fn stored_voxels(&self) -> usize {
-        TileGrid::stored_voxels(self)
-    }
-    fn memory(&self) -> MemoryReport {
-        TileGrid::memory(self)
-    }
-}
-
-impl SparseGrid for DtGrid {
-    fn spec(&self) -> GridSpec {
-        DtGrid::spec(self)
-    }
-    fn value(&self, voxel: Coord) -> f32 {
-        DtGrid::value(self, voxel)
-    }
-    fn bounding_box(&self) -> Option<(Coord, Coord)> {
-        DtGrid::bounding_box(self)
-    }
-    fn band_voxels(&self) -> usize {
-        DtGrid::band_voxels(self)
-    }
-    fn stored_voxels(&self) -> usize {
-        DtGrid::len(self)
-    }
-    fn memory(&self) -> MemoryReport {
-        DtGrid::memory(self)
-    }
-}
 
 /// Tiles of the band of a signed distance closure `phi(world position)` (world units,
 /// φ < 0 inside) with Lipschitz constant `lipschitz`, over the voxel box `lo..=hi` which must
@@ -105,47 +50,47 @@ pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridEr
     Ok(dtgrid_from_tiles(&tiles_from_shape(shape, spec)?))
 }
 
-/// Pushes the band voxels (|φ| < γ) of a tile grid into a DT-Grid, in lexicographic
-/// order. O(stored voxels).
-pub fn dtgrid_from_tiles(tiles: &TileGrid) -> DtGrid {
-    let spec = *tiles.spec();
-    let g = spec.gamma();
-    let mut dt = DtGrid::new(spec);
-    tiles.for_each_voxel_sorted(|c, v| {
-        if v.abs() < g {
-            dt.push(c, v).expect("tile voxels are visited in order and are finite");
-        }
+/// The DT-Grid of any level set: its band voxels (|φ| < γ) pushed in [`Coord`] order.
+/// O(band voxels) plus the level set's own pass over them.
+pub fn dtgrid_from<G: LevelSet + ?Sized>(grid: &G) -> DtGrid {
+    let mut dt = DtGrid::new(grid.spec());
+    grid.for_each_band_voxel(&mut |c, v| {
+        dt.push(c, v).expect("band voxels are visited in order and are finite");
     });
     dt
 }
 
-/// The tile grid holding every band voxel of a DT-Grid: the tiles that contain one, with
-/// the DT-Grid's values (±γ where it stores nothing) and border flags from its sign.
-pub fn tiles_from_dtgrid(dt: &DtGrid) -> TileGrid {
-    let mut coords: Vec<Coord> = Vec::new();
-    let g = dt.gamma();
-    for (c, v) in dt.iter() {
-        if v.abs() < g {
-            let t = tile_of(c).0;
-            if coords.last() != Some(&t) {
-                coords.push(t);
-            }
-        }
+/// The tile grid of any level set: the tiles holding a band voxel, filled with the level
+/// set's values (±γ where it stores nothing), border flags from its sign at each absent
+/// neighbour. A tile grid is copied as it is.
+pub fn tiles_from<G: LevelSet + ?Sized>(grid: &G) -> TileGrid {
+    if let Some(t) = grid.as_tiles() {
+        return t.clone();
     }
+    let mut coords: Vec<Coord> = Vec::new();
+    grid.for_each_band_voxel(&mut |c, _| {
+        let t = tile_of(c).0;
+        if coords.last() != Some(&t) {
+            coords.push(t);
+        }
+    });
     coords.par_sort_unstable();
     coords.dedup();
     let tiles: Vec<(Coord, Tile)> = coords
         .par_iter()
-        .map(|&t| {
-            let mut tile = Tile::splat(0.0);
-            for (l, v) in tile.0.iter_mut().enumerate() {
-                *v = dt.value(voxel_of(t, l));
-            }
-            (t, tile)
-        })
+        .map_init(
+            || grid.accessor(),
+            |acc, &t| {
+                let mut tile = Tile::splat(0.0);
+                for (l, v) in tile.0.iter_mut().enumerate() {
+                    *v = acc.value(voxel_of(t, l));
+                }
+                (t, tile)
+            },
+        )
         .collect();
-    TileGrid::from_sorted_tiles(dt.spec(), tiles, |t| dt.value(voxel_of(t, 0)) < 0.0)
-        .expect("tiles of DT-Grid voxels are sorted, in range and finite")
+    TileGrid::from_sorted_tiles(grid.spec(), tiles, |t| grid.value(voxel_of(t, 0)) < 0.0)
+        .expect("tiles of band voxels are sorted, in range and finite")
 }
 
 /// Value of a dense field at a voxel, `+γ` (outside) beyond the array, clamped to ±γ.
@@ -207,20 +152,23 @@ pub fn dtgrid_from_dense(field: &DenseField, spec: GridSpec) -> Result<DtGrid, G
     Ok(dt)
 }
 
-/// Samples any grid on a dense box (`origin`, `dims = [nx, ny, nz]`) by random access:
-/// stored values inside the band, ±γ elsewhere.
-pub fn to_dense<G: SparseGrid + ?Sized>(
+/// Samples any level set on a dense box (`origin`, `dims = [nx, ny, nz]`): stored values
+/// inside the band, ±γ elsewhere. The box's memory is checked first
+/// ([`crate::memory::check`]).
+pub fn to_dense<G: LevelSet + ?Sized>(
     grid: &G,
     origin: Coord,
     dims: [usize; 3],
 ) -> Result<DenseField, GridError> {
+    let n = dims.iter().map(|&d| d as u128).product::<u128>();
+    crate::memory::check(crate::memory::bytes_of(n, 4), "the dense box")?;
     DenseField::from_fn(origin, dims, |c| grid.value(c))
 }
 
-/// The dense box around a grid's stored voxels grown by `margin` voxels on every side
+/// The dense box around a level set's band voxels grown by `margin` voxels on every side
 /// (each side clamped to the i32 range), or `None` for an empty grid.
-pub fn dense_box<G: SparseGrid + ?Sized>(grid: &G, margin: u32) -> Option<(Coord, [usize; 3])> {
-    let (lo, hi) = grid.bounding_box()?;
+pub fn dense_box<G: LevelSet + ?Sized>(grid: &G, margin: u32) -> Option<(Coord, [usize; 3])> {
+    let (lo, hi) = grid.band_bounding_box()?;
     let m = margin as i64;
     let clamp = |v: i64| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
     let lo = Coord::new(clamp(lo.x as i64 - m), clamp(lo.y as i64 - m), clamp(lo.z as i64 - m));
@@ -266,10 +214,11 @@ pub enum ExportError {
 }
 
 /// Writes a grid as a dense float32 `.npy` field (shape `(nz, ny, nx)`, φ < 0 inside,
-/// ±γ outside the band) covering its stored voxels plus `margin` voxels on every side.
+/// ±γ outside the band) covering its band voxels plus `margin` voxels on every side (the
+/// same box, hence the same file, for every storage of the same band).
 /// The file is written atomically (temporary file, then rename). Returns the voxel
 /// coordinate of element `[0, 0, 0]`, which `.npy` cannot store.
-pub fn export_npy<G: SparseGrid + ?Sized>(
+pub fn export_npy<G: LevelSet + ?Sized>(
     grid: &G,
     path: &std::path::Path,
     margin: u32,
@@ -293,3 +242,15 @@ pub fn check_band_fits(shape: &Shape, spec: &GridSpec, copies: f64) -> Result<()
     let tile_bytes = area * (2.0 * spec.half_width as f64 + 8.0) * 4.0 * 1.5;
     crate::memory::check(tile_bytes * copies.max(1.0), "the band of this shape")
 }
+
+// TEMPORARY (removed once the parallel branches are merged): the old names.
+#[doc(hidden)]
+pub fn dtgrid_from_tiles(tiles: &TileGrid) -> DtGrid {
+    dtgrid_from(tiles)
+}
+#[doc(hidden)]
+pub fn tiles_from_dtgrid(dt: &DtGrid) -> TileGrid {
+    tiles_from(dt)
+}
+#[doc(hidden)]
+pub use crate::levelset::LevelSet as SparseGrid;

@@ -81,7 +81,7 @@ fn grid_info<G: SparseGrid>(name: &'static str, g: &G, tiles: usize, secs: f64) 
     GridInfo {
         grid: name,
         band_voxels: band,
-        stored_voxels: g.stored_voxels(),
+        stored_voxels: g.memory().values / 4,
         tiles,
         bytes: m.into(),
         bytes_per_band_voxel: if band > 0 { m.total() as f64 / band as f64 } else { 0.0 },

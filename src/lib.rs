@@ -32,9 +32,12 @@ pub mod fmm;
 pub mod fsutil;
 pub mod grid;
 pub mod info;
+pub mod levelset;
+pub mod measure;
 pub mod memory;
 pub mod mesh;
 pub mod npy;
+pub mod progress;
 pub mod render;
 pub mod sample;
 pub mod scenario;
@@ -44,3 +47,4 @@ pub mod tiles;
 
 pub use coord::Coord;
 pub use grid::{GridError, GridSpec, MemoryReport};
+pub use levelset::{Accessor, LevelSet};

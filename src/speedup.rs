@@ -154,7 +154,7 @@ fn run_tools(
         (Order::First, "fmm reinitialise, first order"),
         (Order::Second, "fmm reinitialise, second order"),
     ] {
-        let opts = FmmOptions { order, half_width: None };
+        let opts = FmmOptions { order, ..Default::default() };
         progress(&format!("{name} (tiles)"));
         let (s, g) = best_of(reps, || {
             crate::fmm::reinitialize_tiles(&tiles, &opts).map_err(|e| e.to_string())

@@ -2,15 +2,14 @@
 //! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input.
 //! Run with `--nocapture` to see the errors and timings.
 
-use sparse_levelset::build::{
-    dense_box, dtgrid_from_tiles, tiles_from_sdf, tiles_from_shape, SparseGrid,
-};
+use sparse_levelset::build::{dense_box, dtgrid_from, tiles_from_sdf, tiles_from_shape};
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::Coord;
+use sparse_levelset::LevelSet;
 use std::time::Instant;
 
 mod common;
@@ -24,8 +23,16 @@ fn sub(a: Coord, b: Coord) -> Coord {
     Coord::new(a.x - b.x, a.y - b.y, a.z - b.z)
 }
 
+/// The DT-Grid reinitialised through the one generic function, back as a DT-Grid.
+fn reinit_dt(
+    dt: &sparse_levelset::dtgrid::DtGrid,
+    o: &FmmOptions,
+) -> Result<sparse_levelset::dtgrid::DtGrid, FmmError> {
+    fmm::reinitialize(dt, o).map(|g| dtgrid_from(&g))
+}
+
 /// Every voxel of a grid's box grown by `margin`.
-fn for_box<G: SparseGrid>(g: &G, margin: u32, mut f: impl FnMut(Coord)) {
+fn for_box<G: LevelSet>(g: &G, margin: u32, mut f: impl FnMut(Coord)) {
     let (lo, dims) = dense_box(g, margin).expect("non-empty");
     for z in 0..dims[2] as i32 {
         for y in 0..dims[1] as i32 {
@@ -37,7 +44,7 @@ fn for_box<G: SparseGrid>(g: &G, margin: u32, mut f: impl FnMut(Coord)) {
 }
 
 /// Band voxels of a grid with a 6-neighbour of the other sign.
-fn interface_voxels<G: SparseGrid>(g: &G) -> Vec<(Coord, f32)> {
+fn interface_voxels<G: LevelSet>(g: &G) -> Vec<(Coord, f32)> {
     let gamma = g.spec().gamma();
     let mut out = Vec::new();
     for_box(g, 1, |c| {
@@ -133,8 +140,8 @@ fn sphere_reinit(order: Order, scale: f64) -> (TileGrid, TileGrid) {
     let lo = Coord::new(-30, -30, -30);
     let hi = Coord::new(30, 30, 30);
     let input = tiles_from_sdf(|p| scale * shape.sdf(p), scale.max(1.0), lo, hi, spec).unwrap();
-    let opts = FmmOptions { order, half_width: None };
-    let out = fmm::reinitialize_tiles(&input, &opts).unwrap();
+    let opts = FmmOptions { order, half_width: None, ..Default::default() };
+    let out = fmm::reinitialize(&input, &opts).unwrap();
     out.check_invariants().unwrap();
     (input, out)
 }
@@ -205,7 +212,7 @@ fn a_badly_scaled_field_comes_back_to_unit_gradient() {
 }
 
 /// Asserts that two grids read bit-identical values over `a`'s box grown by 2.
-fn assert_bitwise<A: SparseGrid, B: SparseGrid>(a: &A, b: &B) {
+fn assert_bitwise<A: LevelSet, B: LevelSet>(a: &A, b: &B) {
     assert_eq!(a.band_voxels(), b.band_voxels());
     for_box(a, 2, |c| assert_eq!(a.value(c).to_bits(), b.value(c).to_bits(), "at {c:?}"));
 }
@@ -222,12 +229,12 @@ fn tiles_and_dtgrid_give_identical_results_at_any_width() {
     ];
     for shape in &shapes {
         let tiles = tiles_from_shape(shape, GridSpec::default()).unwrap();
-        let dt = dtgrid_from_tiles(&tiles);
+        let dt = dtgrid_from(&tiles);
         for order in [Order::First, Order::Second] {
             for half_width in [None, Some(1.5), Some(5.5)] {
-                let opts = FmmOptions { order, half_width };
-                let t = fmm::reinitialize_tiles(&tiles, &opts).unwrap();
-                let d = fmm::reinitialize_dtgrid(&dt, &opts).unwrap();
+                let opts = FmmOptions { order, half_width, ..Default::default() };
+                let t = fmm::reinitialize(&tiles, &opts).unwrap();
+                let d = reinit_dt(&dt, &opts).unwrap();
                 t.check_invariants().unwrap();
                 d.check_invariants().unwrap();
                 assert_eq!(t.spec().half_width, half_width.unwrap_or(3.0));
@@ -259,9 +266,9 @@ fn widening_the_band_matches_the_exact_distance() {
     let spec = GridSpec::new(0.5, [0.25, -0.5, 0.0], 3.0).unwrap();
     let shape = Shape::Sphere { center: [0.1, 0.2, -0.3], radius: 10.0 };
     let tiles = tiles_from_shape(&shape, spec).unwrap();
-    let opts = FmmOptions { order: Order::Second, half_width: Some(8.0) };
+    let opts = FmmOptions { order: Order::Second, half_width: Some(8.0), ..Default::default() };
     let t0 = Instant::now();
-    let out = fmm::reinitialize_tiles(&tiles, &opts).unwrap();
+    let out = fmm::reinitialize(&tiles, &opts).unwrap();
     let secs = t0.elapsed().as_secs_f64();
     let g = out.gamma();
     assert_eq!(g, 4.0);
@@ -307,9 +314,9 @@ fn results_do_not_depend_on_input_order_or_threads() {
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            fmm::reinitialize_tiles(
+            fmm::reinitialize(
                 &tiles,
-                &FmmOptions { order: Order::Second, half_width: Some(4.0) },
+                &FmmOptions { order: Order::Second, half_width: Some(4.0), ..Default::default() },
             )
             .unwrap()
         })
@@ -371,7 +378,7 @@ fn distance_of_a_dense_field() {
         (3.0 * (r - 6.0)) as f32
     })
     .unwrap();
-    let opts = FmmOptions { order: Order::Second, half_width: Some(4.0) };
+    let opts = FmmOptions { order: Order::Second, half_width: Some(4.0), ..Default::default() };
     let out = fmm::distance_dense(&field, h, &opts).unwrap();
     let g = 4.0 * h;
     let mut max = 0.0f64;
@@ -401,16 +408,19 @@ fn bad_input_is_an_error() {
     let flat = DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 2.0).unwrap();
     assert_eq!(fmm::distance_dense(&flat, 1.0, &o), Err(FmmError::NoInterface));
     assert!(fmm::distance_dense(&f, 0.0, &o).is_err());
-    assert!(fmm::distance_dense(&f, 1.0, &FmmOptions { half_width: Some(1.0), ..o }).is_err());
-    assert!(fmm::distance_dense(&f, 1.0, &FmmOptions { half_width: Some(f32::NAN), ..o }).is_err());
+    assert!(
+        fmm::distance_dense(&f, 1.0, &FmmOptions { half_width: Some(1.0), ..o.clone() }).is_err()
+    );
+    assert!(fmm::distance_dense(&f, 1.0, &FmmOptions { half_width: Some(f32::NAN), ..o.clone() })
+        .is_err());
     // A plane: exact in the first and second order.
     let d = fmm::distance_dense(&f, 1.0, &o).unwrap();
     assert_eq!(d.get(Coord::new(5, 4, 4)), Some(1.5));
     // Empty grids.
     let empty = TileGrid::new(GridSpec::default());
-    assert_eq!(fmm::reinitialize_tiles(&empty, &o).unwrap_err(), FmmError::NoInterface);
-    let empty_dt = dtgrid_from_tiles(&empty);
-    assert_eq!(fmm::reinitialize_dtgrid(&empty_dt, &o).unwrap_err(), FmmError::NoInterface);
+    assert_eq!(fmm::reinitialize(&empty, &o).unwrap_err(), FmmError::NoInterface);
+    let empty_dt = dtgrid_from(&empty);
+    assert_eq!(reinit_dt(&empty_dt, &o).unwrap_err(), FmmError::NoInterface);
     // Speeds.
     let spec = GridSpec::default();
     let seed = [(Coord::new(0, 0, 0), 0.0)];
@@ -512,13 +522,13 @@ fn bands_near_the_end_of_the_coordinate_range() {
     let top = (i32::MAX >> 2) as f64 * 4.0;
     let shape = Shape::Sphere { center: [top - 12.0, 0.0, -top + 12.0], radius: 4.0 };
     let tiles = tiles_from_shape(&shape, GridSpec::default()).unwrap();
-    let dt = dtgrid_from_tiles(&tiles);
-    let o = FmmOptions { order: Order::Second, half_width: None };
-    let t = fmm::reinitialize_tiles(&tiles, &o).unwrap();
-    assert_bitwise(&t, &fmm::reinitialize_dtgrid(&dt, &o).unwrap());
-    let wide = FmmOptions { order: Order::Second, half_width: Some(20.0) };
-    let tw = fmm::reinitialize_tiles(&tiles, &wide).unwrap();
-    let d = fmm::reinitialize_dtgrid(&dt, &wide).unwrap();
+    let dt = dtgrid_from(&tiles);
+    let o = FmmOptions { order: Order::Second, half_width: None, ..Default::default() };
+    let t = fmm::reinitialize(&tiles, &o).unwrap();
+    assert_bitwise(&t, &reinit_dt(&dt, &o).unwrap());
+    let wide = FmmOptions { order: Order::Second, half_width: Some(20.0), ..Default::default() };
+    let tw = fmm::reinitialize(&tiles, &wide).unwrap();
+    let d = reinit_dt(&dt, &wide).unwrap();
     d.check_invariants().unwrap();
     assert_bitwise(&tw, &d);
     let (_, hi) = d.bounding_box().unwrap();
@@ -532,10 +542,10 @@ fn reinitialised_grids_feed_the_evolution_engine() {
     // to the same band, bit for bit (the engine checks flags and values as it runs).
     let shape = Shape::Torus { center: [0.4, -0.3, 0.2], major_radius: 12.0, minor_radius: 4.0 };
     let tiles = tiles_from_shape(&shape, GridSpec::default()).unwrap();
-    let dt = dtgrid_from_tiles(&tiles);
-    let opts = FmmOptions { order: Order::Second, half_width: Some(4.0) };
-    let t = fmm::reinitialize_tiles(&tiles, &opts).unwrap();
-    let d = fmm::reinitialize_dtgrid(&dt, &opts).unwrap();
+    let dt = dtgrid_from(&tiles);
+    let opts = FmmOptions { order: Order::Second, half_width: Some(4.0), ..Default::default() };
+    let t = fmm::reinitialize(&tiles, &opts).unwrap();
+    let d = reinit_dt(&dt, &opts).unwrap();
     let flow = Flow::mean_curvature(1.0);
     let mut a = Simulation::from_tile_grid(
         GridKind::Tiles(Lanes::Simd),
@@ -574,9 +584,9 @@ fn noisy_fields_give_the_same_result_on_every_representation() {
     let tiles = tiles_from_dense(&field, spec).unwrap();
     let dt = dtgrid_from_dense(&field, spec).unwrap();
     for order in [Order::First, Order::Second] {
-        let o = FmmOptions { order, half_width: Some(2.5) };
-        let t = fmm::reinitialize_tiles(&tiles, &o).unwrap();
-        let d = fmm::reinitialize_dtgrid(&dt, &o).unwrap();
+        let o = FmmOptions { order, half_width: Some(2.5), ..Default::default() };
+        let t = fmm::reinitialize(&tiles, &o).unwrap();
+        let d = reinit_dt(&dt, &o).unwrap();
         t.check_invariants().unwrap();
         assert_bitwise(&t, &d);
         let dense = fmm::distance_dense(&field, 1.0, &o).unwrap();
@@ -589,9 +599,11 @@ fn noisy_fields_give_the_same_result_on_every_representation() {
     let mut raw = DenseField::new(lo, dims, 0.0).unwrap();
     raw.data_mut().iter_mut().for_each(|v| *v = rng.f32() * 4.0 - 2.0);
     let dt = dtgrid_from_dense(&raw, spec).unwrap();
-    let d =
-        fmm::reinitialize_dtgrid(&dt, &FmmOptions { order: Order::Second, half_width: Some(2.5) })
-            .unwrap();
+    let d = reinit_dt(
+        &dt,
+        &FmmOptions { order: Order::Second, half_width: Some(2.5), ..Default::default() },
+    )
+    .unwrap();
     let (blo, bhi) = d.bounding_box().unwrap();
     assert!(blo.x >= lo.x - 4 && bhi.x <= lo.x + dims[0] as i32 + 3, "{blo:?} {bhi:?}");
 }

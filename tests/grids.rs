@@ -120,8 +120,7 @@ fn dense_fields_build_the_same_grids_and_export_back() {
         assert_same(&tiles, &d2, 4);
         // Export to dense equals the field clamped to ±γ.
         let g = spec.gamma();
-        for grid in [&t2 as &dyn SparseGrid, &d2 as &dyn SparseGrid] {
-            let out = to_dense(grid, lo, dims).unwrap();
+        for out in [to_dense(&t2, lo, dims).unwrap(), to_dense(&d2, lo, dims).unwrap()] {
             for (a, b) in out.data().iter().zip(field.data()) {
                 assert_eq!(*a, b.clamp(-g, g));
             }

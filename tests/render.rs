@@ -2,7 +2,7 @@
 //! sphere against the analytic sphere, bitwise identity across thread counts and between
 //! the two grids, the PNG round trip, and errors on bad input (library and CLI).
 
-use sparse_levelset::build::{dtgrid_from_tiles, tiles_from_dense, tiles_from_shape};
+use sparse_levelset::build::{dtgrid_from, tiles_from_dense, tiles_from_shape};
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::render::{self, FrameBox, Image, RenderError, RenderOptions};
@@ -46,7 +46,7 @@ fn sphere_silhouette_and_depth_match_the_analytic_sphere() {
         elevation_deg: 17.0,
         ..Default::default()
     };
-    let image = render::render_tiles(&tiles, &opts).unwrap();
+    let image = render::render(&tiles, &opts).unwrap();
     let cam = *image.camera();
     // The trilinear interpolant of the sampled distance deviates from the sphere by about
     // h²/(8 r) per voxel² of curvature (< 0.01 voxel here); allow 0.02 voxel absolute plus
@@ -103,11 +103,11 @@ fn torus_tiles() -> TileGrid {
 #[test]
 fn images_are_bitwise_identical_across_threads_and_grids() {
     let tiles = torus_tiles();
-    let dt = dtgrid_from_tiles(&tiles);
+    let dt = dtgrid_from(&tiles);
     let opts = RenderOptions { width: 120, height: 90, ..Default::default() };
-    let one = in_pool(1, || render::render_tiles(&tiles, &opts).unwrap());
-    let two = in_pool(2, || render::render_tiles(&tiles, &opts).unwrap());
-    let dt2 = in_pool(2, || render::render_dtgrid(&dt, &opts).unwrap());
+    let one = in_pool(1, || render::render(&tiles, &opts).unwrap());
+    let two = in_pool(2, || render::render(&tiles, &opts).unwrap());
+    let dt2 = in_pool(2, || render::render(&dt, &opts).unwrap());
     assert!(one.rgb() == two.rgb(), "1 vs 2 threads");
     assert!(one.rgb() == dt2.rgb(), "tiles vs DT-Grid");
     // Depths too, bit for bit.
@@ -137,10 +137,9 @@ fn a_frame_box_fixes_the_camera() {
         frame: Some(frame),
         ..Default::default()
     };
-    let a = render::render_tiles(&torus_tiles(), &opts).unwrap();
+    let a = render::render(&torus_tiles(), &opts).unwrap();
     let small = Shape::Sphere { center: [0.0; 3], radius: 5.0 };
-    let b = render::render_tiles(&tiles_from_shape(&small, GridSpec::default()).unwrap(), &opts)
-        .unwrap();
+    let b = render::render(&tiles_from_shape(&small, GridSpec::default()).unwrap(), &opts).unwrap();
     assert_eq!(a.camera(), b.camera());
     assert_ne!(a.rgb(), b.rgb());
 }
@@ -150,7 +149,7 @@ fn a_frame_box_fixes_the_camera() {
 #[test]
 fn png_round_trip() {
     let opts = RenderOptions { width: 33, height: 21, ..Default::default() };
-    let image = render::render_tiles(&torus_tiles(), &opts).unwrap();
+    let image = render::render(&torus_tiles(), &opts).unwrap();
     let dir = tmp("png");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("torus.png");
@@ -173,40 +172,40 @@ fn bad_input_is_an_error() {
     let tiles = torus_tiles();
     let ok = RenderOptions { width: 8, height: 6, samples: 1, ..Default::default() };
     let bad = [
-        RenderOptions { width: 0, ..ok },
-        RenderOptions { height: 0, ..ok },
-        RenderOptions { width: 16385, ..ok },
-        RenderOptions { width: 16384, height: 16384, ..ok },
-        RenderOptions { samples: 0, ..ok },
-        RenderOptions { samples: 9, ..ok },
-        RenderOptions { azimuth_deg: f64::NAN, ..ok },
-        RenderOptions { elevation_deg: 90.0, ..ok },
-        RenderOptions { elevation_deg: f64::INFINITY, ..ok },
-        RenderOptions { fov_deg: 0.0, ..ok },
-        RenderOptions { fov_deg: 180.0, ..ok },
-        RenderOptions { light_elevation_deg: -5.0, ..ok },
-        RenderOptions { frame: Some(FrameBox { lo: [0.0; 3], hi: [f64::NAN, 1.0, 1.0] }), ..ok },
-        RenderOptions { frame: Some(FrameBox { lo: [1.0; 3], hi: [0.0; 3] }), ..ok },
+        RenderOptions { width: 0, ..ok.clone() },
+        RenderOptions { height: 0, ..ok.clone() },
+        RenderOptions { width: 16385, ..ok.clone() },
+        RenderOptions { width: 16384, height: 16384, ..ok.clone() },
+        RenderOptions { samples: 0, ..ok.clone() },
+        RenderOptions { samples: 9, ..ok.clone() },
+        RenderOptions { azimuth_deg: f64::NAN, ..ok.clone() },
+        RenderOptions { elevation_deg: 90.0, ..ok.clone() },
+        RenderOptions { elevation_deg: f64::INFINITY, ..ok.clone() },
+        RenderOptions { fov_deg: 0.0, ..ok.clone() },
+        RenderOptions { fov_deg: 180.0, ..ok.clone() },
+        RenderOptions { light_elevation_deg: -5.0, ..ok.clone() },
+        RenderOptions {
+            frame: Some(FrameBox { lo: [0.0; 3], hi: [f64::NAN, 1.0, 1.0] }),
+            ..ok.clone()
+        },
+        RenderOptions { frame: Some(FrameBox { lo: [1.0; 3], hi: [0.0; 3] }), ..ok.clone() },
     ];
     for o in &bad {
-        assert!(
-            matches!(render::render_tiles(&tiles, o), Err(RenderError::InvalidOption(_))),
-            "{o:?}"
-        );
+        assert!(matches!(render::render(&tiles, o), Err(RenderError::InvalidOption(_))), "{o:?}");
     }
-    render::render_tiles(&tiles, &ok).unwrap();
+    render::render(&tiles, &ok).unwrap();
     // No band voxel at all.
     let empty = TileGrid::new(GridSpec::default());
-    assert!(matches!(render::render_tiles(&empty, &ok), Err(RenderError::Empty(_))));
+    assert!(matches!(render::render(&empty, &ok), Err(RenderError::Empty(_))));
     // A band without a zero crossing: every value positive but inside the band.
     let field = DenseField::new(Coord::new(-3, 4, 0), [5, 6, 7], 1.5).unwrap();
     let no_zero = tiles_from_dense(&field, GridSpec::default()).unwrap();
     assert!(no_zero.band_voxels() > 0);
-    assert!(matches!(render::render_tiles(&no_zero, &ok), Err(RenderError::Empty(_))));
-    let dt = dtgrid_from_tiles(&no_zero);
-    assert!(matches!(render::render_dtgrid(&dt, &ok), Err(RenderError::Empty(_))));
+    assert!(matches!(render::render(&no_zero, &ok), Err(RenderError::Empty(_))));
+    let dt = dtgrid_from(&no_zero);
+    assert!(matches!(render::render(&dt, &ok), Err(RenderError::Empty(_))));
     // A path that cannot be written.
-    let image = render::render_tiles(&tiles, &ok).unwrap();
+    let image = render::render(&tiles, &ok).unwrap();
     let err = image.write_png(&tmp("no/such/dir/x.png")).unwrap_err();
     assert!(matches!(err, RenderError::Io { .. }), "{err}");
 }
@@ -218,7 +217,7 @@ fn renders_near_the_coordinate_limit() {
     let shape = Shape::Sphere { center: [far, -far, 0.0], radius: 8.0 };
     let tiles = tiles_from_shape(&shape, GridSpec::default()).unwrap();
     let opts = RenderOptions { width: 32, height: 24, samples: 1, ..Default::default() };
-    let image = render::render_tiles(&tiles, &opts).unwrap();
+    let image = render::render(&tiles, &opts).unwrap();
     assert!(image.depth(16, 12).is_some());
 }
 
@@ -244,7 +243,7 @@ fn far_apart_parts_render_quickly() {
         ..Default::default()
     };
     let start = std::time::Instant::now();
-    let image = render::render_tiles(&tiles, &opts).unwrap();
+    let image = render::render(&tiles, &opts).unwrap();
     let cam = *image.camera();
     let d = cam.ray(24.5, 18.5);
     let oc = sub(b, cam.eye);

@@ -579,7 +579,7 @@ impl Frames {
     ) -> Result<(), sparse_levelset::evolve::EvolveError> {
         use sparse_levelset::evolve::EvolveError;
         use sparse_levelset::mesh::{isosurface_dtgrid, isosurface_tiles, MeshFormat};
-        use sparse_levelset::render::{render_dtgrid, render_tiles, FrameBox, RenderOptions};
+        use sparse_levelset::render::{render, FrameBox, RenderOptions};
         let step = sim.steps();
         let due = |every: Option<u64>| every.is_some_and(|k| step.is_multiple_of(k));
         let (mesh_due, render_due) = (due(self.mesh_every), due(self.render_every));
@@ -616,11 +616,7 @@ impl Frames {
                 });
             }
             let opts = RenderOptions { frame: self.frame, ..RenderOptions::default() };
-            let image = match tiles {
-                Some(t) => render_tiles(t, &opts),
-                None => render_dtgrid(dt.expect("checked above"), &opts),
-            }
-            .map_err(|e| output(&e))?;
+            let image = render(sim, &opts).map_err(|e| output(&e))?;
             let path = self.dir.join(format!("render-{step:06}.png"));
             image.write_png(&path).map_err(|e| output(&e))?;
             self.written += 1;
@@ -744,7 +740,7 @@ fn run_distance(a: &DistanceArgs) -> Result<(), String> {
     use indicatif::{ProgressBar, ProgressStyle};
     use sparse_levelset::fmm::{distance_dense, FmmOptions, Order};
     let order = if a.order == 1 { Order::First } else { Order::Second };
-    let opts = FmmOptions { order, half_width: Some(a.half_width) };
+    let opts = FmmOptions { order, half_width: Some(a.half_width), ..Default::default() };
     let bar = ProgressBar::new_spinner();
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
@@ -809,13 +805,20 @@ fn run_render(a: &RenderArgs) -> Result<(), String> {
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} rows")
             .expect("valid template"),
     );
-    let progress = |rows: u32| bar.set_position(rows as u64);
+    let b = bar.clone();
+    let opts = render::RenderOptions {
+        progress: sparse_levelset::progress::Progress::new(move |rows, _| {
+            b.set_position(rows);
+            true
+        }),
+        ..opts
+    };
     let start = Instant::now();
     let (grid, image) = match a.grid {
-        GridArg::Tiles => ("tiles", render::render_tiles_with_progress(&tiles, &opts, &progress)),
+        GridArg::Tiles => ("tiles", render::render(&tiles, &opts)),
         GridArg::Dtgrid => {
-            let dt = build::dtgrid_from_tiles(&tiles);
-            ("dtgrid", render::render_dtgrid_with_progress(&dt, &opts, &progress))
+            let dt = build::dtgrid_from(&tiles);
+            ("dtgrid", render::render(&dt, &opts))
         }
         GridArg::Dense => return Err("render traces tiles or dtgrid, not dense".into()),
     };

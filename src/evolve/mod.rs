@@ -600,7 +600,7 @@ impl Simulation {
     /// again. The interface stays where it is (its voxels keep their distance estimates);
     /// the rest of the band becomes an exact marched distance. Sparse grids only.
     pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
-        let opts = crate::fmm::FmmOptions { order, half_width: None };
+        let opts = crate::fmm::FmmOptions { order, ..Default::default() };
         let pool = &self.settings.pool;
         // The new representation replaces the current one only once it is complete: on an
         // error the simulation is unchanged.

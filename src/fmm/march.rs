@@ -6,10 +6,15 @@ use super::heap::IndexedHeap;
 use super::store::{Store, FAR, FROZEN, INITIAL, INSIDE, TRIAL};
 use super::FmmError;
 use crate::coord::Coord;
+use crate::progress::{Progress, Ticker};
 
 /// Cost of crossing one voxel at a voxel: the right-hand side `h / F(x)` of the discrete
 /// eikonal equation (eq. (4)/(7), with the grid spacing moved to the right). Distances
 /// march in voxel units with cost 1.
+/// Units of the progress of one march, and how many voxels are frozen between reports.
+const PROGRESS_UNITS: u64 = 1000;
+const PROGRESS_EVERY: u64 = 1 << 14;
+
 pub(crate) trait Cost {
     fn cost(&self, c: Coord) -> Result<f64, FmmError>;
 }
@@ -247,15 +252,21 @@ impl<C: Cost> Marcher<C> {
     /// is not frozen then has no 6-neighbour of the other sign, so the sign spreads
     /// unchanged. The two sides share one heap; they interact only through the fixed
     /// frozen set, so this equals two separate marches.
-    pub(crate) fn run(&mut self, limit: f64) -> Result<(), FmmError> {
+    /// `progress` hears the marched distance as a share of `limit` (in thousandths).
+    pub(crate) fn run(&mut self, limit: f64, progress: &Progress) -> Result<(), FmmError> {
+        let ticker = progress.start(PROGRESS_UNITS);
         if self.second_order {
-            self.run_impl::<true>(limit)
+            self.run_impl::<true>(limit, &ticker)
         } else {
-            self.run_impl::<false>(limit)
+            self.run_impl::<false>(limit, &ticker)
         }
     }
 
-    fn run_impl<const SECOND: bool>(&mut self, limit: f64) -> Result<(), FmmError> {
+    fn run_impl<const SECOND: bool>(
+        &mut self,
+        limit: f64,
+        ticker: &Ticker,
+    ) -> Result<(), FmmError> {
         // Initialisation: every non-frozen neighbour of the frozen set becomes trial with
         // the value computed from all frozen voxels (so the order of `initial` does not
         // matter).
@@ -290,11 +301,16 @@ impl<C: Cost> Marcher<C> {
             self.store.vox[id as usize].handle = self.heap.push(t, c, id);
         }
         // The loop.
+        let mut popped = 0u64;
         while let Some(key) = self.heap.peek_key() {
             if key > limit {
                 break;
             }
             let (t, c, id) = self.heap.pop().expect("non-empty");
+            popped += 1;
+            if popped % PROGRESS_EVERY == 0 {
+                ticker.set((t / limit * PROGRESS_UNITS as f64) as u64)?;
+            }
             let inside_bit = self.store.vox[id as usize].state & INSIDE;
             let inside = inside_bit != 0;
             self.store.vox[id as usize].state = FROZEN | inside_bit;

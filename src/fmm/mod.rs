@@ -54,11 +54,12 @@ mod tests;
 
 use crate::coord::Coord;
 use crate::dense::DenseField;
-use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
+use crate::levelset::LevelSet;
+use crate::progress::{Cancelled, Progress};
 use crate::tiles::{voxel_of, Tile, TileGrid, TILE_LEN};
 use march::{Cost, Marcher, UnitCost};
-use source::{freeze_interface, DenseSource, Source};
+use source::{freeze_interface, DenseSource, GridSource, Source};
 use store::{FROZEN, INSIDE, TRIAL};
 
 /// Accuracy of the update.
@@ -73,7 +74,7 @@ pub enum Order {
 }
 
 /// Options of the distance computations.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct FmmOptions {
     /// First- or second-order update.
     pub order: Order,
@@ -81,6 +82,8 @@ pub struct FmmOptions {
     /// are marched, values beyond read ±W·voxel. `None` keeps the input grid's
     /// half-width (3 for a dense field).
     pub half_width: Option<f32>,
+    /// Progress (the marched distance as a share of the half-width) and cancellation.
+    pub progress: Progress,
 }
 
 /// Errors of the fast-marching functions.
@@ -107,6 +110,9 @@ pub enum FmmError {
     /// Grid construction failed (coordinates beyond the tile range, memory).
     #[error(transparent)]
     Grid(#[from] GridError),
+    /// Cancelled through [`FmmOptions::progress`]; nothing was changed.
+    #[error("fast marching was cancelled")]
+    Cancelled(#[from] Cancelled),
 }
 
 /// The output spec: the input's with the requested half-width.
@@ -118,14 +124,14 @@ fn output_spec(spec: GridSpec, opts: &FmmOptions) -> Result<GridSpec, FmmError> 
 /// Marches the distance band of `src` to half-width `w` voxels.
 fn march_distance<S: Source + ?Sized>(
     src: &S,
-    order: Order,
+    opts: &FmmOptions,
     w: f32,
 ) -> Result<Marcher<UnitCost>, FmmError> {
-    let mut m = Marcher::new(order == Order::Second, src.domain(), UnitCost);
+    let mut m = Marcher::new(opts.order == Order::Second, src.domain(), UnitCost);
     if freeze_interface(src, &mut m)? == 0 {
         return Err(FmmError::NoInterface);
     }
-    m.run(w as f64)?;
+    m.run(w as f64, &opts.progress)?;
     Ok(m)
 }
 
@@ -168,29 +174,26 @@ fn to_tiles(
     Ok(TileGrid::from_sorted_tiles(spec, tiles, |t| inside(voxel_of(t, 0)))?)
 }
 
-/// Reinitialises the band of a tile grid to a signed distance, or widens/narrows it:
+/// Reinitialises the band of any level set to a signed distance, or widens/narrows it:
 /// the interface voxels are frozen with their estimated distances, then inside and
-/// outside are marched up to the half-width of `opts` (default: the grid's), and a fresh
-/// grid is built from the marched band (border and activity flags computed as in
-/// [`crate::build`]). Unvisited voxels take the input's sign.
+/// outside are marched up to the half-width of `opts` (default: the input's), and a fresh
+/// tile grid is built from the marched band (border and activity flags computed as in
+/// [`crate::build`]). Unvisited voxels take the input's sign. Every storage holding the
+/// same band gives the same values bit for bit; [`crate::build::dtgrid_from`] turns the
+/// result into a DT-Grid.
 ///
-/// Errors: [`FmmError::NoInterface`] for a grid without a sign change; an invalid
-/// half-width; [`GridError::OutOfRange`] when the band would leave the tile range.
-pub fn reinitialize_tiles(grid: &TileGrid, opts: &FmmOptions) -> Result<TileGrid, FmmError> {
-    let spec = output_spec(*grid.spec(), opts)?;
-    let m = march_distance(grid, opts.order, spec.half_width)?;
-    let inside = |c: Coord| Source::inside(grid, c);
-    to_tiles(band_tiles(&m, &spec, inside), spec, inside)
-}
-
-/// [`reinitialize_tiles`] for a DT-Grid: the same march (input read through the stencil
-/// iterator and random access), the same values bit for bit, returned as a DT-Grid.
-pub fn reinitialize_dtgrid(grid: &DtGrid, opts: &FmmOptions) -> Result<DtGrid, FmmError> {
+/// Errors: [`FmmError::NoInterface`] for a level set without a sign change; an invalid
+/// half-width; [`GridError::OutOfRange`] when the band would leave the tile range;
+/// [`FmmError::Cancelled`].
+pub fn reinitialize<G: LevelSet + ?Sized>(
+    grid: &G,
+    opts: &FmmOptions,
+) -> Result<TileGrid, FmmError> {
     let spec = output_spec(grid.spec(), opts)?;
-    let m = march_distance(grid, opts.order, spec.half_width)?;
-    let inside = |c: Coord| Source::inside(grid, c);
-    // The marched band as tiles, then the DT-Grid's band voxels in order from them.
-    Ok(crate::build::dtgrid_from_tiles(&to_tiles(band_tiles(&m, &spec, inside), spec, inside)?))
+    let src = GridSource(grid);
+    let m = march_distance(&src, opts, spec.half_width)?;
+    let inside = |c: Coord| src.inside(c);
+    to_tiles(band_tiles(&m, &spec, inside), spec, inside)
 }
 
 /// The signed distance to the zero level set of a dense field, like scikit-fmm's
@@ -213,7 +216,7 @@ pub fn distance_dense(
         return Err(FmmError::NonFinite { coord, value: *v });
     }
     let src = DenseSource { field };
-    let m = march_distance(&src, opts.order, spec.half_width)?;
+    let m = march_distance(&src, opts, spec.half_width)?;
     let g = spec.gamma();
     let h = voxel_size as f64;
     let mut out = field.clone();
@@ -256,7 +259,7 @@ pub fn tiles_from_interface(
     if m.initial_len() == 0 {
         return Err(FmmError::NoInterface);
     }
-    m.run(spec.half_width as f64)?;
+    m.run(spec.half_width as f64, &Progress::none())?;
     to_tiles(band_tiles(&m, &spec, &inside), spec, &inside)
 }
 
@@ -341,7 +344,7 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
     for &(c, t) in &sorted {
         m.freeze_initial(c, t, false)?;
     }
-    m.run(max_time)?;
+    m.run(max_time, &Progress::none())?;
     let mut coords = Vec::new();
     let mut times = Vec::new();
     for (t, b) in m.store.sorted_blocks() {
@@ -360,4 +363,17 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
         coords: idx.iter().map(|&i| coords[i]).collect(),
         times: idx.iter().map(|&i| times[i]).collect(),
     })
+}
+
+// TEMPORARY (removed once the parallel branches are merged): the old names.
+#[doc(hidden)]
+pub fn reinitialize_tiles(grid: &TileGrid, opts: &FmmOptions) -> Result<TileGrid, FmmError> {
+    reinitialize(grid, opts)
+}
+#[doc(hidden)]
+pub fn reinitialize_dtgrid(
+    grid: &crate::dtgrid::DtGrid,
+    opts: &FmmOptions,
+) -> Result<crate::dtgrid::DtGrid, FmmError> {
+    Ok(crate::build::dtgrid_from(&reinitialize(grid, opts)?))
 }

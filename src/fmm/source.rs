@@ -1,16 +1,14 @@
 //! Reading the input level set and initialising the frozen set at the interface.
 //!
-//! Each input (tile grid, DT-Grid, dense field) offers its candidate voxels with their six
-//! neighbours through its own cheapest access path — the tile grid from inside the tile
-//! and by random access across tile faces, the DT-Grid through its 7-point stencil
-//! iterator, the dense field by index arithmetic — and random access for the rest.
+//! Two kinds of input offer their candidate voxels with their six neighbours: any
+//! narrow-band level set ([`LevelSet`]: its band voxels, neighbours through its cached
+//! accessor) and a dense field (every voxel, neighbours by index arithmetic).
 
 use super::march::{Cost, Marcher};
 use super::FmmError;
 use crate::coord::Coord;
 use crate::dense::DenseField;
-use crate::dtgrid::{DtGrid, Stencil, StencilIter};
-use crate::tiles::{local_index, voxel_of, TileGrid};
+use crate::levelset::{Accessor, LevelSet};
 
 /// Six neighbour values in the order −x, +x, −y, +y, −z, +z; `None` beyond the domain.
 pub(crate) type Star = [Option<f32>; 6];
@@ -41,64 +39,27 @@ pub(crate) trait Source {
     }
 }
 
-impl Source for TileGrid {
-    fn clamp(&self) -> f32 {
-        self.gamma()
-    }
-    fn value(&self, c: Coord) -> Option<f32> {
-        Some(TileGrid::value(self, c))
-    }
-    fn domain(&self) -> Option<(Coord, Coord)> {
-        None
-    }
-    fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star)) {
-        let g = self.gamma();
-        for (pos, &t) in self.tile_coords().iter().enumerate() {
-            let tile = &self.tile(pos).0;
-            for l in 0..64 {
-                let v = tile[l];
-                if v.abs() >= g {
-                    continue;
-                }
-                let (lx, ly, lz) = ((l & 3) as i32, ((l >> 2) & 3) as i32, (l >> 4) as i32);
-                let c = voxel_of(t, l);
-                let mut star = [None; 6];
-                for (i, o) in OFFSETS.iter().enumerate() {
-                    let (x, y, z) = (lx + o.x, ly + o.y, lz + o.z);
-                    star[i] = if (0..4).contains(&x) && (0..4).contains(&y) && (0..4).contains(&z) {
-                        Some(tile[local_index(x, y, z)])
-                    } else {
-                        c.checked_add(*o).map(|n| TileGrid::value(self, n))
-                    };
-                }
-                f(c, v, &star);
-            }
-        }
-    }
-}
+/// Any narrow-band level set as a source: its band voxels in order, the six neighbours
+/// of each through one cached [`Accessor`] (inside a tile they come from the same cached
+/// tile). The march is unbounded: beyond the band every voxel reads ±γ.
+pub(crate) struct GridSource<'a, G: ?Sized>(pub &'a G);
 
-impl Source for DtGrid {
+impl<G: LevelSet + ?Sized> Source for GridSource<'_, G> {
     fn clamp(&self) -> f32 {
-        self.gamma()
+        self.0.spec().gamma()
     }
     fn value(&self, c: Coord) -> Option<f32> {
-        Some(DtGrid::value(self, c))
+        Some(self.0.value(c))
     }
     fn domain(&self) -> Option<(Coord, Coord)> {
         None
     }
     fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star)) {
-        let g = self.gamma();
-        // Stencil order: [centre, -x, +x, -y, +y, -z, +z], the order of `Star`.
-        StencilIter::new(self, &Stencil::star7()).for_each(|c, _, v| {
-            if v[0].abs() < g {
-                let mut star = [None; 6];
-                for (i, s) in star.iter_mut().enumerate() {
-                    // A neighbour beyond the i32 range does not exist.
-                    *s = c.checked_add(OFFSETS[i]).map(|_| v[i + 1]);
-                }
-                f(c, v[0], &star);
-            }
+        let mut acc = self.0.accessor();
+        self.0.for_each_band_voxel(&mut |c, v| {
+            // A neighbour beyond the i32 range does not exist.
+            let star = OFFSETS.map(|o| c.checked_add(o).map(|n| acc.value(n)));
+            f(c, v, &star);
         });
     }
 }

@@ -2,7 +2,7 @@
 //! "Direct Ray Tracing"): no mesh is extracted; rays query the grid by random access, read
 //! ±γ outside the band as the paper prescribes, and step by the level-set value.
 //!
-//! * [`render_tiles`] / [`render_dtgrid`] trace one primary ray per sub-pixel through a
+//! * [`render`] traces one primary ray per sub-pixel through a
 //!   [`Camera`] that frames the level set (or a given [`FrameBox`]); see the `trace`
 //!   module docs in the source for the marching (empty-space skipping over an occupancy
 //!   pyramid of the band, sphere tracing with steps of ½|φ|, root refinement).
@@ -13,7 +13,7 @@
 //!   differences of the trilinear interpolant.
 //! * Rows are traced in parallel with rayon; every pixel is a pure function of the grid
 //!   values and the options, so the image is bitwise identical for any thread count, and
-//!   identical for the tiles and the DT-Grid of the same band (they read the same values).
+//!   identical for every storage of the same band (they read the same values).
 //!
 //! ```
 //! use sparse_levelset::{build, grid::GridSpec, render, shapes::Shape};
@@ -21,7 +21,7 @@
 //! let shape = Shape::Sphere { center: [0.0; 3], radius: 10.0 };
 //! let tiles = build::tiles_from_shape(&shape, GridSpec::default()).unwrap();
 //! let opts = render::RenderOptions { width: 64, height: 48, ..Default::default() };
-//! let image = render::render_tiles(&tiles, &opts).unwrap();
+//! let image = render::render(&tiles, &opts).unwrap();
 //! // The ray through the image centre hits the sphere, about one camera distance minus r away.
 //! let (x, y) = (32, 24);
 //! let eye = image.camera().eye;
@@ -34,12 +34,11 @@
 
 mod trace;
 
-use crate::dtgrid::DtGrid;
-use crate::tiles::TileGrid;
+use crate::levelset::{Accessor, LevelSet};
+use crate::progress::{Cancelled, Progress};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU32, Ordering};
-use trace::{normalize, summarise, trace, Occupancy, Sampler, Source};
+use trace::{normalize, summarise, trace, Occupancy, Sampler};
 
 /// Errors of rendering and of writing an image.
 #[derive(Debug, thiserror::Error)]
@@ -51,6 +50,9 @@ pub enum RenderError {
     /// An option outside its documented range.
     #[error("invalid render option: {0}")]
     InvalidOption(String),
+    /// Cancelled through [`RenderOptions::progress`].
+    #[error("rendering was cancelled")]
+    Cancelled(#[from] Cancelled),
     /// Writing the PNG failed.
     #[error("{path}: {source}")]
     Io {
@@ -68,7 +70,7 @@ pub struct FrameBox {
 }
 
 /// What to render and how. Angles are in degrees; z is up.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RenderOptions {
     /// Image width in pixels (1..=16384).
     pub width: u32,
@@ -97,6 +99,8 @@ pub struct RenderOptions {
     /// one voxel). Give a fixed box to render the frames of an evolution from one
     /// viewpoint.
     pub frame: Option<FrameBox>,
+    /// Progress (image rows done) and cancellation.
+    pub progress: Progress,
 }
 
 impl Default for RenderOptions {
@@ -113,6 +117,7 @@ impl Default for RenderOptions {
             ground: true,
             shadows: true,
             frame: None,
+            progress: Progress::none(),
         }
     }
 }
@@ -293,35 +298,6 @@ impl Image {
     }
 }
 
-/// Renders the zero level set of a Sorted Tile List (see the [module docs](self)).
-pub fn render_tiles(grid: &TileGrid, opts: &RenderOptions) -> Result<Image, RenderError> {
-    render(grid, opts, &|_| {})
-}
-
-/// [`render_tiles`] calling `progress(rows done)` as rows finish (from worker threads).
-pub fn render_tiles_with_progress(
-    grid: &TileGrid,
-    opts: &RenderOptions,
-    progress: &(dyn Fn(u32) + Sync),
-) -> Result<Image, RenderError> {
-    render(grid, opts, progress)
-}
-
-/// Renders the zero level set of a DT-Grid: the same image as [`render_tiles`] gives for
-/// the same band.
-pub fn render_dtgrid(grid: &DtGrid, opts: &RenderOptions) -> Result<Image, RenderError> {
-    render(grid, opts, &|_| {})
-}
-
-/// [`render_dtgrid`] calling `progress(rows done)` as rows finish (from worker threads).
-pub fn render_dtgrid_with_progress(
-    grid: &DtGrid,
-    opts: &RenderOptions,
-    progress: &(dyn Fn(u32) + Sync),
-) -> Result<Image, RenderError> {
-    render(grid, opts, progress)
-}
-
 /// Linear-RGB colours of the scene.
 const OBJECT: [f64; 3] = [0.80, 0.42, 0.18];
 const GROUND: [f64; 3] = [0.62, 0.62, 0.60];
@@ -351,11 +327,10 @@ struct Scene {
     shadows: bool,
 }
 
-fn render<G: Source + ?Sized>(
-    grid: &G,
-    opts: &RenderOptions,
-    progress: &(dyn Fn(u32) + Sync),
-) -> Result<Image, RenderError> {
+/// Renders the zero level set of any level set (see the [module docs](self)): the same
+/// image for every storage of the same band. Progress counts image rows;
+/// [`RenderError::Cancelled`] when the callback stops it.
+pub fn render<G: LevelSet + ?Sized>(grid: &G, opts: &RenderOptions) -> Result<Image, RenderError> {
     opts.validate()?;
     let summary = summarise(grid).ok_or(RenderError::Empty("the grid stores no band voxel"))?;
     let Some((ilo, ihi)) = summary.inside.filter(|_| summary.any_outside) else {
@@ -396,22 +371,23 @@ fn render<G: Source + ?Sized>(
     let (w, ht) = (opts.width as usize, opts.height as usize);
     let mut rgb = vec![0u8; 3 * w * ht];
     let mut depth = vec![f64::INFINITY; w * ht];
-    let done = AtomicU32::new(0);
-    rgb.par_chunks_mut(3 * w).zip(depth.par_chunks_mut(w)).enumerate().for_each(
+    let ticker = opts.progress.start(ht as u64);
+    rgb.par_chunks_mut(3 * w).zip(depth.par_chunks_mut(w)).enumerate().try_for_each(
         |(y, (row, drow))| {
-            let mut s = Sampler::new(grid);
+            ticker.check()?;
+            let mut s = Sampler::new(grid.accessor(), &spec);
             scene.row(&mut s, y as u32, opts.samples, row, drow);
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            ticker.advance(1)
         },
-    );
+    )?;
     Ok(Image { width: opts.width, height: opts.height, rgb, depth, camera })
 }
 
 impl Scene {
     /// One image row: colours (averaged over `n²` sub-pixel rays) and centre-ray depths.
-    fn row<G: Source + ?Sized>(
+    fn row<A: Accessor>(
         &self,
-        s: &mut Sampler<'_, G>,
+        s: &mut Sampler<A>,
         y: u32,
         n: u32,
         rgb: &mut [u8],
@@ -446,11 +422,7 @@ impl Scene {
 
     /// Linear colour seen along the primary ray `d` from the eye, and the distance to the
     /// level set in voxels if it hits it.
-    fn shade<G: Source + ?Sized>(
-        &self,
-        s: &mut Sampler<'_, G>,
-        d: [f64; 3],
-    ) -> ([f64; 3], Option<f64>) {
+    fn shade<A: Accessor>(&self, s: &mut Sampler<A>, d: [f64; 3]) -> ([f64; 3], Option<f64>) {
         let o = self.eye;
         let t_ground = match self.ground {
             Some(z) if d[2] < 0.0 && o[2] > z => (z - o[2]) / d[2],
@@ -492,7 +464,7 @@ impl Scene {
     }
 
     /// Whether the light reaches voxel-space point `p` (no level set in between).
-    fn visible<G: Source + ?Sized>(&self, s: &mut Sampler<'_, G>, p: [f64; 3]) -> bool {
+    fn visible<A: Accessor>(&self, s: &mut Sampler<A>, p: [f64; 3]) -> bool {
         !self.shadows || trace(&self.occ, s, p, self.light, 0.0, f64::INFINITY).is_none()
     }
 }

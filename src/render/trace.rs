@@ -23,10 +23,8 @@
 //!   cubic of the interpolant along the ray instead; both find a zero of the same
 //!   function).
 
-use crate::build::SparseGrid;
 use crate::coord::Coord;
-use crate::dtgrid::DtGrid;
-use crate::tiles::{tile_of, voxel_of, TileGrid};
+use crate::levelset::{Accessor, LevelSet};
 
 /// Sphere-tracing step as a fraction of |φ| (see the module docs for why 0.5).
 const SAFETY: f64 = 0.5;
@@ -37,94 +35,6 @@ const MIN_STEP: f64 = 0.02;
 const MAX_SAMPLES: u32 = 1 << 17;
 /// Width in voxels at which root refinement stops.
 const ROOT_TOL: f64 = 1e-7;
-
-/// A grid the renderer can read: random access plus a pass over its band voxels.
-pub(crate) trait Source: SparseGrid {
-    /// Per-ray memory of recent lookups.
-    type Cache: Default;
-
-    /// Calls `f` with every stored voxel with |φ| < γ, in any order.
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32));
-
-    /// The values at `base + (k & 1, (k >> 1) & 1, k >> 2)` for k in 0..8; `base + 1`
-    /// is within the i32 range on every axis. Must equal eight [`SparseGrid::value`]s.
-    fn corners(&self, base: Coord, _cache: &mut Self::Cache) -> [f32; 8] {
-        std::array::from_fn(|k| {
-            self.value(Coord::new(
-                base.x + (k & 1) as i32,
-                base.y + ((k >> 1) & 1) as i32,
-                base.z + (k >> 2) as i32,
-            ))
-        })
-    }
-}
-
-/// Where the tile lookups of one ray went: a direct-mapped table over the low two bits of
-/// each tile coordinate, so the 2×2×2 tiles around any cell have distinct slots. A slot
-/// holds the tile coordinate and its list position, or the ±γ of an absent tile.
-pub(crate) struct TileCache {
-    keys: [Coord; 64],
-    /// `Ok(list position)` or `Err(value of every voxel of the absent tile)`.
-    slots: [Result<usize, f32>; 64],
-    filled: u64,
-}
-
-impl Default for TileCache {
-    fn default() -> Self {
-        TileCache { keys: [Coord::default(); 64], slots: [Err(0.0); 64], filled: 0 }
-    }
-}
-
-impl Source for TileGrid {
-    type Cache = TileCache;
-
-    /// Each corner's tile is looked up once per ray and then found in the cache: the
-    /// random accesses were two thirds of the render time without it (perf).
-    fn corners(&self, base: Coord, cache: &mut TileCache) -> [f32; 8] {
-        std::array::from_fn(|k| {
-            let v = Coord::new(
-                base.x + (k & 1) as i32,
-                base.y + ((k >> 1) & 1) as i32,
-                base.z + (k >> 2) as i32,
-            );
-            let (t, l) = tile_of(v);
-            let i = ((t.x & 3) | (t.y & 3) << 2 | (t.z & 3) << 4) as usize;
-            if cache.filled & (1 << i) == 0 || cache.keys[i] != t {
-                cache.keys[i] = t;
-                cache.filled |= 1 << i;
-                cache.slots[i] = self.find_tile(t).map_err(|_| self.value(voxel_of(t, 0)));
-            }
-            match cache.slots[i] {
-                Ok(pos) => self.tile(pos).0[l],
-                Err(v) => v,
-            }
-        })
-    }
-
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.gamma();
-        for (pos, &t) in self.tile_coords().iter().enumerate() {
-            for (l, &v) in self.tile(pos).0.iter().enumerate() {
-                if v.abs() < g {
-                    f(voxel_of(t, l), v);
-                }
-            }
-        }
-    }
-}
-
-impl Source for DtGrid {
-    type Cache = ();
-
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.gamma();
-        for (c, v) in self.iter() {
-            if v.abs() < g {
-                f(c, v);
-            }
-        }
-    }
-}
 
 /// What one pass over the band voxels finds out about the level set.
 #[derive(Clone, Copy, Debug)]
@@ -145,7 +55,7 @@ pub(crate) struct BandSummary {
 }
 
 /// Summarises the band; `None` when the grid stores no band voxel.
-pub(crate) fn summarise<G: Source + ?Sized>(grid: &G) -> Option<BandSummary> {
+pub(crate) fn summarise<G: LevelSet + ?Sized>(grid: &G) -> Option<BandSummary> {
     let h = grid.spec().voxel_size as f64;
     let mut s: Option<BandSummary> = None;
     grid.for_each_band_voxel(&mut |c, v| {
@@ -276,7 +186,7 @@ pub(crate) struct Occupancy {
 
 impl Occupancy {
     /// The pyramid of a grid's band; `summary` is that of [`summarise`].
-    pub(crate) fn build<G: Source + ?Sized>(grid: &G, summary: &BandSummary) -> Occupancy {
+    pub(crate) fn build<G: LevelSet + ?Sized>(grid: &G, summary: &BandSummary) -> Occupancy {
         // Cells with a band corner have base voxels in lo − 1 ..= hi.
         let lo = [summary.lo[0] - 1, summary.lo[1] - 1, summary.lo[2] - 1];
         let extent: [i64; 3] = std::array::from_fn(|a| summary.hi[a] - lo[a] + 1);
@@ -318,9 +228,8 @@ impl Occupancy {
 
 /// The trilinear interpolant of a grid in voxel space, in voxel units, with the eight
 /// corners of the last cell cached (consecutive samples of a ray mostly share a cell).
-pub(crate) struct Sampler<'a, G: Source + ?Sized> {
-    grid: &'a G,
-    cache: G::Cache,
+pub(crate) struct Sampler<A> {
+    acc: A,
     inv_h: f64,
     gamma: f64,
     base: [i64; 3],
@@ -328,12 +237,11 @@ pub(crate) struct Sampler<'a, G: Source + ?Sized> {
     pub(crate) samples: u32,
 }
 
-impl<'a, G: Source + ?Sized> Sampler<'a, G> {
-    pub(crate) fn new(grid: &'a G) -> Self {
-        let spec = grid.spec();
+impl<A: Accessor> Sampler<A> {
+    /// The interpolant read through `acc`, an accessor of a level set with `spec`.
+    pub(crate) fn new(acc: A, spec: &crate::grid::GridSpec) -> Self {
         Sampler {
-            grid,
-            cache: G::Cache::default(),
+            acc,
             inv_h: 1.0 / spec.voxel_size as f64,
             gamma: spec.half_width as f64,
             base: [i64::MIN; 3],
@@ -370,9 +278,13 @@ impl<'a, G: Source + ?Sized> Sampler<'a, G> {
         let range = i32::MIN as i64..i32::MAX as i64;
         if base.iter().all(|b| range.contains(b)) {
             let b = Coord::new(base[0] as i32, base[1] as i32, base[2] as i32);
-            let v = self.grid.corners(b, &mut self.cache);
-            for (c, v) in self.corners.iter_mut().zip(v) {
-                *c = v as f64 * self.inv_h;
+            for (k, c) in self.corners.iter_mut().enumerate() {
+                let v = Coord::new(
+                    b.x + (k & 1) as i32,
+                    b.y + ((k >> 1) & 1) as i32,
+                    b.z + (k >> 2) as i32,
+                );
+                *c = self.acc.value(v) as f64 * self.inv_h;
             }
             return;
         }
@@ -384,7 +296,7 @@ impl<'a, G: Source + ?Sized> Sampler<'a, G> {
             ];
             let ok = v.iter().all(|&x| (i32::MIN as i64..=i32::MAX as i64).contains(&x));
             *c = if ok {
-                self.grid.value(Coord::new(v[0] as i32, v[1] as i32, v[2] as i32)) as f64
+                self.acc.value(Coord::new(v[0] as i32, v[1] as i32, v[2] as i32)) as f64
                     * self.inv_h
             } else {
                 self.gamma
@@ -419,9 +331,9 @@ fn at(o: [f64; 3], d: [f64; 3], t: f64) -> [f64; 3] {
 
 /// Finds the first zero of the interpolant along `o + t d` (voxel space, `d` a unit
 /// vector) for `t` in `[t0, t1]`, marching only through occupied finest blocks.
-pub(crate) fn trace<G: Source + ?Sized>(
+pub(crate) fn trace<A: Accessor>(
     occ: &Occupancy,
-    s: &mut Sampler<'_, G>,
+    s: &mut Sampler<A>,
     o: [f64; 3],
     d: [f64; 3],
     t0: f64,
@@ -460,12 +372,12 @@ pub(crate) fn trace<G: Source + ?Sized>(
 /// blocks form one run (`run` holds its start, across levels), marched when the ray
 /// enters an empty block: one sphere trace per run instead of a restart per block.
 #[allow(clippy::too_many_arguments)]
-fn walk<G: Source + ?Sized>(
+fn walk<A: Accessor>(
     occ: &Occupancy,
     k: usize,
     bmin: [i64; 3],
     bmax: [i64; 3],
-    s: &mut Sampler<'_, G>,
+    s: &mut Sampler<A>,
     o: [f64; 3],
     d: [f64; 3],
     ta: f64,
@@ -537,8 +449,8 @@ fn walk<G: Source + ?Sized>(
 }
 
 /// Sphere tracing over `[ta, tb]`, then root refinement at the first sign change.
-fn march<G: Source + ?Sized>(
-    s: &mut Sampler<'_, G>,
+fn march<A: Accessor>(
+    s: &mut Sampler<A>,
     o: [f64; 3],
     d: [f64; 3],
     ta: f64,
@@ -566,8 +478,8 @@ fn march<G: Source + ?Sized>(
 
 /// The Illinois algorithm on a bracket whose ends differ in sign (or whose right end is
 /// zero): secant steps, halving the weight of an end that is kept twice.
-fn refine<G: Source + ?Sized>(
-    s: &mut Sampler<'_, G>,
+fn refine<A: Accessor>(
+    s: &mut Sampler<A>,
     o: [f64; 3],
     d: [f64; 3],
     (mut a, mut fa): (f64, f64),
