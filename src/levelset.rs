@@ -236,7 +236,9 @@ impl LevelSet for DtGrid {
 }
 
 /// The accessor of a simulation's state: the tile accessor on tiles, random access on
-/// the other representations.
+/// the other representations. (One lives on the stack per ray or row: its size does not
+/// matter, an indirection per lookup would.)
+#[allow(clippy::large_enum_variant)]
 enum SimulationAccessor<'a> {
     Tiles(TileAccessor<'a>),
     Other(&'a crate::evolve::Simulation),

@@ -108,7 +108,7 @@ pub fn measure<G: LevelSet + ?Sized>(
             return;
         }
         band += 1;
-        if band % 4096 == 0 {
+        if band.is_multiple_of(4096) {
             if let Err(e) = ticker.advance(4096) {
                 err = Some(e.into());
                 return;

@@ -308,7 +308,7 @@ impl<C: Cost> Marcher<C> {
             }
             let (t, c, id) = self.heap.pop().expect("non-empty");
             popped += 1;
-            if popped % PROGRESS_EVERY == 0 {
+            if popped.is_multiple_of(PROGRESS_EVERY) {
                 ticker.set((t / limit * PROGRESS_UNITS as f64) as u64)?;
             }
             let inside_bit = self.store.vox[id as usize].state & INSIDE;
