@@ -31,15 +31,13 @@ pub mod evolve;
 pub mod fmm;
 pub mod fsutil;
 pub mod grid;
-pub mod info;
+pub mod input;
 pub mod memory;
 pub mod mesh;
 pub mod npy;
 pub mod render;
 pub mod sample;
-pub mod scenario;
 pub mod shapes;
-pub mod speedup;
 pub mod tiles;
 
 pub use coord::Coord;

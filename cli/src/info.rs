@@ -1,13 +1,13 @@
 //! The `levelset info` report: both grids built from one input, with their voxel counts and
 //! bytes by part.
 
-use crate::build::{
-    dense_sign_jumps, dtgrid_from_dense, dtgrid_from_tiles, tiles_from_dense, tiles_from_shape,
+use sparse_levelset::build::{
+    dtgrid_from_dense, dtgrid_from_tiles, tiles_from_dense, tiles_from_shape,
     SparseGrid,
 };
-use crate::dense::DenseField;
-use crate::grid::{GridError, GridSpec, MemoryReport};
-use crate::shapes::Shape;
+use sparse_levelset::dense::DenseField;
+use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
+use sparse_levelset::shapes::Shape;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -140,7 +140,9 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     ))
 }
 
-/// Builds both grids of a dense field and reports them.
+/// Builds both grids of a dense field and reports them. The field is expected to have
+/// passed the library's checks ([`sparse_levelset::input::check_field`]: an interface, a
+/// distance field at this half-width).
 pub fn info_from_dense(
     source: &str,
     field: &DenseField,
@@ -163,13 +165,6 @@ pub fn info_from_dense(
                 .into(),
         );
     }
-    let jumps = dense_sign_jumps(field, g);
-    if jumps > 0 {
-        warnings.push(format!(
-            "{jumps} neighbouring voxel pairs change sign with both |φ| ≥ γ = {g}: the field is \
-             not a signed distance at this half-width (check --voxel-size, or reinitialise)"
-        ));
-    }
     if tiles.is_empty() {
         warnings.push(format!("no voxel has |φ| < γ = {g}: both grids are empty"));
     }
@@ -185,7 +180,7 @@ pub fn info_from_dense(
 }
 
 /// Bytes for people: B, KiB, MiB or GiB.
-pub(crate) fn human_bytes(bytes: usize) -> String {
+pub fn human_bytes(bytes: usize) -> String {
     let b = bytes as f64;
     if b >= 1024.0 * 1024.0 * 1024.0 {
         format!("{:.2} GiB", b / (1024.0 * 1024.0 * 1024.0))
