@@ -65,7 +65,7 @@ impl GridSpec {
         let g = half_width * h;
         if !(g * g).is_finite() {
             return bad(format!(
-                "the band half-width γ = {half_width} × {h} = {g:e} world units is too large: \
+                "the band half-width γ = {half_width} voxels × {h:e} = {g:e} world units is too large: \
                  γ² overflows f32 (γ must be at most about 1.8e19)"
             ));
         }

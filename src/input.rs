@@ -142,13 +142,12 @@ pub fn load_npy(path: &Path, expect: &Expect) -> Result<DenseField, InputError> 
     let info = npy::inspect_npy(path).map_err(InputError::File)?;
     let field_bytes = crate::memory::bytes_of(info.len() as u128, 4);
     let needed = info.read_bytes() + (expect.copies.max(1.0) - 1.0) * field_bytes;
-    crate::memory::check(needed, "the field and the tool's working copies")
+    crate::memory::check(needed, "the field with the tool's working copies")
         .map_err(|error| InputError::OutOfMemory { input: name.clone(), error })?;
     let mut field = npy::read_npy(path).map_err(|e| match e {
-        NpyError::NaN { x, y, z, .. } => InputError::NaN {
-            input: name.clone(),
-            coord: Coord::new(x as i32, y as i32, z as i32),
-        },
+        NpyError::NaN { x, y, z, .. } => {
+            InputError::NaN { input: name.clone(), coord: Coord::new(x as i32, y as i32, z as i32) }
+        }
         e => InputError::File(e),
     })?;
     check_field(&name, &mut field, expect)?;
@@ -283,7 +282,10 @@ mod tests {
         for (value, inside) in [(-5.0, true), (0.0, false), (7.0, false)] {
             let mut f = DenseField::new(Coord::new(0, 0, 0), [4, 4, 4], value).unwrap();
             let err = check_field("flat", &mut f, &e).unwrap_err();
-            assert!(matches!(err, InputError::NoInterface { inside: i, .. } if i == inside), "{err}");
+            assert!(
+                matches!(err, InputError::NoInterface { inside: i, .. } if i == inside),
+                "{err}"
+            );
             let msg = err.to_string();
             assert!(msg.contains("no interface") && msg.contains("empty"), "{msg}");
         }

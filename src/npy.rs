@@ -651,7 +651,12 @@ mod tests {
         let dir = TempDir::new("oom");
         let path = dir.file("huge.npy", &npy_bytes((1, 0), &c_dict("(4096, 2048, 2048)"), &[]));
         let header = fs::metadata(&path).unwrap().len();
-        fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(header + (1 << 36)).unwrap();
+        fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(header + (1 << 36))
+            .unwrap();
         let info = inspect_npy(&path).unwrap();
         assert_eq!(info, NpyInfo { dims: [2048, 2048, 4096], fortran_order: false });
         assert_eq!(info.read_bytes(), (1u64 << 36) as f64);

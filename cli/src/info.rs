@@ -1,14 +1,13 @@
 //! The `levelset info` report: both grids built from one input, with their voxel counts and
 //! bytes by part.
 
+use serde::Serialize;
 use sparse_levelset::build::{
-    dtgrid_from_dense, dtgrid_from_tiles, tiles_from_dense, tiles_from_shape,
-    SparseGrid,
+    dtgrid_from_dense, dtgrid_from_tiles, tiles_from_dense, tiles_from_shape, SparseGrid,
 };
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
 use sparse_levelset::shapes::Shape;
-use serde::Serialize;
 use std::fmt::Write as _;
 use std::time::Instant;
 

@@ -271,9 +271,7 @@ impl Scenario {
         let kind = o.kind;
         let size = o.size.unwrap_or(kind.default_size());
         if !(8..=1 << 16).contains(&size) {
-            return Err(invalid(format!(
-                "size must be in 8..=65536, got {size}"
-            )));
+            return Err(invalid(format!("size must be in 8..=65536, got {size}")));
         }
         let n = size as f64;
         let c = [n / 2.0; 3];
@@ -381,7 +379,11 @@ impl Scenario {
             }
             None => {
                 // The evolution holds about five band-sized arrays.
-                input::check_shape(kind.name(), &shape, &Expect { copies: 5.0, ..Expect::new(spec) })?;
+                input::check_shape(
+                    kind.name(),
+                    &shape,
+                    &Expect { copies: 5.0, ..Expect::new(spec) },
+                )?;
                 if dense {
                     check_dense_box(&shape, &spec)?;
                 }

@@ -8,10 +8,10 @@
 //! the report shows the checksums and the largest difference of the final φ between the
 //! DT-Grid and each tile run.
 
-use sparse_levelset::evolve::{GridKind, Lanes, Simulation};
 use crate::scenario::{Scenario, ScenarioKind, ScenarioOptions};
-use sparse_levelset::Coord;
 use serde::Serialize;
+use sparse_levelset::evolve::{GridKind, Lanes, Simulation};
+use sparse_levelset::Coord;
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -133,9 +133,11 @@ fn run_tools(
     use sparse_levelset::fmm::{FmmOptions, Order};
     let n = if cfg.quick { 64.0 } else { 256.0 };
     let c = n / 2.0;
-    let shape = sparse_levelset::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
+    let shape =
+        sparse_levelset::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
     let spec = sparse_levelset::grid::GridSpec::default();
-    let tiles = sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
+    let tiles =
+        sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
     let dt = sparse_levelset::build::dtgrid_from_tiles(&tiles);
     let band = tiles.band_voxels();
     let mut out = Vec::new();
@@ -173,7 +175,8 @@ fn run_tools(
         .build()
         .map_err(|e| format!("thread pool: {e}"))?;
     let (s, m) = best_of(reps, || {
-        pool.install(|| sparse_levelset::mesh::isosurface_tiles(&tiles, 0.0)).map_err(|e| e.to_string())
+        pool.install(|| sparse_levelset::mesh::isosurface_tiles(&tiles, 0.0))
+            .map_err(|e| e.to_string())
     })?;
     push(name, "tiles", s, format!("{} triangles, {} thread(s)", m.triangles.len(), cfg.threads));
     Ok(out)

@@ -46,8 +46,8 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
         }
         Input::Shape { shape, .. } => {
             bar.set_message("building tiles");
-            let tiles = sparse_levelset::build::tiles_from_shape(shape, spec)
-                .map_err(|e| e.to_string())?;
+            let tiles =
+                sparse_levelset::build::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?;
             bar.set_length(tiles.len() as u64);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(

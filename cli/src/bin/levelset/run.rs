@@ -2,7 +2,7 @@
 //! optional frames (PNG images, PLY meshes) and the final field.
 
 use clap::{Args, ValueEnum};
-use levelset_cli::output::{check_output_dir, write_json};
+use levelset_cli::output::{check_output, check_output_dir, write_json};
 use levelset_cli::scenario::{Scenario, ScenarioKind, ScenarioOptions};
 use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{GridKind, Integrator, Lanes, SpatialScheme};
@@ -151,7 +151,6 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
-
 /// The frames `levelset run` writes while it steps (`--render-every`, `--mesh-every`).
 struct Frames {
     dir: PathBuf,
@@ -289,13 +288,16 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     let mut frames = Frames::new(a)?;
     // Before any work: the output directory, every parameter, the --init field, memory.
     check_output_dir(&a.out)?;
+    if a.out.is_dir() {
+        check_output(&a.out.join("summary.json"))?;
+        if a.export_npy {
+            check_output(&a.out.join("final.npy"))?;
+        }
+    }
     let scenario = Scenario::resolve(o).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
-    let bar = progress::bar(
-        a.quiet,
-        1000,
-        "{spinner} [{elapsed_precise}] {bar:30} {percent}% {msg}",
-    );
+    let bar =
+        progress::bar(a.quiet, 1000, "{spinner} [{elapsed_precise}] {bar:30} {percent}% {msg}");
     bar.set_message(format!("{} on {}", kind.name(), scenario.params.grid));
     let (summary, sim) = scenario
         .run_with(|f| bar.set_position((f * 1000.0) as u64), |sim| frames.write(sim))
