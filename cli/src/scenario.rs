@@ -1,4 +1,5 @@
-//! The papers' evolution scenarios as library functions (behind `levelset run`):
+//! The papers' evolution scenarios as command-line presets (behind `levelset run` and the
+//! speed-up report):
 //!
 //! | scenario | what | papers' setup (the defaults) |
 //! |---|---|---|
