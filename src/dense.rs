@@ -75,13 +75,26 @@ pub(crate) fn checked_len(origin: Coord, dims: [usize; 3]) -> Result<usize, Grid
     Ok(len)
 }
 
+/// [`checked_len`], and the memory of the values checked before they are allocated.
+fn checked_alloc(origin: Coord, dims: [usize; 3]) -> Result<usize, GridError> {
+    let len = checked_len(origin, dims)?;
+    let [nx, ny, nz] = dims;
+    crate::memory::check(
+        crate::memory::bytes_of(len as u128, std::mem::size_of::<f32>()),
+        &format!("a dense field of {nx}×{ny}×{nz} voxels"),
+    )?;
+    Ok(len)
+}
+
 impl DenseField {
     /// A field of `dims = [nx, ny, nz]` voxels starting at `origin`, every value `fill`.
     ///
     /// Fails with [`GridError::InvalidParameter`] when a dimension is 0, the element count
-    /// overflows, or the box leaves the `i32` coordinate range.
+    /// overflows, or the box leaves the `i32` coordinate range, and with
+    /// [`GridError::OutOfMemory`] when the machine cannot hold the values
+    /// ([`crate::memory::check`], before anything is allocated).
     pub fn new(origin: Coord, dims: [usize; 3], fill: f32) -> Result<Self, GridError> {
-        let len = checked_len(origin, dims)?;
+        let len = checked_alloc(origin, dims)?;
         Ok(DenseField { origin, dims, data: vec![fill; len] })
     }
 
@@ -93,7 +106,7 @@ impl DenseField {
     where
         F: Fn(Coord) -> f32 + Sync,
     {
-        let len = checked_len(origin, dims)?;
+        let len = checked_alloc(origin, dims)?;
         let [nx, ny, _] = dims;
         let mut data = vec![0.0f32; len];
         data.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slice)| {
@@ -380,6 +393,13 @@ mod tests {
         assert!(DenseField::new(o, [0, 1, 1], 0.0).is_err());
         assert!(DenseField::new(o, [usize::MAX, 2, 1], 0.0).is_err());
         assert!(DenseField::new(o, [1 << 30, 1 << 30, 1 << 30], 0.0).is_err());
+        // Addressable but beyond the machine (16 TiB): refused before allocating.
+        for e in [
+            DenseField::new(o, [1 << 16, 1 << 16, 1 << 10], 0.0).unwrap_err(),
+            DenseField::from_fn(o, [1 << 16, 1 << 16, 1 << 10], |_| 0.0).unwrap_err(),
+        ] {
+            assert!(matches!(e, GridError::OutOfMemory { .. }), "{e}");
+        }
         // Largest coordinate must stay in i32.
         let edge = Coord::new(i32::MAX - 3, 0, 0);
         assert!(DenseField::new(edge, [4, 1, 1], 0.0).is_ok());

@@ -28,28 +28,53 @@ impl Default for GridSpec {
 }
 
 impl GridSpec {
-    /// A checked spec: voxel size finite and > 0, half-width finite and > 1 voxel.
+    /// A checked spec: voxel size finite and > 0, half-width finite and > 1 voxel, origin
+    /// finite, and every quantity the computation forms from them representable in `f32`.
     ///
     /// The half-width must exceed one voxel so that a voxel next to the interface (within
     /// one voxel of a zero crossing) is always in the band; then the band separates inside
     /// from outside and every grid can tell the sign of a voxel it does not store. At
     /// exactly one voxel a voxel with φ = 0 could neighbour an unstored voxel at −γ, and
     /// the DT-Grid's sign rule could not tell the interior from a thin shell.
+    ///
+    /// # Representable
+    /// Band values are `f32` in world units and the kernels square them (|∇φ|², WENO5's
+    /// smoothness indicators) and divide by h² (curvature), and meshes and images place
+    /// voxels at `f32` world positions. So the spec is refused unless, in `f32`:
+    /// * γ = half-width × h and γ² are finite (γ ≤ 1.8·10¹⁹ world units);
+    /// * 1/h² is finite (h ≥ 2⁻⁶³ ≈ 1.1·10⁻¹⁹);
+    /// * the world position of every voxel of the `i32` range, `origin ± 2³¹·h`, is finite.
     pub fn new(voxel_size: f32, origin: [f64; 3], half_width: f32) -> Result<Self, GridError> {
+        let bad = |msg: String| Err(GridError::InvalidParameter(msg));
         if !(voxel_size.is_finite() && voxel_size > 0.0) {
-            return Err(GridError::InvalidParameter(format!(
-                "voxel size must be finite and > 0, got {voxel_size}"
-            )));
+            return bad(format!("voxel size must be finite and > 0, got {voxel_size}"));
         }
         if !(half_width.is_finite() && half_width > 1.0) {
-            return Err(GridError::InvalidParameter(format!(
-                "half-width must be finite and > 1 voxel, got {half_width}"
-            )));
+            return bad(format!("half-width must be finite and > 1 voxel, got {half_width}"));
         }
         if origin.iter().any(|o| !o.is_finite()) {
-            return Err(GridError::InvalidParameter(format!(
-                "origin must be finite, got {origin:?}"
-            )));
+            return bad(format!("origin must be finite, got {origin:?}"));
+        }
+        let h = voxel_size;
+        if !(1.0 / (h * h)).is_finite() {
+            return bad(format!(
+                "voxel size {h} is too small: 1/h² overflows f32 (the smallest voxel size is \
+                 2^-63 ≈ 1.1e-19)"
+            ));
+        }
+        let g = half_width * h;
+        if !(g * g).is_finite() {
+            return bad(format!(
+                "the band half-width γ = {half_width} voxels × {h:e} = {g:e} world units is too large: \
+                 γ² overflows f32 (γ must be at most about 1.8e19)"
+            ));
+        }
+        let far = (0..3).map(|a| origin[a].abs() + 2f64.powi(31) * h as f64).fold(0.0, f64::max);
+        if !(far as f32).is_finite() {
+            return bad(format!(
+                "voxel size {h} and origin {origin:?} put voxels of the i32 range at world \
+                 position {far:e}, beyond f32"
+            ));
         }
         Ok(GridSpec { voxel_size, origin, half_width })
     }
@@ -139,4 +164,29 @@ pub enum GridError {
         crate::memory::gib(*limit)
     )]
     OutOfMemory { what: String, needed: u64, limit: u64 },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spec_refuses_what_f32_cannot_represent() {
+        assert!(GridSpec::new(1.0, [0.0; 3], 3.0).is_ok());
+        assert!(GridSpec::new(1e-6, [-1e6; 3], 3.0).is_ok());
+        assert!(GridSpec::new(1e6, [0.0; 3], 64.0).is_ok());
+        let cases: [(f32, [f64; 3], f32, &str); 7] = [
+            (1e38, [0.0; 3], 3.0, "γ²"),
+            (1e19, [0.0; 3], 3.0, "γ²"),
+            (1e-30, [0.0; 3], 3.0, "too small"),
+            (f32::MIN_POSITIVE, [0.0; 3], 3.0, "too small"),
+            (1.0, [1e39, 0.0, 0.0], 3.0, "beyond f32"),
+            (f32::INFINITY, [0.0; 3], 3.0, "finite"),
+            (1.0, [0.0; 3], f32::INFINITY, "half-width"),
+        ];
+        for (h, o, w, needle) in cases {
+            let e = GridSpec::new(h, o, w).unwrap_err().to_string();
+            assert!(e.contains(needle), "h = {h}, origin {o:?}, w = {w}: {e}");
+        }
+    }
 }

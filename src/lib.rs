@@ -31,7 +31,7 @@ pub mod evolve;
 pub mod fmm;
 pub mod fsutil;
 pub mod grid;
-pub mod info;
+pub mod input;
 pub mod levelset;
 pub mod measure;
 pub mod memory;
@@ -40,9 +40,7 @@ pub mod npy;
 pub mod progress;
 pub mod render;
 pub mod sample;
-pub mod scenario;
 pub mod shapes;
-pub mod speedup;
 pub mod tiles;
 
 pub use coord::Coord;

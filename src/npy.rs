@@ -94,6 +94,14 @@ pub enum NpyError {
         .path.display()
     )]
     NaN { path: PathBuf, x: u64, y: u64, z: u64 },
+    /// The array needs more memory than the machine can give ([`crate::memory::check`]),
+    /// refused before anything is allocated.
+    #[error("{}: {source}", .path.display())]
+    OutOfMemory {
+        path: PathBuf,
+        #[source]
+        source: crate::grid::GridError,
+    },
 }
 
 /// A shape as NumPy prints it: `(2, 3, 4)`, `(5,)`, `()`.
@@ -111,12 +119,56 @@ const MAX_HEADER_LEN: u64 = 1 << 16;
 /// Nesting limit of header values (NumPy's headers nest at most 2 deep for our dtypes).
 const MAX_DEPTH: usize = 8;
 
+/// What a `.npy` header declares, checked against the file's size ([`inspect_npy`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NpyInfo {
+    /// `[nx, ny, nz]` for shape `(nz, ny, nx)`.
+    pub dims: [usize; 3],
+    /// Whether the data are in Fortran order (read with one transposing pass).
+    pub fortran_order: bool,
+}
+
+impl NpyInfo {
+    /// Number of values, `nx · ny · nz`.
+    pub fn len(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Whether the array holds no value (never true for a checked header).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Bytes [`read_npy`] allocates at its peak: the data, and a second copy while a
+    /// Fortran-ordered file is transposed.
+    pub fn read_bytes(&self) -> f64 {
+        crate::memory::bytes_of(self.len() as u128, 4) * if self.fortran_order { 2.0 } else { 1.0 }
+    }
+}
+
+/// Reads and checks the header of a `.npy` file without reading its data: the same checks
+/// as [`read_npy`] (dtype, three dimensions, sizes, the file's length against the
+/// header), except for NaN values and memory. Lets a tool size its work before reading.
+pub fn inspect_npy(path: &Path) -> Result<NpyInfo, NpyError> {
+    let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
+    let mut file = File::open(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    if meta.is_file() {
+        Ok(read_header(&mut file, meta.len(), path)?.info)
+    } else {
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io_err)?;
+        Ok(read_header(&mut &bytes[..], bytes.len() as u64, path)?.info)
+    }
+}
+
 /// Reads a 3-D little-endian float32 `.npy` file into a [`DenseField`] with origin
 /// `(0, 0, 0)` and `dims = [nx, ny, nz]` for shape `(nz, ny, nx)`.
 ///
 /// See the module docs for orders, `inf`, `NaN` and trailing bytes. The header is checked
-/// against the file size before the data are allocated, so a hostile header cannot make
-/// this allocate more than the file holds.
+/// against the file size, and the memory the data need against what the machine can give
+/// ([`NpyError::OutOfMemory`]), before the data are allocated, so neither a hostile header
+/// nor a huge file can make this allocate more than the file holds or the machine has.
 pub fn read_npy(path: &Path) -> Result<DenseField, NpyError> {
     let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
     let mut file = File::open(path).map_err(io_err)?;
@@ -132,8 +184,15 @@ pub fn read_npy(path: &Path) -> Result<DenseField, NpyError> {
     }
 }
 
-/// Parses a `.npy` stream of `total` bytes; `path` only names it in errors.
-fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, NpyError> {
+/// A checked header: what it declares and the data bytes that must follow it.
+struct Checked {
+    info: NpyInfo,
+    expected: u64,
+}
+
+/// Parses and checks the preamble and header of a `.npy` stream of `total` bytes, leaving
+/// `r` at the first data byte; `path` only names it in errors.
+fn read_header(r: &mut impl Read, total: u64, path: &Path) -> Result<Checked, NpyError> {
     let p = || path.to_path_buf();
     let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
     let bad = |reason: String| NpyError::BadHeader { path: path.to_path_buf(), reason };
@@ -201,7 +260,7 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
         .ok_or_else(|| too_large("its size in bytes overflows 64 bits".into()))?;
     let (nz, ny, nx) = (shape[0], shape[1], shape[2]);
     let dims = [nx, ny, nz].map(|d| usize::try_from(d).unwrap_or(usize::MAX));
-    let len = checked_len(Coord::new(0, 0, 0), dims).map_err(|e| too_large(e.to_string()))?;
+    checked_len(Coord::new(0, 0, 0), dims).map_err(|e| too_large(e.to_string()))?;
     let found = total - preamble - header_len;
     if found < expected {
         return Err(NpyError::Truncated { path: p(), expected, found });
@@ -209,6 +268,22 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
     if found > expected {
         return Err(NpyError::TrailingBytes { path: p(), expected, found });
     }
+    Ok(Checked { info: NpyInfo { dims, fortran_order: header.fortran_order }, expected })
+}
+
+/// Parses a `.npy` stream of `total` bytes; `path` only names it in errors.
+fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, NpyError> {
+    let p = || path.to_path_buf();
+    let Checked { info, expected } = read_header(r, total, path)?;
+    let dims = info.dims;
+    let len = info.len();
+    let too_large = |reason: String| NpyError::TooLarge {
+        path: path.to_path_buf(),
+        shape: vec![dims[2] as u64, dims[1] as u64, dims[0] as u64],
+        reason,
+    };
+    crate::memory::check(info.read_bytes(), "the array's data")
+        .map_err(|source| NpyError::OutOfMemory { path: p(), source })?;
 
     // The data: read straight into the f32 buffer (the file holds exactly len · 4 bytes).
     let mut data = vec![0.0f32; len];
@@ -223,7 +298,7 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
         }
     }
     let (nx, ny, nz) = (dims[0], dims[1], dims[2]);
-    if header.fortran_order {
+    if info.fortran_order {
         // File offset of arr[z, y, x] is z + nz (y + ny x); ours is x + nx (y + ny z).
         let file = data;
         let mut ours = vec![0.0f32; len];
@@ -567,6 +642,30 @@ mod tests {
             (c.x + 10 * c.y + 100 * c.z) as f32 - 0.5
         })
         .unwrap()
+    }
+
+    #[test]
+    fn arrays_beyond_memory_are_refused_before_allocating() {
+        // Header and file size agree on a (4096, 2048, 2048) float32 array (64 GiB): a
+        // sparse file, so no disk is used; reading must refuse it, not abort.
+        let dir = TempDir::new("oom");
+        let path = dir.file("huge.npy", &npy_bytes((1, 0), &c_dict("(4096, 2048, 2048)"), &[]));
+        let header = fs::metadata(&path).unwrap().len();
+        fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(header + (1 << 36))
+            .unwrap();
+        let info = inspect_npy(&path).unwrap();
+        assert_eq!(info, NpyInfo { dims: [2048, 2048, 4096], fortran_order: false });
+        assert_eq!(info.read_bytes(), (1u64 << 36) as f64);
+        if crate::memory::limit() < 1 << 36 {
+            let e = read_npy(&path).unwrap_err();
+            assert!(matches!(e, NpyError::OutOfMemory { .. }), "{e}");
+            let msg = e.to_string();
+            assert!(msg.contains("huge.npy") && msg.contains("64.0 GiB"), "{msg}");
+        }
     }
 
     #[test]

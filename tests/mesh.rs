@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 
 mod common;
 
-use common::{levelset, tmp};
+use common::tmp;
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
@@ -394,81 +394,4 @@ fn bad_input_is_an_error() {
     assert!(!bad.is_closed_manifold());
     assert!(bad.write(&tmp("bad.ply"), None).is_err());
     assert!(!tmp("bad.ply").exists());
-}
-
-#[test]
-fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
-    let ok = |args: &[&str]| {
-        let o = levelset(args);
-        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8(o.stdout).unwrap()
-    };
-    let fails = |args: &[&str], msg: &str| {
-        let o = levelset(args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
-        assert!(err.contains("error:") && err.contains(msg), "{args:?}: {err}");
-    };
-    let out = tmp("cli_torus.obj");
-    let s = ok(&[
-        "mesh",
-        "--shape",
-        "torus",
-        "--major-radius",
-        "12",
-        "--minor-radius",
-        "4",
-        "-o",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 0"), "{s}");
-    assert!(std::fs::metadata(&out).unwrap().len() > 0);
-
-    // A ball in a dense field with voxel size 0.5: radius 4.5 world units.
-    let ball = common::ball([24, 22, 23], [11.3, 10.6, 11.1], 9.0, 0.5);
-    let npy = common::npy("ball.npy", &ball);
-    let ply = tmp("ball.ply");
-    let s = ok(&[
-        "mesh",
-        "--input",
-        npy.to_str().unwrap(),
-        "--voxel-size",
-        "0.5",
-        "-o",
-        ply.to_str().unwrap(),
-    ]);
-    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
-    let m = isosurface_dense(&ball, &GridSpec::new(0.5, [0.0; 3], 3.0).unwrap(), 0.0).unwrap();
-    assert!(s.contains(&format!("{} vertices, {} triangles", m.num_vertices(), m.num_triangles())));
-    close("ball volume", m.enclosed_volume(), 4.0 / 3.0 * PI * 4.5f64.powi(3), 2e-2);
-
-    let mut bad = ball.clone();
-    bad.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
-    let nan = tmp("nan.npy");
-    sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
-    fails(&["mesh", "--input", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
-    let empty = tmp("empty.npy");
-    sparse_levelset::npy::write_npy(
-        &empty,
-        &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap(),
-    )
-    .unwrap();
-    fails(&["mesh", "--input", empty.to_str().unwrap(), "-o", ply.to_str().unwrap()], "no surface");
-    let trunc = tmp("trunc.npy");
-    let bytes = std::fs::read(&npy).unwrap();
-    std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
-    fails(&["mesh", "--input", trunc.to_str().unwrap(), "-o", ply.to_str().unwrap()], "");
-    fails(&["mesh", "-o", tmp("x.stl").to_str().unwrap()], "unknown mesh format");
-    fails(&["mesh", "--radius=-5", "-o", ply.to_str().unwrap()], "");
-    fails(
-        &["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()],
-        "outside the band",
-    );
-    fails(&["mesh", "--voxel-size", "0", "-o", ply.to_str().unwrap()], "voxel size");
-    fails(&["mesh", "--center", "1,2", "-o", ply.to_str().unwrap()], "three comma-separated");
-    let s = ok(&["mesh", "--center", "-5.5,2,-3", "--radius", "6", "-o", out.to_str().unwrap()]);
-    assert!(s.contains("closed manifold: yes"), "{s}");
-    // The failed runs left the earlier file alone.
-    assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());
 }

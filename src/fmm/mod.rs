@@ -37,8 +37,8 @@
 //!     |p| 3.0 * sphere.sdf(p), 3.0, Coord::new(-20, -20, -20), Coord::new(20, 20, 20), spec,
 //! )
 //! .unwrap();
-//! let opts = fmm::FmmOptions { order: fmm::Order::Second, half_width: Some(4.0) };
-//! let out = fmm::reinitialize_tiles(&tiles, &opts).unwrap();
+//! let opts = fmm::FmmOptions { order: fmm::Order::Second, half_width: Some(4.0), ..Default::default() };
+//! let out = fmm::reinitialize(&tiles, &opts).unwrap();
 //! let c = Coord::new(15, 0, 0); // 2.5 voxels from the surface
 //! assert!((out.value(c) - sphere.sdf(spec.world(c)) as f32).abs() < 0.02);
 //! assert_eq!(out.spec().half_width, 4.0);

@@ -1,20 +1,10 @@
-//! Helpers shared by the integration tests (each test binary uses some of them).
+//! Helpers shared by the integration tests (each test binary uses some of them). The
+//! tests of the `levelset` command live with it, in `cli/tests/`.
 #![allow(dead_code)]
 
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::Coord;
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-/// Runs the `levelset` binary with `args`.
-pub fn levelset(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_levelset")).args(args).output().expect("binary runs")
-}
-
-/// The standard error of a run, as text.
-pub fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A path in this test process's own temporary directory.
 pub fn tmp(name: &str) -> PathBuf {

@@ -1,4 +1,5 @@
-//! The papers' evolution scenarios as library functions (behind `levelset run`):
+//! The papers' evolution scenarios as command-line presets (behind `levelset run` and the
+//! speed-up report):
 //!
 //! | scenario | what | papers' setup (the defaults) |
 //! |---|---|---|
@@ -11,14 +12,15 @@
 //! Lengths of `sphere`, `spiral`, `expand` and `morph` are in voxels (voxel size 1, the
 //! box `[0, size]³`); `enright` lives in the unit box with voxel size 1/size.
 
-use crate::dense::DenseField;
-use crate::evolve::{
+use serde::Serialize;
+use sparse_levelset::evolve::{
     EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Reinit, Settings,
     Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
 };
-use crate::grid::GridSpec;
-use crate::shapes::Shape;
-use serde::Serialize;
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::input::{self, Expect, InputError};
+use sparse_levelset::shapes::Shape;
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -89,8 +91,9 @@ pub struct ScenarioOptions {
     pub cfl: f32,
     /// Keep a record every this many steps (and of the first and last step).
     pub record_every: u64,
-    /// Start from this dense field instead of the scenario's shape.
-    pub init: Option<(String, DenseField)>,
+    /// Start from this dense `.npy` field instead of the scenario's shape (loaded and
+    /// checked by [`sparse_levelset::input::load_npy`]).
+    pub init: Option<PathBuf>,
     /// Voxel size of an `init` field (default: the scenario's).
     pub voxel_size: Option<f32>,
     /// Reinitialise by fast marching every so many steps.
@@ -217,6 +220,25 @@ pub struct Scenario {
     pub milestones: Vec<f64>,
 }
 
+/// Errors of [`Scenario::resolve`]: a parameter, or the `init` field.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error(transparent)]
+    Evolve(#[from] EvolveError),
+    #[error(transparent)]
+    Input(#[from] InputError),
+}
+
+impl From<sparse_levelset::GridError> for ScenarioError {
+    fn from(e: sparse_levelset::GridError) -> Self {
+        ScenarioError::Evolve(e.into())
+    }
+}
+
+/// Field-sized arrays the dense reference holds (φ, φⁿ, the output, the box minima, the
+/// padded copy, and the field it starts from).
+const DENSE_COPIES: f64 = 6.0;
+
 fn spec(voxel_size: f32, half_width: f32) -> Result<GridSpec, EvolveError> {
     Ok(GridSpec::new(voxel_size, [0.0; 3], half_width)?)
 }
@@ -229,30 +251,43 @@ fn positive(what: &str, v: f64) -> Result<f64, EvolveError> {
     }
 }
 
+/// Refuses a dense reference run whose box (the shape's band box grown by
+/// [`sparse_levelset::evolve::DENSE_MARGIN`] voxels) the machine cannot hold.
+fn check_dense_box(shape: &Shape, spec: &GridSpec) -> Result<(), ScenarioError> {
+    let (lo, hi) = shape.bounds();
+    let (vlo, vhi) = sparse_levelset::sample::band_voxel_box(lo, hi, spec)?;
+    let m = 2.0 * sparse_levelset::evolve::DENSE_MARGIN as f64;
+    let n = |a: i32, b: i32| b as f64 - a as f64 + 1.0 + m;
+    let voxels = n(vlo.x, vhi.x) * n(vlo.y, vhi.y) * n(vlo.z, vhi.z);
+    sparse_levelset::memory::check(voxels * 4.0 * DENSE_COPIES, "the dense reference's box")?;
+    Ok(())
+}
+
 impl Scenario {
-    /// Resolves the options: defaults, shape, flow, settings, the simulation.
-    pub fn resolve(o: ScenarioOptions) -> Result<Scenario, EvolveError> {
+    /// Resolves the options: defaults, shape, flow, settings, the simulation. Everything is
+    /// checked before the grid is built: the parameters, the `init` field (the library's
+    /// loader, [`sparse_levelset::input`]) and the memory of the run.
+    pub fn resolve(o: ScenarioOptions) -> Result<Scenario, ScenarioError> {
+        let invalid = |m: String| ScenarioError::from(EvolveError::InvalidParameter(m));
         let kind = o.kind;
         let size = o.size.unwrap_or(kind.default_size());
         if !(8..=1 << 16).contains(&size) {
-            return Err(EvolveError::InvalidParameter(format!(
-                "size must be in 8..=65536, got {size}"
-            )));
+            return Err(invalid(format!("size must be in 8..=65536, got {size}")));
         }
         let n = size as f64;
         let c = [n / 2.0; 3];
         let threads = o.threads.unwrap_or_else(rayon::current_num_threads);
         if threads == 0 {
-            return Err(EvolveError::InvalidParameter("threads must be >= 1".into()));
+            return Err(invalid("threads must be >= 1".into()));
         }
         if let Some(t) = o.time {
             positive("time", t)?;
         }
         if o.steps == Some(0) {
-            return Err(EvolveError::InvalidParameter("steps must be >= 1".into()));
+            return Err(invalid("steps must be >= 1".into()));
         }
         if o.record_every == 0 {
-            return Err(EvolveError::InvalidParameter("record-every must be >= 1".into()));
+            return Err(invalid("record-every must be >= 1".into()));
         }
         let mut voxel = 1.0f32;
         let mut steps = o.steps;
@@ -331,29 +366,33 @@ impl Scenario {
         let flow = flow.with_rescale(rescale);
         let voxel = o.voxel_size.filter(|_| o.init.is_some()).unwrap_or(voxel);
         if !(o.half_width > 1.0 && o.half_width <= 64.0) {
-            return Err(EvolveError::InvalidParameter(format!(
+            return Err(invalid(format!(
                 "half-width must be in (1, 64] voxels, got {}",
                 o.half_width
             )));
         }
         let spec = spec(voxel, o.half_width)?;
-        if o.init.is_none() {
-            // The evolution holds about five grid-sized arrays; the dense reference a box.
-            crate::build::check_band_fits(&shape, &spec, 5.0)?;
-        }
-        let mut builder = rayon::ThreadPoolBuilder::new().num_threads(threads);
-        if o.pin {
-            let cores = core_affinity::get_core_ids().unwrap_or_default();
-            if !cores.is_empty() {
-                builder = builder.start_handler(move |i| {
-                    // Best effort: a core that cannot be taken leaves the thread unpinned.
-                    let _ = core_affinity::set_for_current(cores[i % cores.len()]);
-                });
+        let dense = matches!(o.grid, GridKind::Dense);
+        let init = match &o.init {
+            Some(path) => {
+                let copies = if dense { DENSE_COPIES } else { 1.0 };
+                Some(input::load_npy(path, &Expect { copies, ..Expect::new(spec) })?)
             }
-        }
+            None => {
+                // The evolution holds about five band-sized arrays.
+                input::check_shape(
+                    kind.name(),
+                    &shape,
+                    &Expect { copies: 5.0, ..Expect::new(spec) },
+                )?;
+                if dense {
+                    check_dense_box(&shape, &spec)?;
+                }
+                None
+            }
+        };
         let pool = Arc::new(
-            builder
-                .build()
+            crate::pin::pool(threads, o.pin)
                 .map_err(|e| EvolveError::InvalidParameter(format!("thread pool: {e}")))?,
         );
         let settings = Settings {
@@ -393,17 +432,17 @@ impl Scenario {
             record_every: o.record_every,
             reinit: o.reinit.map(|r| {
                 let name = match r.order {
-                    crate::fmm::Order::First => "fmm",
-                    crate::fmm::Order::Second => "fmm2",
+                    sparse_levelset::fmm::Order::First => "fmm",
+                    sparse_levelset::fmm::Order::Second => "fmm2",
                 };
                 format!("{name} every {}", r.every)
             }),
-            init: o.init.as_ref().map(|(n, _)| n.clone()),
+            init: o.init.as_ref().map(|p| p.display().to_string()),
             shape: format!("{shape:?}"),
             target: target_desc,
         };
-        let sim = match &o.init {
-            Some((_, field)) => Simulation::from_dense(o.grid, field, spec, flow, settings)?,
+        let sim = match &init {
+            Some(field) => Simulation::from_dense(o.grid, field, spec, flow, settings)?,
             None => Simulation::from_shape(o.grid, &shape, spec, flow, settings)?,
         };
         let milestones = match (kind, period) {

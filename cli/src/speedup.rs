@@ -1,17 +1,17 @@
-//! The speed-up report behind `levelset bench` (and `cargo run --release`): the papers'
+//! The speed-up report of `levelset-speedup` (what `cargo run --release` runs): the papers
 //! evolution scenarios on the DT-Grid, on tiles with scalar lanes, with SIMD lanes on one
 //! thread and with SIMD lanes on every thread — the same flows, kernels and band rule, so
 //! the ratios measure the data structures and the lanes (tile paper Sec. 5: the same
 //! level-set code on both structures).
 //!
-//! Every run of a scenario ends with the same band, bit for bit (see [`crate::evolve`]):
+//! Every run of a scenario ends with the same band, bit for bit (see [`sparse_levelset::evolve`]):
 //! the report shows the checksums and the largest difference of the final φ between the
 //! DT-Grid and each tile run.
 
-use crate::evolve::{GridKind, Lanes, Simulation};
 use crate::scenario::{Scenario, ScenarioKind, ScenarioOptions};
-use crate::Coord;
 use serde::Serialize;
+use sparse_levelset::evolve::{GridKind, Lanes, Simulation};
+use sparse_levelset::Coord;
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -130,13 +130,15 @@ fn run_tools(
     cfg: &SpeedupConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ToolBench>, String> {
-    use crate::fmm::{FmmOptions, Order};
+    use sparse_levelset::fmm::{FmmOptions, Order};
     let n = if cfg.quick { 64.0 } else { 256.0 };
     let c = n / 2.0;
-    let shape = crate::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
-    let spec = crate::grid::GridSpec::default();
-    let tiles = crate::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
-    let dt = crate::build::dtgrid_from_tiles(&tiles);
+    let shape =
+        sparse_levelset::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
+    let spec = sparse_levelset::grid::GridSpec::default();
+    let tiles =
+        sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
+    let dt = sparse_levelset::build::dtgrid_from(&tiles);
     let band = tiles.band_voxels();
     let mut out = Vec::new();
     let reps = if cfg.quick { 1 } else { 3 };
@@ -157,12 +159,12 @@ fn run_tools(
         let opts = FmmOptions { order, ..Default::default() };
         progress(&format!("{name} (tiles)"));
         let (s, g) = best_of(reps, || {
-            crate::fmm::reinitialize_tiles(&tiles, &opts).map_err(|e| e.to_string())
+            sparse_levelset::fmm::reinitialize(&tiles, &opts).map_err(|e| e.to_string())
         })?;
         push(name, "tiles", s, format!("{} band voxels", g.band_voxels()));
         progress(&format!("{name} (DT-Grid)"));
         let (s, g) = best_of(reps, || {
-            crate::fmm::reinitialize_dtgrid(&dt, &opts).map_err(|e| e.to_string())
+            sparse_levelset::fmm::reinitialize(&dt, &opts).map_err(|e| e.to_string())
         })?;
         push(name, "dtgrid", s, format!("{} band voxels", g.band_voxels()));
     }
@@ -173,7 +175,8 @@ fn run_tools(
         .build()
         .map_err(|e| format!("thread pool: {e}"))?;
     let (s, m) = best_of(reps, || {
-        pool.install(|| crate::mesh::isosurface_tiles(&tiles, 0.0)).map_err(|e| e.to_string())
+        pool.install(|| sparse_levelset::mesh::isosurface_tiles(&tiles, 0.0))
+            .map_err(|e| e.to_string())
     })?;
     push(name, "tiles", s, format!("{} triangles, {} thread(s)", m.triangles.len(), cfg.threads));
     Ok(out)
@@ -262,8 +265,8 @@ pub fn run_speedup(
             o.record_every = u64::MAX;
             let sc = Scenario::resolve(o).map_err(|e| format!("{}: {e}", kind.name()))?;
             kernel = match sc.params.scheme {
-                crate::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
-                crate::evolve::SpatialScheme::Weno5 => "weno5_rk3",
+                sparse_levelset::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
+                sparse_levelset::evolve::SpatialScheme::Weno5 => "weno5_rk3",
             };
             let (summary, sim) = sc.run(|_| {}).map_err(|e| format!("{}: {e}", kind.name()))?;
             let last = summary.records.last().expect("records");
@@ -313,9 +316,9 @@ pub fn run_speedup(
         });
     }
     Ok(SpeedupReport {
-        cpu: crate::bench::cpu_name(),
+        cpu: crate::storage::cpu_name(),
         target_features: levelset_kernels::target_features(),
-        profile: crate::bench::build_profile(),
+        profile: crate::storage::build_profile(),
         threads: cfg.threads,
         pinned: cfg.pin,
         scenarios,

@@ -1,14 +1,12 @@
 //! The `levelset info` report: both grids built from one input, with their voxel counts and
 //! bytes by part.
 
-use crate::build::{
-    dense_sign_jumps, dtgrid_from_dense, dtgrid_from_tiles, tiles_from_dense, tiles_from_shape,
-    SparseGrid,
-};
-use crate::dense::DenseField;
-use crate::grid::{GridError, GridSpec, MemoryReport};
-use crate::shapes::Shape;
 use serde::Serialize;
+use sparse_levelset::build::{dtgrid_from, dtgrid_from_dense, tiles_from_dense, tiles_from_shape};
+use sparse_levelset::dense::DenseField;
+use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
+use sparse_levelset::shapes::Shape;
+use sparse_levelset::LevelSet;
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -75,7 +73,7 @@ pub struct InfoReport {
     pub warnings: Vec<String>,
 }
 
-fn grid_info<G: SparseGrid>(name: &'static str, g: &G, tiles: usize, secs: f64) -> GridInfo {
+fn grid_info<G: LevelSet>(name: &'static str, g: &G, tiles: usize, secs: f64) -> GridInfo {
     let m = g.memory();
     let band = g.band_voxels();
     GridInfo {
@@ -121,7 +119,7 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     tiles.shrink_to_fit();
     let t_tiles = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let mut dt = dtgrid_from_tiles(&tiles);
+    let mut dt = dtgrid_from(&tiles);
     dt.shrink_to_fit();
     // The DT-Grid is built from the tiles' samples: charge it the sampling time too.
     let t_dt = t1.elapsed().as_secs_f64() + t_tiles;
@@ -140,7 +138,9 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     ))
 }
 
-/// Builds both grids of a dense field and reports them.
+/// Builds both grids of a dense field and reports them. The field is expected to have
+/// passed the library's checks ([`sparse_levelset::input::check_field`]: an interface, a
+/// distance field at this half-width).
 pub fn info_from_dense(
     source: &str,
     field: &DenseField,
@@ -163,13 +163,6 @@ pub fn info_from_dense(
                 .into(),
         );
     }
-    let jumps = dense_sign_jumps(field, g);
-    if jumps > 0 {
-        warnings.push(format!(
-            "{jumps} neighbouring voxel pairs change sign with both |φ| ≥ γ = {g}: the field is \
-             not a signed distance at this half-width (check --voxel-size, or reinitialise)"
-        ));
-    }
     if tiles.is_empty() {
         warnings.push(format!("no voxel has |φ| < γ = {g}: both grids are empty"));
     }
@@ -185,7 +178,7 @@ pub fn info_from_dense(
 }
 
 /// Bytes for people: B, KiB, MiB or GiB.
-pub(crate) fn human_bytes(bytes: usize) -> String {
+pub fn human_bytes(bytes: usize) -> String {
     let b = bytes as f64;
     if b >= 1024.0 * 1024.0 * 1024.0 {
         format!("{:.2} GiB", b / (1024.0 * 1024.0 * 1024.0))

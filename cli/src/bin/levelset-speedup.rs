@@ -1,0 +1,154 @@
+//! `levelset-speedup`: the speed-up report, what `cargo run --release` runs at the
+//! repository's root — the papers' scenarios on the DT-Grid and on tiles (scalar, SIMD on
+//! one thread, SIMD on every thread) with the kernel-only throughput; `--storage`: the
+//! storage benchmark; `--kernels`: the kernels alone.
+
+use clap::Parser;
+use levelset_cli::output::{check_output, write_json};
+use levelset_cli::storage::{cpu_name, kernels_text, run_scenario, StorageBench};
+use levelset_cli::{out, outln, progress};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::shapes::Shape;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// The speed-up of the Sorted Tile List over the DT-Grid: the papers' scenarios on both
+/// (DT-Grid, tiles scalar, tiles SIMD on one thread and on every thread), with the
+/// kernel-only throughput. `--storage`: the storage benchmark; `--kernels`: kernels only.
+#[derive(Parser)]
+#[command(name = "levelset-speedup", version)]
+struct BenchArgs {
+    /// Smaller shapes and fewer repetitions (a quick look, not a measurement).
+    #[arg(long)]
+    quick: bool,
+    /// The storage benchmark instead: the same stencil arithmetic, random access and band
+    /// maintenance on both grids.
+    #[arg(long, conflicts_with = "kernels")]
+    storage: bool,
+    /// Worker threads of the "all threads" runs [default: every core].
+    #[arg(long, allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Pin worker threads to cores.
+    #[arg(long)]
+    pin: bool,
+    /// The spiral's 1000 iterations (the tile paper's Table 2) instead of 150.
+    #[arg(long)]
+    full: bool,
+    /// Storage benchmark: repetitions per operation; the best time is reported.
+    #[arg(long, default_value_t = 9, allow_hyphen_values = true,
+          value_parser = clap::value_parser!(u32).range(1..=1000))]
+    reps: u32,
+    /// Only the pure-kernel section: voxel updates/s of the PDE kernels on a dense in-cache
+    /// block for scalar f32 and every SIMD width.
+    #[arg(long)]
+    kernels: bool,
+    /// Also write the results as JSON to this file (checked before the work starts).
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    match run(&BenchArgs::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn kernel_bench(quick: bool) -> Result<Vec<levelset_kernels::bench::KernelResult>, String> {
+    use levelset_kernels::bench::{run_kernel_bench, KernelBenchConfig};
+    let mut cfg = KernelBenchConfig::default();
+    if quick {
+        cfg.seconds = 0.05;
+        cfg.samples = 2;
+    }
+    run_kernel_bench(&cfg).map(|r| r.kernels).map_err(|e| e.to_string())
+}
+
+fn run(a: &BenchArgs) -> Result<(), String> {
+    if let Some(path) = &a.json {
+        check_output(path)?;
+    }
+    if a.kernels {
+        let report = levelset_kernels::bench::KernelBenchReport {
+            kernels: kernel_bench(a.quick)?,
+            target_features: levelset_kernels::target_features(),
+        };
+        outln!("target features: {}", report.target_features.join(","));
+        out!("{}", kernels_text(&report.kernels));
+        if let Some(path) = &a.json {
+            write_json(path, &report)?;
+        }
+        return Ok(());
+    }
+    if a.storage {
+        return storage(a);
+    }
+    speedup(a)
+}
+
+fn storage(a: &BenchArgs) -> Result<(), String> {
+    let spec = GridSpec::default();
+    let scale = if a.quick { 0.4 } else { 1.0 };
+    let reps = if a.quick { 1 } else { a.reps as usize };
+    // The tile paper's scenarios: a sphere in a 256³ box (Sec. 5.1) and the extruded
+    // spiral of radius 50, depth 40 in a 128³ box (Sec. 5.2).
+    let scenarios = [
+        ("sphere", Shape::Sphere { center: [0.0; 3], radius: 100.0 * scale }),
+        ("spiral", Shape::spiral_default([0.0; 3], 50.0 * scale, 40.0 * scale)),
+    ];
+    let bar = progress::bar(
+        false,
+        (scenarios.len() * 4 + 1) as u64,
+        "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}",
+    );
+    let mut results = Vec::new();
+    for (name, shape) in &scenarios {
+        bar.set_message(format!("{name}: building"));
+        let r = run_scenario(name, shape, spec, reps, |op| {
+            bar.inc(1);
+            bar.set_message(format!("{name}: {op} done"));
+        })
+        .map_err(|e| e.to_string())?;
+        results.push(r);
+    }
+    bar.set_message("kernels");
+    let kernels = kernel_bench(a.quick)?;
+    bar.finish_and_clear();
+    let report = StorageBench {
+        cpu: cpu_name(),
+        target_features: levelset_kernels::target_features(),
+        profile: levelset_cli::storage::build_profile(),
+        threads: 1,
+        repetitions: reps,
+        scenarios: results,
+        kernels,
+    };
+    out!("{}", report.to_text());
+    if let Some(path) = &a.json {
+        write_json(path, &report)?;
+    }
+    Ok(())
+}
+
+fn speedup(a: &BenchArgs) -> Result<(), String> {
+    use levelset_cli::speedup::{run_speedup, SpeedupConfig};
+    let mut cfg = SpeedupConfig { pin: a.pin, full: a.full, quick: a.quick, ..Default::default() };
+    if let Some(t) = a.threads {
+        cfg.threads = t as usize;
+    }
+    let bar = progress::spinner(false);
+    bar.set_message("kernels");
+    let kernels = kernel_bench(a.quick)?;
+    let report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+    bar.finish_and_clear();
+    out!("{}", report.to_text());
+    out!("{}", kernels_text(&kernels));
+    if let Some(path) = &a.json {
+        write_json(path, &report)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,36 @@
+//! `levelset info`: both grids of a shape or a dense field, their voxels and bytes.
+
+use crate::source::{Input, SourceArgs};
+use clap::Args;
+use levelset_cli::info::{info_from_dense, info_from_shape};
+use levelset_cli::{out, outln};
+use sparse_levelset::input::Expect;
+
+#[derive(Args)]
+pub struct InfoArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: &InfoArgs) -> Result<(), String> {
+    let spec = a.source.spec()?;
+    // Both grids are held at once.
+    let expect = Expect { copies: 2.0, ..Expect::new(spec) };
+    let report = match a.source.load(&expect)? {
+        Input::Field { name, field } => {
+            info_from_dense(&name, &field, spec).map_err(|e| format!("{name}: {e}"))?
+        }
+        Input::Shape { name, shape } => {
+            info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())?
+        }
+    };
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
+    } else {
+        out!("{}", report.to_text());
+    }
+    Ok(())
+}

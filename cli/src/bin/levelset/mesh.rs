@@ -1,0 +1,82 @@
+//! `levelset mesh`: the zero set (or any level inside the band) of a shape or a dense field
+//! as a welded triangle mesh, by simplicial isosurfacing.
+
+use crate::source::{Input, SourceArgs};
+use clap::Args;
+use levelset_cli::output::check_output;
+use levelset_cli::{outln, progress};
+use sparse_levelset::input::Expect;
+use sparse_levelset::mesh::{self, MeshFormat};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct MeshArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// The isovalue to mesh, in world units, inside the band (|iso| < γ).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub iso: f64,
+    /// Output mesh: FILE.ply (binary unless --ascii) or FILE.obj.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Write ASCII PLY instead of binary.
+    #[arg(long)]
+    pub ascii: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn run(a: &MeshArgs) -> Result<(), String> {
+    let format = MeshFormat::from_path(&a.output, a.ascii).map_err(|e| e.to_string())?;
+    let spec = a.source.spec()?;
+    check_output(&a.output)?;
+    // Vertices are written as f32 positions.
+    let expect = Expect { iso: a.iso, f32_positions: true, ..Expect::new(spec) };
+    let bar = progress::spinner(a.quiet);
+    let start = std::time::Instant::now();
+    if let Some(path) = &a.source.field {
+        bar.set_message(format!("reading {}", path.display()));
+    }
+    let input = a.source.load(&expect)?;
+    let m = match &input {
+        Input::Field { name, field } => {
+            bar.set_message("meshing");
+            mesh::isosurface_dense(field, &spec, a.iso).map_err(|e| format!("{name}: {e}"))?
+        }
+        Input::Shape { shape, .. } => {
+            bar.set_message("building tiles");
+            let tiles =
+                sparse_levelset::build::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?;
+            bar.set_length(tiles.len() as u64);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles",
+                )
+                .expect("valid template"),
+            );
+            mesh::isosurface_tiles_with_progress(&tiles, a.iso, &|k| bar.inc(k as u64))
+                .map_err(|e| e.to_string())?
+        }
+    };
+    bar.finish_and_clear();
+    let source = input.name();
+    if m.is_empty() {
+        return Err(format!("{source}: the level set has no surface at iso = {}", a.iso));
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    m.write(&a.output, Some(format)).map_err(|e| e.to_string())?;
+    let closed = m.is_closed_manifold();
+    outln!(
+        "{source}: {} vertices, {} triangles, area {:.6e}, enclosed volume {:.6e}, closed \
+         manifold: {}, Euler characteristic {} ({seconds:.3} s from input to mesh)",
+        m.num_vertices(),
+        m.num_triangles(),
+        m.area(),
+        m.enclosed_volume(),
+        if closed { "yes" } else { "no" },
+        m.euler_characteristic()
+    );
+    outln!("wrote {} ({format:?})", a.output.display());
+    Ok(())
+}

@@ -1,0 +1,1037 @@
+//! The `levelset` command and the speed-up report as a user meets them: every subcommand
+//! on shapes and `.npy` fields, JSON output, and clear errors with a non-zero exit on bad
+//! input — before any work, never a panic or an abort, nothing written.
+
+use sparse_levelset::dense::DenseField;
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::mesh::isosurface_dense;
+use sparse_levelset::Coord;
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+mod common;
+
+use common::{levelset, speedup, stderr, stdout, tmp};
+
+fn json(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "failed: {}", stderr(o));
+    serde_json::from_slice(&o.stdout).expect("valid JSON")
+}
+
+/// A .npy v1.0 file with the given dtype descriptor, shape and raw little-endian data.
+fn write_npy(path: &Path, descr: &str, shape: &[usize], data: &[u8]) {
+    let shape_s = match shape.len() {
+        1 => format!("({},)", shape[0]),
+        _ => format!("({})", shape.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ")),
+    };
+    let mut header =
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_s}, }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.extend_from_slice(data);
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A sphere's signed distance sampled on an n³ array, radius r, centred.
+fn sphere_f32(n: usize, r: f32) -> Vec<u8> {
+    let c = (n as f32 - 1.0) / 2.0;
+    let mut out = Vec::with_capacity(n * n * n * 4);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let d = ((x as f32 - c).powi(2) + (y as f32 - c).powi(2) + (z as f32 - c).powi(2))
+                    .sqrt()
+                    - r;
+                out.extend_from_slice(&d.to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+/// `got` within `rel` (relative) of `exact`.
+fn close(what: &str, got: f64, exact: f64, rel: f64) {
+    let err = (got - exact).abs() / exact.abs();
+    assert!((got - exact).abs() <= 1e-9 + rel * exact.abs(), "{what}: error {err:.3e} > {rel}");
+}
+
+fn grid<'a>(v: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    v["grids"].as_array().unwrap().iter().find(|g| g["grid"] == name).unwrap()
+}
+
+#[test]
+fn info_sphere_json_has_both_grids_and_every_part() {
+    let v = json(&levelset(&["info", "--shape", "sphere", "--radius", "40", "--json"]));
+    for name in ["dtgrid", "tiles"] {
+        let g = grid(&v, name);
+        let b = &g["bytes"];
+        let parts: u64 =
+            ["values", "indices", "flags", "slack"].iter().map(|k| b[k].as_u64().unwrap()).sum();
+        assert_eq!(parts, b["total"].as_u64().unwrap());
+        assert!(g["band_voxels"].as_u64().unwrap() > 0);
+        assert!(g["stored_voxels"].as_u64().unwrap() >= g["band_voxels"].as_u64().unwrap());
+    }
+    let dt = grid(&v, "dtgrid");
+    let tiles = grid(&v, "tiles");
+    // Both grids hold the same band.
+    assert_eq!(dt["band_voxels"], tiles["band_voxels"]);
+    assert_eq!(dt["band_voxels"], dt["stored_voxels"]);
+    assert_eq!(tiles["stored_voxels"].as_u64().unwrap(), 64 * tiles["tiles"].as_u64().unwrap());
+    // A sphere of radius 40 and γ = 3: about 4πr²·2γ band voxels.
+    let band = dt["band_voxels"].as_f64().unwrap();
+    let est = 4.0 * std::f64::consts::PI * 40.0 * 40.0 * 6.0;
+    assert!((band / est - 1.0).abs() < 0.05, "band {band} vs {est}");
+}
+
+#[test]
+fn info_every_shape_builds() {
+    for shape in ["sphere", "torus", "box", "ellipsoid", "spiral"] {
+        let v = json(&levelset(&["info", "--shape", shape, "--radius", "30", "--json"]));
+        assert!(grid(&v, "tiles")["band_voxels"].as_u64().unwrap() > 1000, "{shape}");
+        assert_eq!(grid(&v, "tiles")["band_voxels"], grid(&v, "dtgrid")["band_voxels"], "{shape}");
+    }
+    let text =
+        levelset(&["info", "--shape", "torus", "--major-radius", "30", "--minor-radius", "8"]);
+    assert!(text.status.success());
+    let s = String::from_utf8_lossy(&text.stdout);
+    assert!(s.contains("dtgrid") && s.contains("tiles") && s.contains("total / values"));
+}
+
+#[test]
+fn info_npy_matches_the_same_shape() {
+    let p = tmp("sphere.npy");
+    write_npy(&p, "<f4", &[40, 40, 40], &sphere_f32(40, 12.0));
+    let v = json(&levelset(&["info", p.to_str().unwrap(), "--voxel-size", "1", "--json"]));
+    let band = grid(&v, "dtgrid")["band_voxels"].as_f64().unwrap();
+    let est = 4.0 * std::f64::consts::PI * 12.0 * 12.0 * 6.0;
+    assert!((band / est - 1.0).abs() < 0.1, "band {band} vs {est}");
+    assert_eq!(grid(&v, "tiles")["band_voxels"], grid(&v, "dtgrid")["band_voxels"]);
+    assert!(v["warnings"].as_array().unwrap().is_empty(), "{v}");
+}
+
+#[test]
+fn bad_npy_files_give_clear_errors() {
+    let good = sphere_f32(8, 2.0);
+    type MakeFile<'a> = Box<dyn Fn(&Path) + 'a>;
+    let cases: Vec<(&str, MakeFile, &str)> = vec![
+        (
+            "f64.npy",
+            Box::new(|p: &Path| write_npy(p, "<f8", &[8, 8, 8], &[0u8; 8 * 512])),
+            "float32",
+        ),
+        (
+            "short.npy",
+            Box::new(|p: &Path| write_npy(p, "<f4", &[8, 8, 8], &good[..1000])),
+            "truncat",
+        ),
+        (
+            "nan.npy",
+            Box::new(|p: &Path| {
+                let mut d = good.clone();
+                d[4 * 77..4 * 78].copy_from_slice(&f32::NAN.to_le_bytes());
+                write_npy(p, "<f4", &[8, 8, 8], &d)
+            }),
+            "NaN",
+        ),
+        ("flat.npy", Box::new(|p: &Path| write_npy(p, "<f4", &[64], &good[..256])), "3"),
+        ("garbage.npy", Box::new(|p: &Path| std::fs::write(p, b"hello world").unwrap()), "npy"),
+        (
+            "huge.npy",
+            Box::new(|p: &Path| write_npy(p, "<f4", &[1 << 20, 1 << 20, 1 << 20], &good)),
+            "",
+        ),
+    ];
+    for (name, make, needle) in cases {
+        let p = tmp(name);
+        make(&p);
+        let o = levelset(&["info", p.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{name} was accepted");
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        assert!(e.starts_with("error:"), "{name}: {e}");
+        assert!(e.contains(needle), "{name}: expected '{needle}' in: {e}");
+        assert!(!e.contains("panicked"), "{name}: {e}");
+    }
+    let o = levelset(&["info", tmp("missing.npy").to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("missing.npy"));
+}
+
+#[test]
+fn nonsense_arguments_are_refused() {
+    let cases: &[&[&str]] = &[
+        &["info", "--shape", "sphere", "--radius", "-3"],
+        &["info", "--shape", "sphere", "--radius", "nan"],
+        &["info", "--shape", "sphere", "--half-width", "0"],
+        &["info", "--shape", "sphere", "--half-width", "1"],
+        &["info", "--shape", "sphere", "--voxel-size", "0"],
+        &["info", "--shape", "torus", "--major-radius", "5", "--minor-radius", "9"],
+        &["info", "--shape", "sphere", "--radius", "1e12"],
+        &["info", "--shape", "sphere", "--center", "3e9,0,0", "--radius", "10"],
+        &["info", "--shape", "blob"],
+        &["info", "--shape", "ellipsoid", "--radii", "1,2"],
+        &["frobnicate"],
+    ];
+    for args in cases {
+        let o = levelset(args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(!e.contains("panicked"), "{args:?}: {e}");
+        assert!(e.contains("error"), "{args:?}: {e}");
+    }
+}
+
+#[test]
+fn bench_quick_reports_both_grids_and_the_kernels() {
+    let k = tmp("kernels.json");
+    let o = speedup(&["--kernels", "--quick", "--json", k.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&k).unwrap()).unwrap();
+    let rows = v["kernels"].as_array().unwrap();
+    assert_eq!(rows.len(), 8);
+    for r in rows {
+        assert!(["upwind_curvature", "weno5_rk3"].contains(&r["kernel"].as_str().unwrap()));
+        assert!(["f32", "f32x4", "f32x8", "f32x16"].contains(&r["lanes"].as_str().unwrap()));
+        assert!(r["voxel_updates_per_s"].as_f64().unwrap() > 0.0);
+    }
+    assert!(v["target_features"].is_array());
+
+    let s = tmp("bench.json");
+    let o = speedup(&["--storage", "--quick", "--json", s.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
+    let scenarios = v["scenarios"].as_array().unwrap();
+    assert_eq!(scenarios.len(), 2);
+    for sc in scenarios {
+        for op in sc["ops"].as_array().unwrap() {
+            assert!(op["speedup_vs_dtgrid"].as_f64().unwrap() > 0.0);
+            // Identical arithmetic on both grids gives identical band values.
+            if let Some(d) = op["max_abs_diff"].as_f64() {
+                assert_eq!(d, 0.0, "{}", op["op"]);
+            }
+        }
+    }
+    assert_eq!(v["kernels"].as_array().unwrap().len(), 8);
+    let o = speedup(&["--reps", "0"]);
+    assert!(!o.status.success());
+}
+
+#[test]
+fn bench_reports_the_speedup_over_dtgrid() {
+    let s = tmp("speedup.json");
+    let o = speedup(&["--quick", "--threads", "2", "--json", s.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("CPU:") && text.contains("target features") && text.contains("build"));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
+    for key in ["cpu", "target_features", "profile"] {
+        assert!(!v[key].is_null(), "{key}");
+    }
+    let scenarios = v["scenarios"].as_array().unwrap();
+    let names: Vec<&str> = scenarios.iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["sphere", "spiral", "enright"]);
+    for sc in scenarios {
+        assert!(sc["kernel_voxel_updates_per_s"].as_f64().unwrap() > 0.0);
+        // Every representation computes the same band.
+        assert_eq!(sc["max_abs_diff"].as_f64().unwrap(), 0.0, "{}", sc["name"]);
+        let runs = sc["runs"].as_array().unwrap();
+        let kinds: Vec<(String, String, u64)> = runs
+            .iter()
+            .map(|r| {
+                (
+                    r["grid"].as_str().unwrap().into(),
+                    r["lanes"].as_str().unwrap().into(),
+                    r["threads"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                ("dtgrid".into(), "scalar".into(), 1),
+                ("tiles".into(), "scalar".into(), 1),
+                ("tiles".into(), "simd".into(), 1),
+                ("tiles".into(), "simd".into(), 2)
+            ]
+        );
+        let sum = &runs[0]["checksum"];
+        for r in runs {
+            assert_eq!(&r["checksum"], sum, "{}: checksums differ", sc["name"]);
+            for key in ["seconds", "voxel_updates_per_s", "bytes", "speedup_vs_dtgrid"] {
+                assert!(r[key].as_f64().unwrap() > 0.0, "{key}");
+            }
+        }
+    }
+}
+
+fn read_summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("summary.json")).expect("summary.json written"))
+        .expect("valid JSON")
+}
+
+/// `levelset run ARGS --quiet --out TMP/OUT`, which must succeed: its output and the
+/// directory holding `summary.json`.
+fn run_ok(args: &[&str], out: &str) -> (Output, PathBuf) {
+    let dir = tmp(out);
+    let mut all = vec!["run"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--quiet", "--out", dir.to_str().unwrap()]);
+    let o = levelset(&all);
+    assert!(o.status.success(), "{all:?}: {}", stderr(&o));
+    (o, dir)
+}
+
+#[test]
+fn run_writes_the_summary_the_issue_asks_for() {
+    let (_, dir) = run_ok(
+        &[
+            "sphere",
+            "--size",
+            "40",
+            "--steps",
+            "12",
+            "--record-every",
+            "5",
+            "--threads",
+            "2",
+            "--export-npy",
+        ],
+        "run-sphere",
+    );
+    let s = read_summary(&dir);
+    let p = &s["params"];
+    for key in [
+        "radius",
+        "epsilon",
+        "speed",
+        "half_width",
+        "voxel_size",
+        "scheme",
+        "integrator",
+        "grid",
+        "lanes",
+        "threads",
+        "rescale",
+        "size",
+        "cfl",
+    ] {
+        assert!(!p[key].is_null(), "params.{key} missing: {p}");
+    }
+    assert_eq!(p["scheme"], "upwind1");
+    assert_eq!(p["grid"], "tiles");
+    assert_eq!(p["threads"], 2);
+    let records = s["records"].as_array().unwrap();
+    // Step 0, every 5th step and the last.
+    let steps: Vec<u64> = records.iter().map(|r| r["step"].as_u64().unwrap()).collect();
+    assert_eq!(steps, [0, 5, 10, 12]);
+    for r in records {
+        for key in
+            ["step", "time", "dt", "band_voxels", "tiles", "volume", "area", "bytes", "seconds"]
+        {
+            assert!(r[key].is_number(), "record.{key} missing: {r}");
+        }
+    }
+    assert_eq!(s["steps_taken"], 12);
+    assert_eq!(s["collapsed"], false);
+    assert_eq!(s["checksum"].as_str().unwrap().len(), 16);
+    // The exported field reads back and holds the shrunken sphere.
+    let f = sparse_levelset::npy::read_npy(&dir.join("final.npy")).unwrap();
+    assert!(f.data().iter().any(|&v| v < 0.0) && f.data().iter().any(|&v| v > 0.0));
+
+    // The same run on the DT-Grid and on one thread ends with the same checksum.
+    let (_, dir2) =
+        run_ok(&["sphere", "--size", "40", "--steps", "12", "--grid", "dtgrid"], "run-sphere-dt");
+    assert_eq!(read_summary(&dir2)["checksum"], s["checksum"]);
+}
+
+/// `levelset run SCENARIO --init FIELD --out TMP/OUT`.
+fn run_from(field: &Path, scenario: &str, out: &str) -> Output {
+    levelset(&[
+        "run",
+        scenario,
+        "--init",
+        field.to_str().unwrap(),
+        "--out",
+        tmp(out).to_str().unwrap(),
+    ])
+}
+
+#[test]
+fn run_ends_cleanly_on_collapse_and_bad_input() {
+    // A small sphere under strong curvature flow collapses: a message, exit 0.
+    let (o, dir) =
+        run_ok(&["sphere", "--size", "32", "--radius", "4", "--steps", "100000"], "run-collapse");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("collapsed"));
+    assert_eq!(read_summary(&dir)["collapsed"], true);
+
+    // An --init field holding +inf far from the sphere: one rule everywhere, ±inf is a
+    // far-away distance (clamped to ±γ), so the run starts and ends cleanly. (This case
+    // used to be refused as "not finite" by `run` alone while `info`, `mesh` and `render`
+    // accepted the same file.)
+    let path = tmp("inf.npy");
+    let mut data = sphere_f32(12, 3.0);
+    data[4 * 100..4 * 101].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    write_npy(&path, "<f4", &[12, 12, 12], &data);
+    let o = run_from(&path, "sphere", "o1");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+
+    // An --init field without an interface: error, exit 1.
+    let path = tmp("outside.npy");
+    let data: Vec<u8> = (0..8 * 8 * 8).flat_map(|_| 5.0f32.to_le_bytes()).collect();
+    write_npy(&path, "<f4", &[8, 8, 8], &data);
+    let o = run_from(&path, "morph", "o2");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("empty"), "{}", stderr(&o));
+
+    // Nonsense arguments.
+    for args in [
+        &["run", "sphere", "--cfl", "3"][..],
+        &["run", "sphere", "--epsilon=-1"],
+        &["run", "enright", "--period", "0"],
+        &["run", "sphere", "--size", "0"],
+        &["run", "sphere", "--threads", "0"],
+        &["run", "sphere", "--half-width", "0.5"],
+        &["run", "sphere", "--grid", "dense", "--size", "64", "--radius", "2000"],
+        &["run", "sphere", "--half-width", "1000000"],
+        &["run", "enright", "--size", "65536"],
+    ] {
+        let o = levelset(args);
+        assert_eq!(
+            o.status.code(),
+            Some(if args.contains(&"--threads") { 2 } else { 1 }),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn run_starts_from_an_npy_field() {
+    let path = tmp("init.npy");
+    write_npy(&path, "<f4", &[24, 24, 24], &sphere_f32(24, 6.0));
+    let (_, dir) =
+        run_ok(&["expand", "--init", path.to_str().unwrap(), "--steps", "5"], "run-init");
+    let s = read_summary(&dir);
+    assert_eq!(s["params"]["init"], path.to_str().unwrap());
+    assert!(s["volume_ratio"].as_f64().unwrap() > 1.0, "the sphere grows");
+}
+
+#[test]
+fn run_reinitialises_by_fast_marching_on_both_grids() {
+    let args = ["sphere", "--size", "48", "--steps", "9", "--reinit", "fmm2", "--every", "3"];
+    let (_, tiles) = run_ok(&args, "run-reinit-tiles");
+    let mut dt_args = args.to_vec();
+    dt_args.extend_from_slice(&["--grid", "dtgrid"]);
+    let (_, dt) = run_ok(&dt_args, "run-reinit-dtgrid");
+    let (a, b) = (read_summary(&tiles), read_summary(&dt));
+    assert_eq!(a["params"]["reinit"], "fmm2 every 3");
+    assert_eq!(a["checksum"], b["checksum"]);
+    // Without reinitialisation the result differs (the option does something).
+    let (_, plain) = run_ok(&args[..5], "run-reinit-none");
+    assert_ne!(read_summary(&plain)["checksum"], a["checksum"]);
+    // Nonsense: a zero interval, the dense reference.
+    let o = levelset(&["run", "sphere", "--reinit", "fmm", "--every", "0", "--quiet"]);
+    assert!(!o.status.success());
+    let dir = tmp("run-reinit-dense");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "32",
+        "--steps",
+        "2",
+        "--grid",
+        "dense",
+        "--reinit",
+        "fmm",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sparse grids"), "{}", stderr(&o));
+}
+
+#[test]
+fn run_writes_render_and_mesh_frames() {
+    let (o, dir) = run_ok(
+        &["sphere", "--size", "32", "--steps", "4", "--render-every", "2", "--mesh-every", "4"],
+        "run-render-frames",
+    );
+    for step in [0, 2, 4] {
+        let f = dir.join(format!("render-{step:06}.png"));
+        let bytes = std::fs::read(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    for step in [0, 4] {
+        let f = dir.join(format!("mesh-{step:06}.ply"));
+        let bytes = std::fs::read(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    }
+    assert!(!dir.join("render-000001.png").exists());
+    assert!(!dir.join("mesh-000002.ply").exists());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("wrote 5 frame file(s)"));
+    let o = levelset(&["run", "sphere", "--grid", "dense", "--render-every", "1", "--quiet"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sparse grid"), "{}", stderr(&o));
+}
+
+#[test]
+fn shape_vectors_take_comma_separated_negative_numbers() {
+    let o = levelset(&[
+        "info",
+        "--shape",
+        "box",
+        "--center",
+        "-5.5,2,-3",
+        "--half-extents",
+        "10,8,6",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = levelset(&["info", "--shape", "ellipsoid", "--radii", "1,2"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("three comma-separated numbers"), "{}", stderr(&o));
+}
+
+#[test]
+fn distance_command() {
+    use sparse_levelset::npy;
+    let input = tmp("in.npy");
+    let f = DenseField::from_fn(Coord::new(0, 0, 0), [24, 20, 22], |c| {
+        let d = ((c.x as f32 - 11.5).powi(2)
+            + (c.y as f32 - 9.3).powi(2)
+            + (c.z as f32 - 10.0).powi(2))
+        .sqrt();
+        2.0 * (d - 6.0)
+    })
+    .unwrap();
+    npy::write_npy(&input, &f).unwrap();
+    let out = tmp("out.npy");
+    let o = levelset(&[
+        "distance",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--order",
+        "1",
+        "--half-width",
+        "4",
+        "--voxel-size",
+        "0.5",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = npy::read_npy(&out).unwrap();
+    assert_eq!(d.dims(), [24, 20, 22]);
+    assert!(d.data().iter().all(|v| v.abs() <= 2.0));
+    // Next to the surface: the distance within 0.05 voxel (first order).
+    let exact = 0.5 * ((5.5f32 * 5.5 + 0.3 * 0.3).sqrt() - 6.0);
+    let got = d.get(Coord::new(17, 9, 10)).unwrap();
+    assert!((got - exact).abs() < 0.5 * 0.05, "{got} vs {exact}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("band voxels"));
+
+    let fail = |args: &[&str], what: &str| {
+        let o = levelset(args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(what), "{args:?}: {e}");
+    };
+    let outs = out.to_str().unwrap();
+    let ins = input.to_str().unwrap();
+    fail(&["distance", ins, "-o", outs, "--half-width", "0.5"], "half-width");
+    fail(&["distance", ins, "-o", outs, "--voxel-size=-1"], "voxel size");
+    let mut flat = f.clone();
+    flat.data_mut().iter_mut().for_each(|v| *v = 1.0);
+    let flat_path = tmp("flat.npy");
+    npy::write_npy(&flat_path, &flat).unwrap();
+    fail(&["distance", flat_path.to_str().unwrap(), "-o", outs], "no zero crossing");
+    let mut nan = f.clone();
+    nan.data_mut()[17] = f32::NAN;
+    let nan_path = tmp("nan.npy");
+    npy::write_npy(&nan_path, &nan).unwrap();
+    fail(&["distance", nan_path.to_str().unwrap(), "-o", outs], "NaN");
+    fail(&["distance", "/nonexistent/x.npy", "-o", outs], "error:");
+    let o = levelset(&["distance", ins, "-o", outs, "--order", "3"]);
+    assert_eq!(o.status.code(), Some(2), "clap rejects --order 3");
+}
+
+#[test]
+fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
+    let ok = |args: &[&str]| {
+        let o = levelset(args);
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let fails = |args: &[&str], msg: &str| {
+        let o = levelset(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("error:") && err.contains(msg), "{args:?}: {err}");
+    };
+    let out = tmp("cli_torus.obj");
+    let s = ok(&[
+        "mesh",
+        "--shape",
+        "torus",
+        "--major-radius",
+        "12",
+        "--minor-radius",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 0"), "{s}");
+    assert!(std::fs::metadata(&out).unwrap().len() > 0);
+
+    // A ball in a dense field with voxel size 0.5: radius 4.5 world units.
+    let ball = common::ball([24, 22, 23], [11.3, 10.6, 11.1], 9.0, 0.5);
+    let npy = common::npy("ball.npy", &ball);
+    let ply = tmp("ball.ply");
+    let s =
+        ok(&["mesh", npy.to_str().unwrap(), "--voxel-size", "0.5", "-o", ply.to_str().unwrap()]);
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
+    let m = isosurface_dense(&ball, &GridSpec::new(0.5, [0.0; 3], 3.0).unwrap(), 0.0).unwrap();
+    assert!(s.contains(&format!("{} vertices, {} triangles", m.num_vertices(), m.num_triangles())));
+    close("ball volume", m.enclosed_volume(), 4.0 / 3.0 * PI * 4.5f64.powi(3), 2e-2);
+
+    let mut bad = ball.clone();
+    bad.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
+    let nan = tmp("nan.npy");
+    sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
+    fails(&["mesh", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
+    let empty = tmp("empty.npy");
+    sparse_levelset::npy::write_npy(
+        &empty,
+        &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap(),
+    )
+    .unwrap();
+    fails(&["mesh", empty.to_str().unwrap(), "-o", ply.to_str().unwrap()], "no surface");
+    let trunc = tmp("trunc.npy");
+    let bytes = std::fs::read(&npy).unwrap();
+    std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
+    fails(&["mesh", trunc.to_str().unwrap(), "-o", ply.to_str().unwrap()], "");
+    fails(&["mesh", "-o", tmp("x.stl").to_str().unwrap()], "unknown mesh format");
+    fails(&["mesh", "--radius=-5", "-o", ply.to_str().unwrap()], "");
+    fails(
+        &["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()],
+        "outside the band",
+    );
+    fails(&["mesh", "--voxel-size", "0", "-o", ply.to_str().unwrap()], "voxel size");
+    fails(&["mesh", "--center", "1,2", "-o", ply.to_str().unwrap()], "three comma-separated");
+    let s = ok(&["mesh", "--center", "-5.5,2,-3", "--radius", "6", "-o", out.to_str().unwrap()]);
+    assert!(s.contains("closed manifold: yes"), "{s}");
+    // The failed runs left the earlier file alone.
+    assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());
+}
+
+#[test]
+fn cli_renders_shapes_and_fields_and_rejects_bad_input() {
+    let out = tmp("cli-torus.png");
+    let o = levelset(&[
+        "render",
+        "--shape",
+        "torus",
+        "--major-radius",
+        "12",
+        "--minor-radius",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--quiet",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(summary["hit_pixels"].as_u64().unwrap() > 100);
+    assert!(summary["render_seconds"].as_f64().unwrap() >= 0.0);
+    let file = std::io::BufReader::new(std::fs::File::open(&out).unwrap());
+    let reader = png::Decoder::new(file).read_info().unwrap();
+    assert_eq!((reader.info().width, reader.info().height), (48, 36));
+
+    // A dense field: a sphere of radius 6 sampled on a 20³ box, as the positional FIELD.
+    let field = common::ball([20, 20, 20], [9.5; 3], 6.0, 1.0);
+    let npy = common::npy("ball.npy", &field);
+    let out2 = tmp("cli-ball.png");
+    let o = levelset(&[
+        "render",
+        npy.to_str().unwrap(),
+        "--voxel-size",
+        "0.5",
+        "-o",
+        out2.to_str().unwrap(),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--grid",
+        "dtgrid",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out2.exists());
+
+    let mut nan = field.clone();
+    nan.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
+    let nan_npy = tmp("nan.npy");
+    sparse_levelset::npy::write_npy(&nan_npy, &nan).unwrap();
+    let flat = DenseField::new(Coord::new(0, 0, 0), [6, 6, 6], 1.0).unwrap();
+    let flat_npy = tmp("flat.npy");
+    sparse_levelset::npy::write_npy(&flat_npy, &flat).unwrap();
+    let o_png = tmp("x.png");
+    let o_png = o_png.to_str().unwrap();
+    let bad_dir = tmp("no/such/dir/x.png");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec![nan_npy.to_str().unwrap(), "-o", o_png], "NaN"),
+        (vec![flat_npy.to_str().unwrap(), "-o", o_png], "empty"),
+        (vec!["/no/such/file.npy", "-o", o_png], "file.npy"),
+        (vec!["--shape", "sphere", "--radius", "10", "--width", "0", "-o", o_png], "width"),
+        (
+            vec!["--shape", "sphere", "--radius", "10", "--elevation", "95", "-o", o_png],
+            "elevation",
+        ),
+        (vec!["--shape", "sphere", "--radius=-3", "-o", o_png], "radius"),
+        (vec!["--shape", "sphere", "--radius", "10", "-o", bad_dir.to_str().unwrap()], "x.png"),
+        (vec!["--shape", "sphere", "--radius", "10", "--grid", "dense", "-o", o_png], "dense"),
+    ];
+    for (args, needle) in cases {
+        let mut all = vec!["render", "--quiet"];
+        all.extend(args.iter());
+        let o = levelset(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{all:?}: {err}");
+        assert!(err.starts_with("error:") && err.contains(needle), "{all:?}: {err}");
+    }
+    assert!(!std::path::Path::new(o_png).exists(), "no image written on error");
+}
+
+// ---------------------------------------------------------------------------------------
+// One front door: the same input gets the same verdict from every subcommand, before any
+// work, and nothing is written on error.
+
+/// Runs every subcommand that reads a dense field on `field` (`mesh` at isovalue `iso`) and
+/// returns (command, output, path it would write).
+fn every_tool(field: &Path, tag: &str, iso: &str) -> Vec<(&'static str, Output, PathBuf)> {
+    let f = field.to_str().unwrap();
+    let (ply, png, npy, dir) = (
+        tmp(&format!("{tag}-out.ply")),
+        tmp(&format!("{tag}-out.png")),
+        tmp(&format!("{tag}-out.npy")),
+        tmp(&format!("{tag}-run")),
+    );
+    let (ply_s, png_s, npy_s, dir_s) = (
+        ply.to_str().unwrap(),
+        png.to_str().unwrap(),
+        npy.to_str().unwrap(),
+        dir.to_str().unwrap(),
+    );
+    vec![
+        ("info", levelset(&["info", f]), PathBuf::new()),
+        ("distance", levelset(&["distance", f, "-o", npy_s]), npy.clone()),
+        ("mesh", levelset(&["mesh", f, "--iso", iso, "-o", ply_s, "--quiet"]), ply.clone()),
+        (
+            "render",
+            levelset(&["render", f, "-o", png_s, "--width", "32", "--height", "24", "--quiet"]),
+            png.clone(),
+        ),
+        (
+            "run",
+            levelset(&["run", "expand", "--init", f, "--steps", "2", "--quiet", "--out", dir_s]),
+            dir.clone(),
+        ),
+    ]
+}
+
+/// Every tool in `tools` fails with exit code 1 and `needle` in a one-line message, and
+/// wrote nothing.
+fn all_refuse(runs: &[(&str, Output, PathBuf)], tools: &[&str], needle: &str) {
+    for (tool, o, out) in runs.iter().filter(|(t, ..)| tools.contains(t)) {
+        let e = stderr(o);
+        assert_eq!(o.status.code(), Some(1), "{tool}: {e}");
+        assert!(
+            e.starts_with("error:") && e.contains(needle),
+            "{tool}: expected '{needle}' in: {e}"
+        );
+        assert!(!e.contains("panicked"), "{tool}: {e}");
+        assert!(out.as_os_str().is_empty() || !out.exists(), "{tool} wrote {}", out.display());
+    }
+}
+
+#[test]
+fn one_loader_one_verdict_for_every_subcommand() {
+    let all = ["info", "distance", "mesh", "render", "run"];
+    let ball = common::ball([20, 20, 20], [9.5; 3], 6.0, 1.0);
+
+    // NaN: refused everywhere with one message.
+    let mut nan = ball.clone();
+    nan.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
+    let runs = every_tool(&common::npy("v-nan.npy", &nan), "v-nan", "0");
+    all_refuse(&runs, &all, "NaN at voxel (x, y, z) = (3, 4, 5)");
+
+    // No interface: inside everywhere (mesh used to write a box around the array and exit
+    // 0), or zeros, which count as outside (`run --init` used to report "collapsed").
+    for (value, tag, side) in [(-5.0, "v-inside", "inside"), (0.0, "v-zeros", "outside")] {
+        let flat = DenseField::new(Coord::new(0, 0, 0), [8, 8, 8], value).unwrap();
+        let runs = every_tool(&common::npy(&format!("{tag}.npy"), &flat), tag, "0");
+        all_refuse(&runs, &all, &format!("no interface: every voxel is {side}"));
+    }
+
+    // Not a distance field: 1000 φ. `render` and `run --init` used to say "the level set is
+    // empty"; now every tool that builds a band gives info's diagnosis, and `distance`,
+    // which makes distance fields, accepts it.
+    let steep = common::ball([20, 20, 20], [9.5; 3], 6.0, 1000.0);
+    let runs = every_tool(&common::npy("v-steep.npy", &steep), "v-steep", "0");
+    all_refuse(&runs, &["info", "mesh", "render", "run"], "not a signed distance field");
+    let (_, o, out) = runs.iter().find(|(t, ..)| *t == "distance").unwrap();
+    assert!(o.status.success() && out.exists(), "{}", stderr(o));
+
+    // ±inf: a far-away distance everywhere (distance used to refuse it).
+    let mut inf = ball.clone();
+    inf.set(Coord::new(0, 0, 0), f32::INFINITY).unwrap();
+    inf.set(Coord::new(19, 19, 19), f32::INFINITY).unwrap();
+    for (tool, o, _) in every_tool(&common::npy("v-inf.npy", &inf), "v-inf", "0") {
+        assert!(o.status.success(), "{tool}: {}", stderr(&o));
+    }
+
+    // An isovalue outside the band: mesh used to write a box and exit 0.
+    let runs = every_tool(&common::npy("v-iso.npy", &ball), "v-iso", "100");
+    all_refuse(&runs, &["mesh"], "outside the band");
+    let runs = every_tool(&common::npy("v-iso2.npy", &ball), "v-iso2", "-3");
+    all_refuse(&runs, &["mesh"], "outside the band");
+}
+
+#[test]
+fn negative_numbers_are_flag_values_with_a_clear_range_message() {
+    let field = common::npy("neg.npy", &common::ball([12, 12, 12], [5.5; 3], 3.0, 1.0));
+    let f = field.to_str().unwrap();
+    let out = tmp("neg-out.npy");
+    let o_s = out.to_str().unwrap();
+    let png = tmp("neg.png");
+    let png_s = png.to_str().unwrap();
+    let ply = tmp("neg.ply");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["render", "--radius", "10", "--fov", "-10", "-o", png_s], "field of view"),
+        (vec!["render", "--radius", "10", "--azimuth", "-inf", "-o", png_s], "azimuth"),
+        (vec!["run", "sphere", "--time", "-1"], "time must be finite and > 0"),
+        (vec!["run", "sphere", "--cfl", "-0.5"], "cfl"),
+        (vec!["distance", f, "-o", o_s, "--voxel-size", "-inf"], "voxel size"),
+        (vec!["distance", f, "-o", o_s, "--half-width", "-3"], "half-width"),
+        (vec!["mesh", "--radius", "-5", "-o", ply.to_str().unwrap()], "radius"),
+        (vec!["info", "--shape", "torus", "--minor-radius", "-2"], "minor radius"),
+        (vec!["info", f, "--voxel-size", "-1"], "voxel size"),
+    ];
+    for (args, needle) in cases {
+        let o = levelset(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(!e.contains("unexpected argument"), "{args:?}: {e}");
+        assert!(e.to_lowercase().contains(needle), "{args:?}: expected '{needle}' in: {e}");
+    }
+    assert!(!out.exists() && !png.exists());
+    // Integer flags: clap's range message.
+    let o = levelset(&["run", "sphere", "--threads", "-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("-1 is not in 1..=1024"), "{}", stderr(&o));
+}
+
+#[test]
+fn what_the_computation_cannot_represent_is_refused_before_any_work() {
+    let field = common::npy("repr.npy", &common::ball([12, 12, 12], [5.5; 3], 3.0, 1.0));
+    let f = field.to_str().unwrap();
+    let out = tmp("repr-out.npy");
+    let ply = tmp("repr.ply");
+    let cases: Vec<(Vec<&str>, &str, &Path)> = vec![
+        // γ = 3e38: used to exit 0 with ±inf in the output.
+        (vec!["distance", f, "-o", out.to_str().unwrap(), "--voxel-size", "1e38"], "γ²", &out),
+        (vec!["info", "--radius", "10", "--voxel-size", "1e-30"], "too small", &out),
+        // Voxels inside the i32 range, but f32 vertices there are 128 units apart: used to
+        // exit 0 with a flattened mesh.
+        (
+            vec![
+                "mesh",
+                "--shape",
+                "sphere",
+                "--radius",
+                "10",
+                "--center",
+                "2147483000,0,0",
+                "-o",
+                ply.to_str().unwrap(),
+            ],
+            "f32 positions",
+            &ply,
+        ),
+        (
+            vec!["info", "--shape", "sphere", "--radius", "10", "--center", "2147483640,0,0"],
+            "i32",
+            &out,
+        ),
+    ];
+    for (args, needle, written) in cases {
+        let o = levelset(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(
+            e.starts_with("error:") && e.contains(needle),
+            "{args:?}: expected '{needle}' in {e}"
+        );
+        assert!(!written.exists(), "{args:?} wrote {}", written.display());
+    }
+    // Near the origin the same sphere meshes fine.
+    let o = levelset(&[
+        "mesh",
+        "--radius",
+        "10",
+        "--center",
+        "100000,0,0",
+        "-o",
+        ply.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A `.npy` whose header and file size both claim a (4096, 2048, 2048) float32 array
+/// (64 GiB): a sparse file, so no disk is used.
+fn huge_sparse_npy() -> PathBuf {
+    let p = tmp("huge-sparse.npy");
+    write_npy(&p, "<f4", &[4096, 2048, 2048], &[]);
+    let header = std::fs::metadata(&p).unwrap().len();
+    std::fs::OpenOptions::new().write(true).open(&p).unwrap().set_len(header + (1 << 36)).unwrap();
+    p
+}
+
+#[test]
+fn memory_is_checked_before_any_large_allocation() {
+    if sparse_levelset::memory::limit() >= 1 << 36 {
+        eprintln!("skipped: this machine may hold a 64 GiB array");
+        return;
+    }
+    // Used to abort with "memory allocation of 68719476736 bytes failed".
+    let huge = huge_sparse_npy();
+    let runs = every_tool(&huge, "huge", "0");
+    all_refuse(&runs, &["info", "distance", "mesh", "render", "run"], "GiB");
+    for (tool, o, _) in &runs {
+        assert!(stderr(o).contains("memory"), "{tool}: {}", stderr(o));
+    }
+    // The dense reference of a 2048³ box (17.6 GB a copy) used to be allocated unchecked.
+    let start = std::time::Instant::now();
+    let dir = tmp("dense-2048");
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--grid",
+        "dense",
+        "--size",
+        "2048",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("dense reference") && stderr(&o).contains("GiB"), "{}", stderr(&o));
+    assert!(start.elapsed().as_secs_f64() < 30.0, "refused before the work");
+    assert!(!dir.exists(), "nothing written");
+}
+
+#[test]
+fn output_paths_are_checked_before_the_work_starts() {
+    // --json into a missing directory: used to run the whole report and fail on writing.
+    let missing = tmp("no-such-dir/x.json");
+    let o = speedup(&["--kernels", "--quick", "--json", missing.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("x.json") && stderr(&o).contains("cannot write"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "no work was done: {}", stdout(&o));
+
+    // run --out DIR where DIR/summary.json cannot be written (a directory is in the way):
+    // used to evolve, then fail.
+    let dir = tmp("out-blocked");
+    std::fs::create_dir_all(dir.join("summary.json")).unwrap();
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "32",
+        "--steps",
+        "3",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("summary.json"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "no work was done: {}", stdout(&o));
+
+    // --out below a regular file: nothing is created.
+    let file = tmp("a-regular-file");
+    std::fs::write(&file, b"x").unwrap();
+    let o = levelset(&[
+        "run",
+        "sphere",
+        "--size",
+        "32",
+        "--steps",
+        "3",
+        "--quiet",
+        "--out",
+        file.join("sub").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot write"), "{}", stderr(&o));
+
+    // distance, mesh and render: the output's directory must exist before the input is read.
+    let field = common::npy("out-ball.npy", &common::ball([12, 12, 12], [5.5; 3], 3.0, 1.0));
+    let f = field.to_str().unwrap();
+    for args in [
+        vec!["distance", f, "-o", "/no/such/dir/d.npy"],
+        vec!["mesh", f, "-o", "/no/such/dir/m.ply"],
+        vec!["render", f, "-o", "/no/such/dir/r.png"],
+    ] {
+        let o = levelset(&args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("cannot write the output here"), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn bare_levelset_prints_help_at_once() {
+    // Used to start the 1.5-minute speed-up report silently.
+    let start = std::time::Instant::now();
+    let o = levelset(&[]);
+    assert!(start.elapsed().as_secs_f64() < 10.0, "{:?}", start.elapsed());
+    assert_eq!(o.status.code(), Some(2));
+    let text = stdout(&o) + &stderr(&o);
+    assert!(text.contains("Usage: levelset <COMMAND>"), "{text}");
+    for sub in ["info", "run", "distance", "render", "mesh", "levelset-speedup"] {
+        assert!(text.contains(sub), "{sub} missing from: {text}");
+    }
+    // `levelset bench` is gone: the report is its own binary.
+    assert_eq!(levelset(&["bench"]).status.code(), Some(2));
+}
+
+#[test]
+fn cargo_run_runs_the_speedup_report() {
+    // `cargo run` at the root: the cli crate is a default member and its default binary
+    // is the report.
+    let cli = env!("CARGO_MANIFEST_DIR");
+    let manifest = std::fs::read_to_string(Path::new(cli).join("Cargo.toml")).unwrap();
+    assert!(manifest.contains("default-run = \"levelset-speedup\""), "{manifest}");
+    let root = std::fs::read_to_string(Path::new(cli).join("../Cargo.toml")).unwrap();
+    let members = root.lines().find(|l| l.starts_with("default-members")).expect("default-members");
+    assert!(members.contains("\"cli\""), "{members}");
+    assert!(!root.contains("[[bin]]"), "the library has no binary");
+    let o = speedup(&["--help"]);
+    assert!(o.status.success());
+    for flag in ["--json", "--full", "--threads", "--storage", "--kernels", "--pin", "--quick"] {
+        assert!(stdout(&o).contains(flag), "{flag}: {}", stdout(&o));
+    }
+}
