@@ -19,12 +19,12 @@ use common::{levelset, tmp};
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
-fn canonical(m: &TriangleMesh) -> Vec<[[u32; 3]; 3]> {
-    let mut out: Vec<[[u32; 3]; 3]> = m
+fn canonical(m: &TriangleMesh) -> Vec<[[u64; 3]; 3]> {
+    let mut out: Vec<[[u64; 3]; 3]> = m
         .triangles
         .iter()
         .map(|t| {
-            let p = t.map(|v| m.positions[v as usize].map(f32::to_bits));
+            let p = t.map(|v| m.positions[v as usize].map(f64::to_bits));
             let r = (0..3).min_by_key(|&i| p[i]).unwrap();
             [p[r], p[(r + 1) % 3], p[(r + 2) % 3]]
         })
@@ -63,7 +63,7 @@ fn sphere_r100_closed_manifold_area_volume() {
     close("volume", m.enclosed_volume(), 4.0 / 3.0 * PI * r * r * r, 5e-3);
     // Vertices on the sphere, normals outward and unit.
     for (p, n) in m.positions.iter().zip(&m.normals) {
-        let d = [p[0] as f64 - 0.3, p[1] as f64 + 0.2, p[2] as f64 - 0.1];
+        let d = [p[0] - 0.3, p[1] + 0.2, p[2] - 0.1];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         assert!((len - r).abs() < 0.05, "vertex {p:?} at distance {len}");
         let nl = (n.iter().map(|&c| (c as f64).powi(2)).sum::<f64>()).sqrt();
@@ -99,12 +99,20 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
         let mt = isosurface_tiles(&tiles, 0.0).unwrap();
         assert!(mt.is_closed_manifold(), "{shape:?}");
-        // The box's faces lie on voxel planes: φ = 0 exactly at voxels, so vertices sit
-        // on voxels (the ε rule keeps them distinct and the mesh closed).
-        let on_voxel =
-            |p: &[f32; 3]| (0..3).all(|a| ((p[a] as f64 - spec.origin[a]) / 0.5).fract() == 0.0);
-        let exact = mt.positions.iter().filter(|p| on_voxel(p)).count();
-        assert_eq!(exact > 1000, matches!(shape, Shape::Box { .. }), "{shape:?}: {exact}");
+        // The box's faces lie on voxel planes: φ = 0 exactly at voxels. The ε rule keeps
+        // the mesh closed; its vertices sit a hair off those voxels (never on one), so
+        // they stay distinct and no triangle has zero area.
+        let off_voxel = |p: &[f64; 3]| {
+            [0, 1, 2].map(|a| {
+                let x = (p[a] - spec.origin[a]) / 0.5;
+                (x - x.round()).abs()
+            })
+        };
+        let exact = mt.positions.iter().filter(|p| off_voxel(p) == [0.0; 3]).count();
+        let near = mt.positions.iter().filter(|p| off_voxel(p).iter().all(|&d| d < 1e-3)).count();
+        assert_eq!(exact, 0, "{shape:?}: vertices on voxels");
+        assert_eq!(near > 1000, matches!(shape, Shape::Box { .. }), "{shape:?}: {near}");
+        assert_eq!(mt.degenerate_triangles(), 0, "{shape:?}");
         let (lo, hi) = tiles.bounding_box().unwrap();
         let origin = Coord::new(lo.x - 3, lo.y - 3, lo.z - 3);
         let dims = [hi.x - lo.x + 7, hi.y - lo.y + 7, hi.z - lo.z + 7].map(|d| d as usize);
@@ -172,7 +180,7 @@ fn fast_3d_path_matches_the_general_construction() {
         positions: (0..c.num_vertices())
             .map(|i| {
                 let p = c.point(i);
-                [p[0] as f32, p[1] as f32, p[2] as f32]
+                p[..3].iter().map(|&c| c as f32 as f64).collect::<Vec<_>>().try_into().unwrap()
             })
             .collect(),
         normals: vec![[0.0; 3]; c.num_vertices()],
@@ -319,12 +327,14 @@ fn mesh_files() {
     let h = header_end(&b);
     let head = std::str::from_utf8(&b[..h]).unwrap();
     assert!(
-        head.contains("binary_little_endian") && head.contains(&format!("element vertex {nv}\n"))
+        head.contains("binary_little_endian")
+            && head.contains(&format!("element vertex {nv}\n"))
+            && head.contains("property float x\n")
     );
     assert_eq!(b.len() - h, nv * 24 + nf * 13);
     // First vertex round-trips bitwise.
     let x = f32::from_le_bytes(b[h..h + 4].try_into().unwrap());
-    assert_eq!(x.to_bits(), m.positions[0][0].to_bits());
+    assert_eq!((x as f64).to_bits(), m.positions[0][0].to_bits());
 
     let p = tmp("s_ascii.ply");
     m.write(&p, Some(MeshFormat::from_path(&p, true).unwrap())).unwrap();
@@ -332,7 +342,7 @@ fn mesh_files() {
     let body: Vec<&str> = t.split("end_header\n").nth(1).unwrap().lines().collect();
     assert_eq!(body.len(), nv + nf);
     let first: Vec<f32> = body[0].split(' ').map(|s| s.parse().unwrap()).collect();
-    assert_eq!(first[..3], m.positions[0][..]);
+    assert_eq!(first[..3], m.positions[0].map(|c| c as f32)[..]);
     assert_eq!(first[3..], m.normals[0][..]);
 
     let p = tmp("s.OBJ");

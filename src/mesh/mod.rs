@@ -44,9 +44,16 @@ use std::path::PathBuf;
 
 /// An indexed triangle mesh: vertex positions (world units), unit normals (∇φ direction,
 /// pointing out of φ < 0), and triangles counter-clockwise seen from outside.
+///
+/// Positions are f64. The isosurface functions store f32 values in them whenever f32
+/// holds the mesh (see [the module docs](crate::mesh#exact-zeros-and-precision)), and
+/// [`TriangleMesh::write`] writes `float` exactly when every coordinate is an f32 value,
+/// `double` otherwise: a file holds exactly these positions, so the checks
+/// ([`TriangleMesh::area`], [`TriangleMesh::is_closed_manifold`], …) measure what is
+/// written.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
-    pub positions: Vec<[f32; 3]>,
+    pub positions: Vec<[f64; 3]>,
     pub normals: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
 }
@@ -63,6 +70,13 @@ pub enum MeshError {
     /// A NaN in a dense 3D field.
     #[error("the value at voxel {coord} is NaN")]
     NaN { coord: Coord },
+    /// Coordinates so large for the voxel size that not even f64 resolves a small
+    /// fraction of a voxel there (see the surface module docs, "Precision").
+    #[error(
+        "coordinates up to {extent:e} with voxel size {voxel_size:e}: not even f64 resolves \
+         1/4096 of a voxel there (move the grid's origin closer to the level set)"
+    )]
+    Precision { extent: f64, voxel_size: f64 },
     /// More vertices or triangles than a format or index type holds.
     #[error("mesh too large: {0}")]
     TooLarge(String),

@@ -18,6 +18,63 @@
 //! (voxel, d). Every tile that computes a vertex computes it from the same values with
 //! the same arithmetic, so copies are bitwise equal; the merged vertex list is sorted by
 //! key ((z, y, x) of the voxel, then d), so the mesh is the same for any thread count.
+//! Positions are placed after the merge, from the key and the edge parameter alone
+//! ([`place`]), so they too are the same for tiles, DT-Grid and dense input and for any
+//! thread count.
+//!
+//! # Exact zeros: vertices kept off the voxels
+//! A value exactly equal to iso counts as outside (the ε rule of Sec. 3): the mesh is
+//! that of the field with +ε there, whose connectivity is always a closed 2-manifold. Its
+//! vertices on the edges from such a voxel lie at parameter 1 − O(ε), i.e. *on* the voxel
+//! once ε → 0: up to 14 vertices at one point and the triangles between them of zero
+//! area (1 668 of them on the r = 100 sphere). A reader that welds coincident vertices
+//! then sees a non-manifold mesh. Two ways out:
+//!
+//! * **Collapse** the vertices at a voxel into one and drop the triangles that degenerate.
+//!   That is a contraction of the mesh patch around the voxel, which is a manifold only
+//!   when the patch is a disk. At a saddle it is not: two balls touching at one voxel,
+//!   a double cone with its apex on a voxel, two wedges meeting along a line of voxels
+//!   (`tests/mesh.rs`) collapse to a pinch, a non-manifold vertex (χ = 3 instead of 4).
+//! * **Keep the ε-perturbation's connectivity and take ε small but finite** (chosen
+//!   here): every vertex's edge parameter t is clamped to `[δ, 1 − δ]`. The connectivity
+//!   (which edges are cut, which triangles join them) depends only on the signs, so the
+//!   mesh stays the closed manifold of the ε rule, and an exact zero now gives vertices a
+//!   distance δ·|edge| off the voxel, along distinct edges.
+//!
+//! Why any clamped parameters give a valid, embedded surface: a triangle has its vertices
+//! on three edges of one Kuhn tetrahedron. In the one-vs-three case those are the edges
+//! e₁, e₂, e₃ from one tetrahedron vertex q, linearly independent (|det| = 1), so the
+//! points q + tᵢeᵢ (tᵢ > 0) are never collinear; in the two-vs-two case (negatives a, b,
+//! positives c, d, vertices P₁ ∈ ac, P₂ ∈ ad, P₃ ∈ bd, P₄ ∈ bc in barycentric coordinates)
+//! the affine function g = t₁λ_a − t₃λ_b + (t₁ − 1)λ_c + (1 − t₃)λ_d vanishes at P₁ and P₃
+//! and is > 0 at P₂, < 0 at P₄ for every t ∈ (0, 1)⁴, so the quad's two triangles lie on
+//! opposite sides of a plane through their common diagonal. Pieces of neighbouring
+//! tetrahedra share their vertices on shared edges, and no triangle reaches a grid vertex,
+//! so the surface is embedded whatever the parameters in (0, 1).
+//!
+//! Bounds that survive rounding: two vertices on edges from one voxel are at least δh
+//! apart (the edge vectors are distinct vectors in {−1, 0, 1}³ with entries of one sign,
+//! so some coordinate differs by at least δ); vertices on disjoint edges are a fixed
+//! fraction of h apart; and every triangle's smallest height is at least about δh/6
+//! (e.g. for q + tᵢeᵢ: |n| ≥ t_j t_k |det eᵢ…| / |eᵢ|). Rounding moves a point by at most
+//! √3/2 ulp, so distinct positions and nonzero areas survive when δh ≥ 32 ulp.
+//!
+//! # Precision
+//! [`place`] therefore takes δ = 32 ulp / h, with the ulp of the output precision at the
+//! edge's own coordinates (a vertex at 100 voxels from the origin moves at most 2.4·10⁻⁴
+//! voxels, one at 10⁶ voxels in f64 ~10⁻⁸), and picks the precision from the mesh's
+//! largest coordinate X: f32 when ulp_f32(X) ≤ h/4096 (rounding error ≤ 1/8192 voxel;
+//! X < 4096 h for h a power of two), else f64 when ulp_f64(X) ≤ h/4096, else
+//! [`MeshError::Precision`]. f32 positions are rounded to f32 values in the mesh itself,
+//! so the file (written as `float` exactly then, `double` otherwise) holds the very
+//! positions the checks measure. Voxel positions are origin + h·voxel in f64; a vertex
+//! is interpolated from the nearer end of its edge, so its offset from that voxel is
+//! accurate to an ulp of the coordinate, not of the voxel index.
+//!
+//! Cost in accuracy: a clamped vertex moves by at most δ·|edge| (2.4·10⁻⁴ h at 100
+//! voxels); a face lying on grid planes (a box) is displaced inwards by that much. On the
+//! r = 100 sphere area and volume errors are unchanged to the digits shown in
+//! `docs/mesh.md`.
 
 use super::tables::pieces;
 use super::{MeshError, TriangleMesh};
@@ -84,11 +141,22 @@ fn edge_key(v: [i64; 3], dir: u8) -> u128 {
     (f(v[2]) << 73) | (f(v[1]) << 38) | (f(v[0]) << 3) | dir as u128
 }
 
-/// What one tile produced: its vertices (key, position, normal) and its triangles in
-/// local vertex indices.
+/// The Kuhn edge of a key: its lower voxel and its direction bits.
+#[inline]
+fn edge_of_key(key: u128) -> ([i64; 3], u8) {
+    let f = |shift: u32| ((key >> shift) & ((1u128 << 35) - 1)) as i64 - BIAS;
+    ([f(3), f(38), f(73)], (key & 7) as u8)
+}
+
+/// A vertex as a tile computes it: its edge key, the unclamped parameter t of eq. (2)
+/// measured from the edge's lower voxel, and its normal. Positions are placed after the
+/// merge ([`place`]), once the mesh's precision is known.
+type EdgeVertex = (u128, f64, [f32; 3]);
+
+/// What one tile produced: its vertices and its triangles in local vertex indices.
 #[derive(Default)]
 struct Part {
-    verts: Vec<(u128, [f32; 3], [f32; 3])>,
+    verts: Vec<EdgeVertex>,
     tris: Vec<[u32; 3]>,
 }
 
@@ -114,13 +182,12 @@ impl Scratch {
 }
 
 /// Meshes the cells a block owns into `part`. `iso` is subtracted from every value.
-fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part: &mut Part) {
+fn mesh_block(b: &Block, iso: f64, scratch: &mut Scratch, part: &mut Part) {
     // Early out: no sign change anywhere in the block.
     let first = (b.values[0] as f64) < iso;
     if b.values.iter().all(|&v| ((v as f64) < iso) == first) {
         return;
     }
-    let h = spec.voxel_size as f64;
     let base = [4 * b.tile[0] - 2, 4 * b.tile[1] - 2, 4 * b.tile[2] - 2];
     let corner_off = |c: u8| [(c & 1) as usize, ((c >> 1) & 1) as usize, ((c >> 2) & 1) as usize];
     for oz in 1..6 {
@@ -165,7 +232,7 @@ fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part:
                                 let dp = corner_off(cp);
                                 let pn = [ox + dn[0], oy + dn[1], oz + dn[2]];
                                 let pp = [ox + dp[0], oy + dp[1], oz + dp[2]];
-                                part.verts.push(edge_vertex(b, base, pn, pp, iso, spec, h, dir));
+                                part.verts.push(edge_vertex(b, base, pn, pp, iso, dir));
                             }
                             *w = scratch.slot[s];
                         }
@@ -184,9 +251,9 @@ fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part:
     scratch.used.clear();
 }
 
-/// The vertex of eq. (2) on the edge from block offset `pn` (φ < iso) to `pp` (φ ≥ iso),
-/// with its normal: the central-difference gradient at both ends, interpolated, unit.
-#[allow(clippy::too_many_arguments)]
+/// The vertex of eq. (2) on the edge from block offset `pn` (φ < iso) to `pp` (φ ≥ iso):
+/// its key, its parameter from the edge's lower voxel (unclamped; [`place`] clamps it)
+/// and its normal, the central-difference gradient at both ends interpolated, unit.
 #[inline]
 fn edge_vertex(
     b: &Block,
@@ -194,13 +261,15 @@ fn edge_vertex(
     pn: [usize; 3],
     pp: [usize; 3],
     iso: f64,
-    spec: &GridSpec,
-    h: f64,
     dir: u8,
-) -> (u128, [f32; 3], [f32; 3]) {
+) -> EdgeVertex {
     let val = |p: [usize; 3]| b.values[bidx(p[0], p[1], p[2])] as f64;
     let (vn, vp) = (val(pn) - iso, val(pp) - iso);
+    // vn < 0 ≤ vp, so both quotients lie in [0, 1]; t_lo is computed from the lower end
+    // directly rather than as 1 − t.
     let t = vn / (vn - vp);
+    let pn_lower = pn.iter().zip(&pp).all(|(a, b)| a <= b);
+    let t_lo = if pn_lower { t } else { vp / (vp - vn) };
     let grad = |p: [usize; 3]| -> [f64; 3] {
         let mut g = [0.0; 3];
         for (a, ga) in g.iter_mut().enumerate() {
@@ -212,26 +281,100 @@ fn edge_vertex(
         g
     };
     let (gn, gp) = (grad(pn), grad(pp));
-    let mut pos = [0f32; 3];
     let mut nrm = [0f64; 3];
     for a in 0..3 {
-        let xn = (base[a] + pn[a] as i64) as f64;
-        let xp = (base[a] + pp[a] as i64) as f64;
-        let x = xn + t * (xp - xn);
-        pos[a] = (spec.origin[a] + h * x) as f32;
         nrm[a] = gn[a] + t * (gp[a] - gn[a]);
     }
     let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
     let nrm = if len > 0.0 && len.is_finite() { nrm.map(|c| (c / len) as f32) } else { [0.0; 3] };
-    let lower = if pn.iter().zip(&pp).all(|(a, b)| a <= b) { pn } else { pp };
+    let lower = if pn_lower { pn } else { pp };
     let lower = [0, 1, 2].map(|a| base[a] + lower[a] as i64);
-    (edge_key(lower, dir), pos, nrm)
+    (edge_key(lower, dir), t_lo, nrm)
+}
+
+/// Floating-point precision of a mesh's positions (see the module docs, "Precision").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Precision {
+    F32,
+    F64,
+}
+
+impl Precision {
+    /// Spacing of the representable values at magnitude `m` (≥ 0): the ulp of `m`, or of
+    /// the next binade when `m` rounds up to a power of two; infinite beyond the range.
+    fn ulp(self, m: f64) -> f64 {
+        match self {
+            Precision::F32 => {
+                let x = m as f32;
+                let up = x.next_up();
+                if up.is_finite() {
+                    (up - x) as f64
+                } else {
+                    f64::INFINITY
+                }
+            }
+            Precision::F64 => {
+                let up = m.next_up();
+                if up.is_finite() {
+                    up - m
+                } else {
+                    f64::INFINITY
+                }
+            }
+        }
+    }
+}
+
+/// A precision may hold a mesh when its ulp at the mesh's largest coordinate is at most
+/// this fraction of a voxel (rounding error ≤ 1/8192 voxel).
+pub(crate) const MAX_ULP_IN_VOXELS: f64 = 1.0 / 4096.0;
+
+/// A vertex keeps at least this many ulps (of the chosen precision, at the magnitude of
+/// its edge's end points) times the edge length away from both ends of its edge.
+pub(crate) const OFFSET_ULPS: f64 = 32.0;
+
+/// Places the merged vertices: picks the precision from the largest coordinate of the
+/// edges' end points, clamps each parameter to `[δ, 1 − δ]` with
+/// `δ = OFFSET_ULPS · ulp / h` and interpolates between the end points' world positions
+/// from the nearer end; with f32 precision the positions are rounded to f32 values.
+fn place(verts: &[EdgeVertex], spec: &GridSpec) -> Result<Vec<[f64; 3]>, MeshError> {
+    let h = spec.voxel_size as f64;
+    let ends = |key: u128| {
+        let (lo, dir) = edge_of_key(key);
+        let hi = [0, 1, 2].map(|a| lo[a] + ((dir >> a) & 1) as i64);
+        let world = |v: [i64; 3]| [0, 1, 2].map(|a| spec.origin[a] + h * v[a] as f64);
+        (world(lo), world(hi))
+    };
+    let magnitude =
+        |(a, b): ([f64; 3], [f64; 3])| a.iter().chain(&b).fold(0f64, |m, &c| m.max(c.abs()));
+    let extent = verts.par_iter().map(|v| magnitude(ends(v.0))).reduce(|| 0.0, f64::max);
+    let precision = [Precision::F32, Precision::F64]
+        .into_iter()
+        .find(|p| p.ulp(extent) <= MAX_ULP_IN_VOXELS * h)
+        .ok_or(MeshError::Precision { extent, voxel_size: h })?;
+    Ok(verts
+        .par_iter()
+        .map(|&(key, t, _)| {
+            let (a, b) = ends(key);
+            let delta = OFFSET_ULPS * precision.ulp(magnitude((a, b))) / h;
+            let t = t.clamp(delta, 1.0 - delta);
+            let p = if t <= 0.5 {
+                [0, 1, 2].map(|i| a[i] + t * (b[i] - a[i]))
+            } else {
+                [0, 1, 2].map(|i| b[i] + (1.0 - t) * (a[i] - b[i]))
+            };
+            match precision {
+                Precision::F32 => p.map(|c| c as f32 as f64),
+                Precision::F64 => p,
+            }
+        })
+        .collect())
 }
 
 /// Merges the tiles' parts in tile order into one welded mesh: all vertex copies sorted
 /// by key (copies of one key are bitwise equal), numbered in key order, and every part's
 /// local indices mapped through that numbering.
-fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
+fn merge(parts: Vec<Part>, spec: &GridSpec) -> Result<TriangleMesh, MeshError> {
     let mut offsets = Vec::with_capacity(parts.len() + 1);
     offsets.push(0usize);
     for p in &parts {
@@ -253,22 +396,20 @@ fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
         &parts[p].verts[i as usize - offsets[p]]
     };
     let mut remap = vec![0u32; copies];
-    let mut positions = Vec::new();
-    let mut normals = Vec::new();
-    let mut last = None;
+    let mut verts: Vec<EdgeVertex> = Vec::new();
     for &(key, i) in &order {
-        if last != Some(key) {
-            let v = copy(i);
-            positions.push(v.1);
-            normals.push(v.2);
-            last = Some(key);
-        } else if cfg!(debug_assertions) {
-            let (a, b) = (copy(i), (positions.last().unwrap(), normals.last().unwrap()));
-            let bits = |p: &[f32; 3], n: &[f32; 3]| (p.map(f32::to_bits), n.map(f32::to_bits));
-            debug_assert_eq!(bits(&a.1, &a.2), bits(b.0, b.1), "copies of a vertex differ");
+        let v = copy(i);
+        match verts.last() {
+            Some(last) if last.0 == key => {
+                let bits = |v: &EdgeVertex| (v.1.to_bits(), v.2.map(f32::to_bits));
+                debug_assert_eq!(bits(v), bits(last), "copies of a vertex differ");
+            }
+            _ => verts.push(*v),
         }
-        remap[i as usize] = (positions.len() - 1) as u32;
+        remap[i as usize] = (verts.len() - 1) as u32;
     }
+    let positions = place(&verts, spec)?;
+    let normals = verts.iter().map(|v| v.2).collect();
     let triangles: Vec<[u32; 3]> = parts
         .par_iter()
         .zip(&offsets[..parts.len()])
@@ -325,13 +466,13 @@ pub fn isosurface_tiles_with_progress(
             let cursor = NeighbourCursor::new(coords, start, start + chunk.len());
             for nbrs in cursor {
                 let block = gather_tiles(grid, &nbrs);
-                mesh_block(&block, iso, &spec, scratch, &mut part);
+                mesh_block(&block, iso, scratch, &mut part);
             }
             progress(chunk.len());
             part
         })
         .collect();
-    merge(parts)
+    merge(parts, &spec)
 }
 
 /// The isosurface of a DT-Grid, through its tile grid ([`crate::build::tiles_from_dtgrid`],
@@ -444,9 +585,9 @@ pub fn isosurface_dense(
                 }
             }
             let mut part = Part::default();
-            mesh_block(&Block { tile, values, stored }, iso, spec, scratch, &mut part);
+            mesh_block(&Block { tile, values, stored }, iso, scratch, &mut part);
             part
         })
         .collect();
-    merge(parts)
+    merge(parts, spec)
 }
