@@ -339,15 +339,24 @@ pub(crate) const OFFSET_ULPS: f64 = 32.0;
 /// from the nearer end; with f32 precision the positions are rounded to f32 values.
 fn place(verts: &[EdgeVertex], spec: &GridSpec) -> Result<Vec<[f64; 3]>, MeshError> {
     let h = spec.voxel_size as f64;
-    let ends = |key: u128| {
-        let (lo, dir) = edge_of_key(key);
-        let hi = [0, 1, 2].map(|a| lo[a] + ((dir >> a) & 1) as i64);
-        let world = |v: [i64; 3]| [0, 1, 2].map(|a| spec.origin[a] + h * v[a] as f64);
-        (world(lo), world(hi))
-    };
+    let world = |v: [i64; 3]| [0, 1, 2].map(|a| spec.origin[a] + h * v[a] as f64);
     let magnitude =
-        |(a, b): ([f64; 3], [f64; 3])| a.iter().chain(&b).fold(0f64, |m, &c| m.max(c.abs()));
-    let extent = verts.par_iter().map(|v| magnitude(ends(v.0))).reduce(|| 0.0, f64::max);
+        |a: [f64; 3], b: [f64; 3]| a.iter().chain(&b).fold(0f64, |m, &c| m.max(c.abs()));
+    // The largest coordinate of any end point: |origin + h·v| is convex in v, so it is
+    // reached at the voxel bounds of the end points.
+    let Some((vmin, vmax)) = verts
+        .par_iter()
+        .map(|v| {
+            let (lo, dir) = edge_of_key(v.0);
+            (lo, [0, 1, 2].map(|a| lo[a] + ((dir >> a) & 1) as i64))
+        })
+        .reduce_with(|a, b| {
+            ([0, 1, 2].map(|i| a.0[i].min(b.0[i])), [0, 1, 2].map(|i| a.1[i].max(b.1[i])))
+        })
+    else {
+        return Ok(Vec::new());
+    };
+    let extent = magnitude(world(vmin), world(vmax));
     let precision = [Precision::F32, Precision::F64]
         .into_iter()
         .find(|p| p.ulp(extent) <= MAX_ULP_IN_VOXELS * h)
@@ -355,8 +364,10 @@ fn place(verts: &[EdgeVertex], spec: &GridSpec) -> Result<Vec<[f64; 3]>, MeshErr
     Ok(verts
         .par_iter()
         .map(|&(key, t, _)| {
-            let (a, b) = ends(key);
-            let delta = OFFSET_ULPS * precision.ulp(magnitude((a, b))) / h;
+            let (lo, dir) = edge_of_key(key);
+            let a = world(lo);
+            let b = world([0, 1, 2].map(|i| lo[i] + ((dir >> i) & 1) as i64));
+            let delta = OFFSET_ULPS * precision.ulp(magnitude(a, b)) / h;
             let t = t.clamp(delta, 1.0 - delta);
             let p = if t <= 0.5 {
                 [0, 1, 2].map(|i| a[i] + t * (b[i] - a[i]))
@@ -396,7 +407,7 @@ fn merge(parts: Vec<Part>, spec: &GridSpec) -> Result<TriangleMesh, MeshError> {
         &parts[p].verts[i as usize - offsets[p]]
     };
     let mut remap = vec![0u32; copies];
-    let mut verts: Vec<EdgeVertex> = Vec::new();
+    let mut verts: Vec<EdgeVertex> = Vec::with_capacity(copies);
     for &(key, i) in &order {
         let v = copy(i);
         match verts.last() {
