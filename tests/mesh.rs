@@ -298,6 +298,12 @@ fn exact_zeros_give_no_zero_area_triangles_sphere_r100() {
     close("volume", m.enclosed_volume(), 4.0 / 3.0 * PI * r * r * r, 1e-4);
 }
 
+/// A signed distance in world coordinates.
+type Sdf = Box<dyn Fn([f64; 3]) -> f64 + Sync>;
+/// Name, grid, field, dense array (origin, dims), Euler characteristic, least number of
+/// exact zeros.
+type ZeroCase = (&'static str, GridSpec, Sdf, Coord, [usize; 3], i64, usize);
+
 /// Fields with many exact zeros at voxels: planes of voxels (a box, an oblique plane),
 /// lattice points on a sphere, and saddles where the ε rule separates two pieces that
 /// touch at voxels (two balls touching at one voxel, a double cone with its apex on a
@@ -309,10 +315,9 @@ fn exact_zeros_on_tiles_dtgrid_and_dense_give_closed_manifolds() {
     let unit = GridSpec::default();
     let len = |p: [f64; 3]| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
     let shift = |p: [f64; 3], c: [f64; 3]| [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-    type Sdf = Box<dyn Fn([f64; 3]) -> f64 + Sync>;
     let half = GridSpec::new(0.5, [1.25, -3.0, 0.5], 3.0).unwrap();
     let cube = Shape::Box { center: [-6.25, 4.0, -10.5], half_extents: [5.0, 3.5, 4.0] };
-    let cases: Vec<(&str, GridSpec, Sdf, Coord, [usize; 3], i64, usize)> = vec![
+    let cases: Vec<ZeroCase> = vec![
         (
             "box",
             half,

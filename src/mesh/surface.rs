@@ -48,33 +48,38 @@
 //! positives c, d, vertices P₁ ∈ ac, P₂ ∈ ad, P₃ ∈ bd, P₄ ∈ bc in barycentric coordinates)
 //! the affine function g = t₁λ_a − t₃λ_b + (t₁ − 1)λ_c + (1 − t₃)λ_d vanishes at P₁ and P₃
 //! and is > 0 at P₂, < 0 at P₄ for every t ∈ (0, 1)⁴, so the quad's two triangles lie on
-//! opposite sides of a plane through their common diagonal. Pieces of neighbouring
-//! tetrahedra share their vertices on shared edges, and no triangle reaches a grid vertex,
-//! so the surface is embedded whatever the parameters in (0, 1).
+//! opposite sides of a plane through their common diagonal (for the other diagonal swap
+//! c and d). Pieces of neighbouring tetrahedra share their vertices on shared edges, and
+//! no triangle reaches a grid vertex, so the surface is embedded whatever the parameters
+//! in (0, 1).
 //!
-//! Bounds that survive rounding: two vertices on edges from one voxel are at least δh
-//! apart (the edge vectors are distinct vectors in {−1, 0, 1}³ with entries of one sign,
-//! so some coordinate differs by at least δ); vertices on disjoint edges are a fixed
-//! fraction of h apart; and every triangle's smallest height is at least about δh/6
-//! (e.g. for q + tᵢeᵢ: |n| ≥ t_j t_k |det eᵢ…| / |eᵢ|). Rounding moves a point by at most
-//! √3/2 ulp, so distinct positions and nonzero areas survive when δh ≥ 32 ulp.
+//! Bounds that survive rounding (h = 1): two vertices on edges from one voxel are at
+//! least δ apart (the edge vectors are distinct vectors in {−1, 0, 1}³ with entries of one
+//! sign, so some coordinate differs by at least δ); vertices on disjoint edges are a
+//! fixed fraction of a voxel apart; and every triangle's smallest height is at least
+//! 0.7 δ (the unit test below checks both over every tetrahedron, sign pattern and piece,
+//! with parameters at every combination of δ and 1 − δ and at random in between).
+//! Rounding moves a point by at most √3/2 ulp, so distinct positions and nonzero areas
+//! survive whenever δh exceeds about 2.5 ulp; [`place`] keeps a factor of ten more.
 //!
 //! # Precision
-//! [`place`] therefore takes δ = 32 ulp / h, with the ulp of the output precision at the
-//! edge's own coordinates (a vertex at 100 voxels from the origin moves at most 2.4·10⁻⁴
-//! voxels, one at 10⁶ voxels in f64 ~10⁻⁸), and picks the precision from the mesh's
-//! largest coordinate X: f32 when ulp_f32(X) ≤ h/4096 (rounding error ≤ 1/8192 voxel;
-//! X < 4096 h for h a power of two), else f64 when ulp_f64(X) ≤ h/4096, else
+//! [`place`] takes δ = 32 ulp / h ([`OFFSET_ULPS`]), with the ulp of the output precision
+//! at the largest coordinate of the edge's end points (a vertex 100 voxels from the
+//! origin keeps 2.4·10⁻⁴ voxels off a voxel in f32; one at 2³¹ voxels in f64, 7.6·10⁻⁶),
+//! and picks the precision from the largest coordinate X of the mesh: f32 when
+//! ulp_f32(X) ≤ h/4096 ([`MAX_ULP_IN_VOXELS`]; rounding error ≤ 1/8192 voxel, X < 4096 h
+//! for h a power of two), else f64 when ulp_f64(X) ≤ h/4096, else
 //! [`MeshError::Precision`]. f32 positions are rounded to f32 values in the mesh itself,
-//! so the file (written as `float` exactly then, `double` otherwise) holds the very
-//! positions the checks measure. Voxel positions are origin + h·voxel in f64; a vertex
-//! is interpolated from the nearer end of its edge, so its offset from that voxel is
-//! accurate to an ulp of the coordinate, not of the voxel index.
+//! so the file (`float` exactly then, `double` otherwise) holds the very positions the
+//! checks measure. Voxel positions are origin + h·voxel in f64, and a vertex is
+//! interpolated from the nearer end of its edge, so its offset from that voxel is
+//! accurate to an ulp of the coordinate.
 //!
-//! Cost in accuracy: a clamped vertex moves by at most δ·|edge| (2.4·10⁻⁴ h at 100
-//! voxels); a face lying on grid planes (a box) is displaced inwards by that much. On the
-//! r = 100 sphere area and volume errors are unchanged to the digits shown in
-//! `docs/mesh.md`.
+//! Cost in accuracy: only parameters within δ of an edge's end move, by at most
+//! δ·|edge|. A face on grid planes (a box) moves inwards by δh: for a box of 200 voxels
+//! centred on the origin the volume changes by 8.6·10⁻⁶ (relative). On the r = 100
+//! sphere centred on a voxel the area changes by 1.2·10⁻⁷ and the volume by 4·10⁻⁹
+//! (errors −2.572·10⁻⁵ → −2.561·10⁻⁵ and −5.0011·10⁻⁵ → −5.0015·10⁻⁵).
 
 use super::tables::pieces;
 use super::{MeshError, TriangleMesh};
@@ -327,11 +332,11 @@ impl Precision {
 
 /// A precision may hold a mesh when its ulp at the mesh's largest coordinate is at most
 /// this fraction of a voxel (rounding error ≤ 1/8192 voxel).
-pub(crate) const MAX_ULP_IN_VOXELS: f64 = 1.0 / 4096.0;
+const MAX_ULP_IN_VOXELS: f64 = 1.0 / 4096.0;
 
 /// A vertex keeps at least this many ulps (of the chosen precision, at the magnitude of
 /// its edge's end points) times the edge length away from both ends of its edge.
-pub(crate) const OFFSET_ULPS: f64 = 32.0;
+const OFFSET_ULPS: f64 = 32.0;
 
 /// Places the merged vertices: picks the precision from the largest coordinate of the
 /// edges' end points, clamps each parameter to `[δ, 1 − δ]` with
@@ -601,4 +606,82 @@ pub fn isosurface_dense(
         })
         .collect();
     merge(parts, spec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bounds the module docs rely on, at h = 1 for every Kuhn tetrahedron, sign
+    /// pattern and piece, with edge parameters at every combination of δ and 1 − δ and at
+    /// random values in between: every triangle's smallest height is at least δ/6, and
+    /// vertices on two edges from one voxel are at least δ apart.
+    #[test]
+    fn clamped_parameters_keep_vertices_apart_and_triangles_thick() {
+        let delta = 1e-3;
+        let corner = |c: u8| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let cross = |u: [f64; 3], v: [f64; 3]| {
+            [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+        };
+        let mut rng = fastrand::Rng::with_seed(3);
+        let mut worst = f64::INFINITY;
+        for (tet, _) in KUHN {
+            for mask in 1..15u32 {
+                for trial in 0..64 + 200 {
+                    // Parameter of tetrahedron edge (i, j), i < j, from its lower-numbered end.
+                    let param = |i: usize, j: usize, rng: &mut fastrand::Rng| {
+                        let e = [0, 0, 1, 2, 0, 0, 3, 4, 0, 0, 0, 5][4 * i.min(j) + i.max(j) - 1];
+                        let s = if trial < 64 {
+                            if (trial >> e) & 1 == 0 {
+                                delta
+                            } else {
+                                1.0 - delta
+                            }
+                        } else {
+                            delta + rng.f64() * (1.0 - 2.0 * delta)
+                        };
+                        if i < j {
+                            s
+                        } else {
+                            1.0 - s
+                        }
+                    };
+                    for piece in pieces(3, mask) {
+                        let p: Vec<[f64; 3]> = piece
+                            .pairs
+                            .iter()
+                            .map(|&(i, j)| {
+                                let (a, b) = (corner(tet[i as usize]), corner(tet[j as usize]));
+                                let s = param(i as usize, j as usize, &mut rng);
+                                [0, 1, 2].map(|k| a[k] + s * (b[k] - a[k]))
+                            })
+                            .collect();
+                        let area2 = norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+                        let longest =
+                            (0..3).map(|k| norm(sub(p[(k + 1) % 3], p[k]))).fold(0.0, f64::max);
+                        worst = worst.min(area2 / longest / delta);
+                    }
+                }
+            }
+        }
+        println!("smallest height / δ: {worst:.4}");
+        assert!(worst >= 1.0 / 6.0, "{worst}");
+        // Two edges from one voxel: directions in {0,1}³ \ 0 and their negatives.
+        let dirs: Vec<[f64; 3]> =
+            (1..8u8).flat_map(|c| [corner(c), corner(c).map(|x| -x)]).collect();
+        let ts = [delta, 0.5, 1.0 - delta];
+        let mut closest = f64::INFINITY;
+        for (k, &d1) in dirs.iter().enumerate() {
+            for &d2 in &dirs[k + 1..] {
+                for &t1 in &ts {
+                    for &t2 in &ts {
+                        closest = closest.min(norm(sub(d1.map(|x| t1 * x), d2.map(|x| t2 * x))));
+                    }
+                }
+            }
+        }
+        assert!(closest >= delta * (1.0 - 1e-9), "{closest}");
+    }
 }
