@@ -136,17 +136,97 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
     })
 }
 
-/// The DT-Grid of a dense level-set field: its voxels with |φ| < γ, in order (same
-/// conventions as [`tiles_from_dense`]).
+/// The DT-Grid of a dense level-set field (same conventions as [`tiles_from_dense`],
+/// beyond the array included): it reads the same value as the tile grid of the same field
+/// at every voxel. It stores the voxels with |φ| < γ and, where the tile grid's sign
+/// changes between two voxels of an x-row without a band voxel in between, the voxel
+/// after the change (±γ): the closing layer. That happens where the band or the interior
+/// touches the array's boundary (the tile grid reads `+γ` beyond the array, the DT-Grid's
+/// sign rule would otherwise carry the row's last value on), and for fields that are not
+/// a signed distance at this half-width; for a band that stays inside the array the
+/// DT-Grid holds exactly the band voxels. O(voxels of the band tiles) after
+/// [`tiles_from_dense`].
 pub fn dtgrid_from_dense(field: &DenseField, spec: GridSpec) -> Result<DtGrid, GridError> {
+    dtgrid_closed_from_tiles(&tiles_from_dense(field, spec)?)
+}
+
+/// A DT-Grid that reads what `tiles` reads at every voxel (see [`dtgrid_from_dense`]).
+///
+/// Per voxel row (z, y) of a tile row holding tiles, the tile grid reads: the tile values
+/// inside present tiles; ±γ with the sign of the absent tile before the first tile (`L`),
+/// after the last one, and in each gap between tiles (the border flags). Every voxel
+/// row outside such tile rows reads `+γ`, as an absent DT-Grid column does. Along the
+/// row, a voxel is stored when |φ| < γ or when its sign differs from the voxel before
+/// it; the DT-Grid's sign rule (the last stored value before a voxel, or the first
+/// stored value for voxels before it) then gives every unstored voxel its sign. Two
+/// fix-ups make the ends right: when the first stored voxel's sign is not `L`, the voxel
+/// before it is stored too (with `L`'s ±γ); a row that stores nothing yet reads inside
+/// stores one voxel of −γ.
+fn dtgrid_closed_from_tiles(tiles: &TileGrid) -> Result<DtGrid, GridError> {
+    let spec = *tiles.spec();
     let g = spec.gamma();
-    let mut dt = DtGrid::new(spec);
-    for (c, v) in field.iter() {
-        if v.is_nan() {
-            return Err(GridError::NaN { coord: c });
+    let bg = |inside: bool| if inside { -g } else { g };
+    let coords = tiles.tile_coords();
+    // Tile rows (list ranges of one (z, y)), then slabs of rows with one z.
+    let mut rows: Vec<(usize, usize)> = Vec::new();
+    for (i, c) in coords.iter().enumerate() {
+        match rows.last_mut() {
+            Some(r) if coords[r.0].z == c.z && coords[r.0].y == c.y => r.1 = i + 1,
+            _ => rows.push((i, i + 1)),
         }
-        if v.abs() < g {
-            dt.push(c, v)?;
+    }
+    let mut dt = DtGrid::new(spec);
+    let mut out: Vec<(i64, f32)> = Vec::new();
+    for slab in rows.chunk_by(|a, b| coords[a.0].z == coords[b.0].z) {
+        let tz = coords[slab[0].0].z;
+        for lz in 0..4 {
+            for &(s, e) in slab {
+                let first = coords[s];
+                let left_inside = tiles.tile_inside(Coord::new(first.x - 1, first.y, first.z));
+                for ly in 0..4 {
+                    out.clear();
+                    let mut inside = left_inside;
+                    for p in s..e {
+                        let t = coords[p];
+                        if p > s && t.x > coords[p - 1].x + 1 {
+                            // A gap of absent tiles, one sign (the +x flag of the tile before).
+                            let gap = coords[p - 1].x + 1;
+                            let gi = tiles.tile_inside(Coord::new(gap, t.y, t.z));
+                            if gi != inside {
+                                out.push((4 * gap as i64, bg(gi)));
+                                inside = gi;
+                            }
+                        }
+                        let values = &tiles.tile(p).0[16 * lz + 4 * ly..16 * lz + 4 * ly + 4];
+                        for (lx, &v) in values.iter().enumerate() {
+                            if v.abs() < g || (v < 0.0) != inside {
+                                out.push((4 * t.x as i64 + lx as i64, v));
+                            }
+                            inside = v < 0.0;
+                        }
+                    }
+                    let last = coords[e - 1];
+                    let right =
+                        tiles.tile_inside(Coord::new(last.x.wrapping_add(1), last.y, last.z));
+                    if right != inside {
+                        out.push((4 * last.x as i64 + 4, bg(right)));
+                    }
+                    match out.first() {
+                        Some(&(x0, v0)) if (v0 < 0.0) != left_inside => {
+                            out.insert(0, (x0 - 1, bg(left_inside)))
+                        }
+                        None if left_inside => out.push((4 * first.x as i64, bg(true))),
+                        _ => {}
+                    }
+                    let (y, z) = (4 * first.y + ly as i32, 4 * tz + lz as i32);
+                    for &(x, v) in &out {
+                        // Voxels beyond the i32 range do not exist: nothing reads them.
+                        if let Ok(x) = i32::try_from(x) {
+                            dt.push(Coord::new(x, y, z), v)?;
+                        }
+                    }
+                }
+            }
         }
     }
     Ok(dt)

@@ -222,3 +222,80 @@ fn closures_build_the_same_tiles_as_shapes() {
     let nan = sparse_levelset::build::tiles_from_sdf(|_| f64::NAN, 1.0, lo, hi, spec);
     assert!(matches!(nan, Err(GridError::NaN { .. })));
 }
+
+/// Asserts that two grids read the same value at every voxel of `lo..=hi`.
+fn assert_same_box<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, lo: Coord, hi: Coord, what: &str) {
+    for_box(lo, hi, |c| assert_eq!(a.value(c), b.value(c), "{what}: at {c:?}"));
+}
+
+/// The array box of a dense field grown by `m` voxels on every side.
+fn grown_box(field: &DenseField, m: i32) -> (Coord, Coord) {
+    let (o, hi) = (field.origin(), field.max_coord());
+    (Coord::new(o.x - m, o.y - m, o.z - m), Coord::new(hi.x + m, hi.y + m, hi.z + m))
+}
+
+#[test]
+fn dense_interior_touching_the_array_edge_is_closed_on_both_grids() {
+    // A 4³ block of −1 (h = 1, half-width 3): the interior fills the array. Beyond it the
+    // tile grid reads outside (+γ); the DT-Grid's closing layer makes it read the same.
+    let spec = GridSpec::default();
+    let block = DenseField::new(Coord::new(0, 0, 0), [4, 4, 4], -1.0).unwrap();
+    let t = tiles_from_dense(&block, spec).unwrap();
+    let d = dtgrid_from_dense(&block, spec).unwrap();
+    d.check_invariants().unwrap();
+    for c in [Coord::new(10, 1, 1), Coord::new(-5, 1, 1), Coord::new(4, 3, 0), Coord::new(-1, 0, 3)]
+    {
+        assert_eq!(t.value(c), 3.0, "tiles at {c:?}");
+        assert_eq!(d.value(c), 3.0, "DT-Grid at {c:?}");
+    }
+    assert_eq!(d.value(Coord::new(2, 1, 3)), -1.0);
+    assert_eq!(d.band_voxels(), 64);
+    let (lo, hi) = grown_box(&block, 6);
+    assert_same_box(&t, &d, lo, hi, "4³ block");
+
+    // Random fields: unions of balls cut by the array (interior and band on several
+    // faces), sizes that are not multiples of 4, negative origins, some values far
+    // beyond γ inside.
+    let mut rng = fastrand::Rng::with_seed(7);
+    for case in 0..8 {
+        let origin = Coord::new(rng.i32(-23..3), rng.i32(-23..3), rng.i32(-23..3));
+        let dims = [rng.usize(5..23), rng.usize(5..23), rng.usize(5..23)];
+        let balls: Vec<([f64; 3], f64)> = (0..rng.usize(1..4))
+            .map(|_| {
+                // Centres anywhere in the array or up to 3 voxels beyond it.
+                let c = [0, 1, 2].map(|a| {
+                    let o = [origin.x, origin.y, origin.z][a] as f64;
+                    o - 3.0 + rng.f64() * (dims[a] as f64 + 6.0)
+                });
+                (c, 2.0 + rng.f64() * 9.0)
+            })
+            .collect();
+        let scale = [1.0, 1.0, 2.5, 0.7][case % 4];
+        let field = DenseField::from_fn(origin, dims, |c| {
+            let p = [c.x as f64, c.y as f64, c.z as f64];
+            let d = balls
+                .iter()
+                .map(|(q, r)| {
+                    let v = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - r
+                })
+                .fold(f64::INFINITY, f64::min);
+            (scale * d) as f32
+        })
+        .unwrap();
+        let t = tiles_from_dense(&field, spec).unwrap();
+        let d = dtgrid_from_dense(&field, spec).unwrap();
+        d.check_invariants().unwrap();
+        t.check_invariants().unwrap();
+        assert_eq!(t.band_voxels(), d.band_voxels(), "case {case}");
+        let (lo, hi) = grown_box(&field, 6);
+        assert_same_box(&t, &d, lo, hi, &format!("case {case}: {origin:?} {dims:?}"));
+        println!(
+            "case {case}: origin {origin:?}, dims {dims:?}, touches: {}, {} band voxels, \
+             {} closing voxels",
+            field.boundary_touches(0.0),
+            d.band_voxels(),
+            d.len() - d.band_voxels()
+        );
+    }
+}

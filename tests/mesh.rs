@@ -2,7 +2,9 @@
 //! oriented meshes of level sets on tiles, DT-Grid and dense fields, the n-dimensional
 //! codimension-m construction, mesh files, and errors on bad input.
 
-use sparse_levelset::build::{dtgrid_from_shape, tiles_from_shape, to_dense};
+use sparse_levelset::build::{
+    dtgrid_from_dense, dtgrid_from_shape, tiles_from_dense, tiles_from_shape, to_dense,
+};
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::mesh::{
@@ -11,7 +13,9 @@ use sparse_levelset::mesh::{
 };
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
+use std::collections::HashMap;
 use std::f64::consts::PI;
+use std::path::Path;
 
 mod common;
 
@@ -19,12 +23,12 @@ use common::tmp;
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
-fn canonical(m: &TriangleMesh) -> Vec<[[u32; 3]; 3]> {
-    let mut out: Vec<[[u32; 3]; 3]> = m
+fn canonical(m: &TriangleMesh) -> Vec<[[u64; 3]; 3]> {
+    let mut out: Vec<[[u64; 3]; 3]> = m
         .triangles
         .iter()
         .map(|t| {
-            let p = t.map(|v| m.positions[v as usize].map(f32::to_bits));
+            let p = t.map(|v| m.positions[v as usize].map(f64::to_bits));
             let r = (0..3).min_by_key(|&i| p[i]).unwrap();
             [p[r], p[(r + 1) % 3], p[(r + 2) % 3]]
         })
@@ -38,6 +42,134 @@ fn close(what: &str, got: f64, exact: f64, rel: f64) {
     let err = (got - exact).abs() / exact.abs();
     println!("{what}: {got:.3} vs {exact:.3}, relative error {err:.3e}");
     assert!((got - exact).abs() <= 1e-9 + rel * exact.abs(), "{what}: error {err:.3e} > {rel}");
+}
+
+/// A PLY file as `TriangleMesh::write` writes it, read back (binary little-endian or
+/// ASCII; positions `float` or `double`, normals `float`, faces `list uchar int`), and
+/// whether its positions were `double`.
+fn read_ply(path: &Path) -> (TriangleMesh, bool) {
+    let bytes = std::fs::read(path).unwrap();
+    let end = b"end_header\n";
+    let h = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+    let head = std::str::from_utf8(&bytes[..h]).unwrap();
+    let count = |el: &str| -> usize {
+        let l = head.lines().find(|l| l.starts_with(&format!("element {el} "))).unwrap();
+        l.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    let double = head.contains("property double x\n");
+    assert!(double || head.contains("property float x\n"), "{head}");
+    let mut m = TriangleMesh::default();
+    if head.contains("format ascii") {
+        let body = std::str::from_utf8(&bytes[h..]).unwrap();
+        let mut lines = body.lines();
+        for _ in 0..nv {
+            let w: Vec<&str> = lines.next().unwrap().split(' ').collect();
+            let p = |s: &str| {
+                if double {
+                    s.parse().unwrap()
+                } else {
+                    s.parse::<f32>().unwrap() as f64
+                }
+            };
+            m.positions.push([p(w[0]), p(w[1]), p(w[2])]);
+            m.normals.push([3, 4, 5].map(|i| w[i].parse().unwrap()));
+        }
+        for _ in 0..nf {
+            let w: Vec<u32> =
+                lines.next().unwrap().split(' ').map(|s| s.parse().unwrap()).collect();
+            assert_eq!(w[0], 3);
+            m.triangles.push([w[1], w[2], w[3]]);
+        }
+    } else {
+        let mut at = h;
+        let mut take = |n: usize| {
+            at += n;
+            &bytes[at - n..at]
+        };
+        for _ in 0..nv {
+            let mut p = [0f64; 3];
+            for c in &mut p {
+                *c = if double {
+                    f64::from_le_bytes(take(8).try_into().unwrap())
+                } else {
+                    f32::from_le_bytes(take(4).try_into().unwrap()) as f64
+                };
+            }
+            m.positions.push(p);
+            m.normals.push([0; 3].map(|_| f32::from_le_bytes(take(4).try_into().unwrap())));
+        }
+        for _ in 0..nf {
+            assert_eq!(take(1), [3]);
+            m.triangles
+                .push([0; 3].map(|_| i32::from_le_bytes(take(4).try_into().unwrap()) as u32));
+        }
+        assert_eq!(at, bytes.len());
+    }
+    (m, double)
+}
+
+/// Vertices at equal positions merged (exact equality, as trimesh's `merge_vertices`
+/// does on the positions it read), written independently of `TriangleMesh::weld_coincident`.
+fn weld(m: &TriangleMesh) -> TriangleMesh {
+    let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut out = TriangleMesh::default();
+    let remap: Vec<u32> = m
+        .positions
+        .iter()
+        .map(|p| {
+            *index.entry(p.map(|c| (c + 0.0).to_bits())).or_insert_with(|| {
+                out.positions.push(*p);
+                out.normals.push([0.0; 3]);
+                out.positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    out.triangles = m.triangles.iter().map(|t| t.map(|v| remap[v as usize])).collect();
+    out
+}
+
+/// Triangles of zero area, from the cross product of the positions' differences.
+fn zero_area(m: &TriangleMesh) -> usize {
+    m.triangles
+        .iter()
+        .filter(|t| {
+            let [a, b, c] = t.map(|v| m.positions[v as usize]);
+            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            u[1] * v[2] == u[2] * v[1] && u[2] * v[0] == u[0] * v[2] && u[0] * v[1] == u[1] * v[0]
+        })
+        .count()
+}
+
+/// The mesh is a closed manifold with Euler characteristic `chi` and no zero-area
+/// triangle as it is, as written to binary and ASCII PLY and read back, and after
+/// welding coincident positions of what was read. Returns whether it was written as
+/// `double`.
+fn check_as_written(m: &TriangleMesh, name: &str, chi: i64) -> bool {
+    assert!(m.is_closed_manifold(), "{name}");
+    assert_eq!(m.euler_characteristic(), chi, "{name}");
+    assert_eq!(zero_area(m), 0, "{name}: zero-area triangles");
+    assert_eq!(m.degenerate_triangles(), 0, "{name}");
+    assert!(m.weld_coincident() == *m, "{name}: the library's weld merges vertices");
+    let mut double = None;
+    for format in [MeshFormat::PlyBinary, MeshFormat::PlyAscii] {
+        let path = tmp(&format!("{name}-{format:?}.ply"));
+        m.write(&path, Some(format)).unwrap();
+        let (read, d) = read_ply(&path);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(*double.get_or_insert(d), d);
+        let bits =
+            |m: &TriangleMesh| m.positions.iter().map(|p| p.map(f64::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(&read), bits(m), "{name} {format:?}: positions as written");
+        assert_eq!(read.triangles, m.triangles, "{name} {format:?}");
+        let welded = weld(&read);
+        assert_eq!(welded.num_vertices(), m.num_vertices(), "{name}: coincident vertices");
+        assert!(welded.is_closed_manifold(), "{name} {format:?}: welded");
+        assert_eq!(welded.euler_characteristic(), chi, "{name} {format:?}: welded");
+        assert_eq!(zero_area(&welded), 0, "{name} {format:?}: welded");
+    }
+    double.unwrap()
 }
 
 #[test]
@@ -63,7 +195,7 @@ fn sphere_r100_closed_manifold_area_volume() {
     close("volume", m.enclosed_volume(), 4.0 / 3.0 * PI * r * r * r, 5e-3);
     // Vertices on the sphere, normals outward and unit.
     for (p, n) in m.positions.iter().zip(&m.normals) {
-        let d = [p[0] as f64 - 0.3, p[1] as f64 + 0.2, p[2] as f64 - 0.1];
+        let d = [p[0] - 0.3, p[1] + 0.2, p[2] - 0.1];
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         assert!((len - r).abs() < 0.05, "vertex {p:?} at distance {len}");
         let nl = (n.iter().map(|&c| (c as f64).powi(2)).sum::<f64>()).sqrt();
@@ -99,12 +231,20 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
         let mt = isosurface_tiles(&tiles, 0.0).unwrap();
         assert!(mt.is_closed_manifold(), "{shape:?}");
-        // The box's faces lie on voxel planes: φ = 0 exactly at voxels, so vertices sit
-        // on voxels (the ε rule keeps them distinct and the mesh closed).
-        let on_voxel =
-            |p: &[f32; 3]| (0..3).all(|a| ((p[a] as f64 - spec.origin[a]) / 0.5).fract() == 0.0);
-        let exact = mt.positions.iter().filter(|p| on_voxel(p)).count();
-        assert_eq!(exact > 1000, matches!(shape, Shape::Box { .. }), "{shape:?}: {exact}");
+        // The box's faces lie on voxel planes: φ = 0 exactly at voxels. The ε rule keeps
+        // the mesh closed; its vertices sit a hair off those voxels (never on one), so
+        // they stay distinct and no triangle has zero area.
+        let off_voxel = |p: &[f64; 3]| {
+            [0, 1, 2].map(|a| {
+                let x = (p[a] - spec.origin[a]) / 0.5;
+                (x - x.round()).abs()
+            })
+        };
+        let exact = mt.positions.iter().filter(|p| off_voxel(p) == [0.0; 3]).count();
+        let near = mt.positions.iter().filter(|p| off_voxel(p).iter().all(|&d| d < 1e-3)).count();
+        assert_eq!(exact, 0, "{shape:?}: vertices on voxels");
+        assert_eq!(near > 1000, matches!(shape, Shape::Box { .. }), "{shape:?}: {near}");
+        assert_eq!(mt.degenerate_triangles(), 0, "{shape:?}");
         let (lo, hi) = tiles.bounding_box().unwrap();
         let origin = Coord::new(lo.x - 3, lo.y - 3, lo.z - 3);
         let dims = [hi.x - lo.x + 7, hi.y - lo.y + 7, hi.z - lo.z + 7].map(|d| d as usize);
@@ -133,6 +273,227 @@ fn same_bytes_for_one_and_two_threads() {
         files.push(std::fs::read(&p).unwrap());
     }
     assert_eq!(files[0], files[1]);
+}
+
+/// A sphere of integer radius centred on a voxel has voxels exactly on it: values equal to
+/// iso, which count as outside (the ε rule of Sec. 3). Meshed with vertices on those
+/// voxels this sphere had 1 668 zero-area triangles and was no manifold once coincident
+/// vertices were welded; now every vertex sits a hair off the voxel along its own edge.
+#[test]
+fn exact_zeros_give_no_zero_area_triangles_sphere_r100() {
+    let r = 100.0;
+    let tiles =
+        tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: r }, GridSpec::default())
+            .unwrap();
+    let zeros = tiles.values().iter().flat_map(|t| t.0).filter(|&v| v == 0.0).count();
+    assert!(zeros > 100, "{zeros} exact zeros");
+    let m = isosurface_tiles(&tiles, 0.0).unwrap();
+    println!(
+        "sphere r=100 at a voxel: {zeros} exact zeros, {} vertices, {} triangles",
+        m.num_vertices(),
+        m.num_triangles()
+    );
+    assert!(!check_as_written(&m, "sphere100", 2), "f32 holds this mesh");
+    close("area", m.area(), 4.0 * PI * r * r, 1e-4);
+    close("volume", m.enclosed_volume(), 4.0 / 3.0 * PI * r * r * r, 1e-4);
+}
+
+/// A signed distance in world coordinates.
+type Sdf = Box<dyn Fn([f64; 3]) -> f64 + Sync>;
+/// Name, grid, field, dense array (origin, dims), Euler characteristic, least number of
+/// exact zeros.
+type ZeroCase = (&'static str, GridSpec, Sdf, Coord, [usize; 3], i64, usize);
+
+/// Fields with many exact zeros at voxels: planes of voxels (a box, an oblique plane),
+/// lattice points on a sphere, and saddles where the ε rule separates two pieces that
+/// touch at voxels (two balls touching at one voxel, a double cone with its apex on a
+/// voxel, two wedges |y| > |x| meeting along a line of voxels). Collapsing the vertices
+/// at each voxel into one would pinch the last three (χ = 3); the ε rule keeps them
+/// apart (χ = 4), and vertices kept off the voxels keep that true after welding.
+#[test]
+fn exact_zeros_on_tiles_dtgrid_and_dense_give_closed_manifolds() {
+    let unit = GridSpec::default();
+    let len = |p: [f64; 3]| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    let shift = |p: [f64; 3], c: [f64; 3]| [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+    let half = GridSpec::new(0.5, [1.25, -3.0, 0.5], 3.0).unwrap();
+    let cube = Shape::Box { center: [-6.25, 4.0, -10.5], half_extents: [5.0, 3.5, 4.0] };
+    let cases: Vec<ZeroCase> = vec![
+        (
+            "box",
+            half,
+            Box::new(move |p| cube.sdf(p)),
+            Coord::new(-33, -1, -38),
+            [37, 31, 33],
+            2,
+            1000,
+        ),
+        (
+            "sphere",
+            unit,
+            Box::new(move |p| len(shift(p, [-3.0, 2.0, 5.0])) - 25.0),
+            Coord::new(-36, -31, -28),
+            [67; 3],
+            2,
+            100,
+        ),
+        (
+            "plane",
+            unit,
+            Box::new(move |p| {
+                ((p[0] + 2.0 * p[1] - 2.0 * p[2]) / 3.0).max(len(shift(p, [0.3, -0.2, 0.1])) - 18.0)
+            }),
+            Coord::new(-26, -26, -26),
+            [53; 3],
+            2,
+            300,
+        ),
+        (
+            "touching balls",
+            unit,
+            Box::new(move |p| {
+                (len(shift(p, [-6.0, 0.0, 0.0])) - 6.0).min(len(shift(p, [6.0, 0.0, 0.0])) - 6.0)
+            }),
+            Coord::new(-20, -14, -14),
+            [41, 29, 29],
+            4,
+            50,
+        ),
+        (
+            "double cone",
+            unit,
+            Box::new(move |p| {
+                (((p[0] * p[0] + p[1] * p[1]).sqrt() - p[2].abs()) / 2f64.sqrt()).max(len(p) - 15.0)
+            }),
+            Coord::new(-23, -23, -23),
+            [47; 3],
+            4,
+            100,
+        ),
+        (
+            "wedges",
+            unit,
+            Box::new(move |p| ((p[0].abs() - p[1].abs()) / 2f64.sqrt()).max(len(p) - 15.0)),
+            Coord::new(-23, -23, -23),
+            [47; 3],
+            4,
+            500,
+        ),
+    ];
+    for (name, spec, sdf, lo, dims, chi, min_zeros) in cases {
+        let field = DenseField::from_fn(lo, dims, |c| sdf(spec.world(c)) as f32).unwrap();
+        assert!(!field.boundary_touches(spec.gamma()), "{name}: the array holds the band");
+        let zeros = field.data().iter().filter(|&&v| v == 0.0).count();
+        assert!(zeros >= min_zeros, "{name}: {zeros} exact zeros");
+        let tiles = tiles_from_dense(&field, spec).unwrap();
+        let mut files = Vec::new();
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mt = pool.install(|| isosurface_tiles(&tiles, 0.0)).unwrap();
+            let md = pool.install(|| isosurface_dense(&field, &spec, 0.0)).unwrap();
+            let dt = dtgrid_from_dense(&field, spec).unwrap();
+            let mg = pool.install(|| isosurface_dtgrid(&dt, 0.0)).unwrap();
+            assert_eq!(mt, md, "{name}: tiles vs dense, {threads} threads");
+            assert_eq!(mt, mg, "{name}: tiles vs DT-Grid, {threads} threads");
+            let p = tmp(&format!("zeros-{threads}.ply"));
+            mt.write(&p, None).unwrap();
+            files.push(std::fs::read(&p).unwrap());
+            if threads == 1 {
+                assert!(!check_as_written(&mt, name, chi), "{name}: f32 holds this mesh");
+                let min_area = mt
+                    .triangles
+                    .iter()
+                    .map(|t| {
+                        let m1 = TriangleMesh {
+                            positions: t.iter().map(|&v| mt.positions[v as usize]).collect(),
+                            normals: vec![[0.0; 3]; 3],
+                            triangles: vec![[0, 1, 2]],
+                        };
+                        m1.area()
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                println!(
+                    "{name}: {zeros} exact zeros, {} vertices, {} triangles, χ = {chi}, \
+                     smallest triangle area {min_area:.2e}",
+                    mt.num_vertices(),
+                    mt.num_triangles()
+                );
+            }
+        }
+        assert_eq!(files[0], files[1], "{name}: same bytes for 1 and 2 threads");
+    }
+}
+
+/// Far from the origin f32 cannot hold a mesh (its ulp at 2³¹ is 256 voxels; at 2²⁴
+/// it is 2): positions are f64 there and written as `double`, and the mesh is the one
+/// at the origin moved by the centre, to a small fraction of a voxel.
+#[test]
+fn far_from_the_origin_positions_keep_voxel_accuracy() {
+    let spec = GridSpec::default();
+    let sphere = |x: f64| Shape::Sphere { center: [x, 0.0, 0.0], radius: 10.0 };
+    let near = isosurface_tiles(&tiles_from_shape(&sphere(0.0), spec).unwrap(), 0.0).unwrap();
+    assert!(!check_as_written(&near, "near", 2));
+    let exact_area = 4.0 * PI * 100.0;
+    close("area near the origin", near.area(), exact_area, 5e-3);
+    for x in [16_777_216.0, 2_147_483_000.0] {
+        let far = isosurface_tiles(&tiles_from_shape(&sphere(x), spec).unwrap(), 0.0).unwrap();
+        assert!(check_as_written(&far, &format!("far{x}"), 2), "written as double");
+        assert!(!far.positions_are_f32());
+        // Same values (integer differences from the centre), same mesh moved by x: the
+        // offsets of vertices on exact zeros differ by a few 10⁻⁵ voxels at most.
+        assert_eq!(far.triangles, near.triangles);
+        for (p, q) in far.positions.iter().zip(&near.positions) {
+            let d = [p[0] - x - q[0], p[1] - q[1], p[2] - q[2]];
+            assert!(d.iter().all(|c| c.abs() <= 1e-4), "{p:?} vs {q:?} + {x}");
+        }
+        close(&format!("area at {x}"), far.area(), near.area(), 1e-6);
+        close(&format!("volume at {x}"), far.enclosed_volume(), near.enclosed_volume(), 1e-6);
+        // OBJ text reads back to the same f64 values.
+        let obj = tmp("far.obj");
+        far.write(&obj, None).unwrap();
+        let text = std::fs::read_to_string(&obj).unwrap();
+        let vs: Vec<[f64; 3]> = text
+            .lines()
+            .filter_map(|l| l.strip_prefix("v "))
+            .map(|l| {
+                let w: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();
+                [w[0], w[1], w[2]]
+            })
+            .collect();
+        assert_eq!(vs, far.positions);
+        // The command line reports what it wrote.
+        let ply = tmp("far-cli.ply");
+        let center = format!("{x},0,0");
+        let args = ["mesh", "--radius", "10", "--center", &center, "--quiet", "-o"];
+        let o = levelset(&[&args[..], &[ply.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = String::from_utf8(o.stdout).unwrap();
+        assert!(s.contains("closed manifold: yes, Euler characteristic 2"), "{s}");
+        let area: f64 =
+            s.split("area ").nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+        close(&format!("command-line area at {x}"), area, near.area(), 1e-5);
+        let (read, double) = read_ply(&ply);
+        assert!(double && read.positions == far.positions);
+    }
+}
+
+/// Where not even f64 resolves 1/4096 of a voxel, meshing refuses.
+#[test]
+fn coordinates_beyond_f64_precision_are_an_error() {
+    let spec = GridSpec::new(1.0, [1e15, 0.0, 0.0], 3.0).unwrap();
+    let tiles =
+        tiles_from_shape(&Shape::Sphere { center: [1e15, 0.0, 0.0], radius: 5.0 }, spec).unwrap();
+    let err = isosurface_tiles(&tiles, 0.0).unwrap_err();
+    assert!(matches!(err, MeshError::Precision { .. }), "{err}");
+    assert!(err.to_string().contains("f64"), "{err}");
+    // 2⁴⁰ voxels still work (f64 ulp 2⁻¹² there).
+    let spec = GridSpec::new(1.0, [(1u64 << 39) as f64, 0.0, 0.0], 3.0).unwrap();
+    let c = (1u64 << 39) as f64;
+    let m = isosurface_tiles(
+        &tiles_from_shape(&Shape::Sphere { center: [c, 0.0, 0.0], radius: 5.0 }, spec).unwrap(),
+        0.0,
+    )
+    .unwrap();
+    assert!(check_as_written(&m, "2^39", 2));
 }
 
 #[test]
@@ -172,7 +533,7 @@ fn fast_3d_path_matches_the_general_construction() {
         positions: (0..c.num_vertices())
             .map(|i| {
                 let p = c.point(i);
-                [p[0] as f32, p[1] as f32, p[2] as f32]
+                p[..3].iter().map(|&c| c as f32 as f64).collect::<Vec<_>>().try_into().unwrap()
             })
             .collect(),
         normals: vec![[0.0; 3]; c.num_vertices()],
@@ -319,12 +680,14 @@ fn mesh_files() {
     let h = header_end(&b);
     let head = std::str::from_utf8(&b[..h]).unwrap();
     assert!(
-        head.contains("binary_little_endian") && head.contains(&format!("element vertex {nv}\n"))
+        head.contains("binary_little_endian")
+            && head.contains(&format!("element vertex {nv}\n"))
+            && head.contains("property float x\n")
     );
     assert_eq!(b.len() - h, nv * 24 + nf * 13);
     // First vertex round-trips bitwise.
     let x = f32::from_le_bytes(b[h..h + 4].try_into().unwrap());
-    assert_eq!(x.to_bits(), m.positions[0][0].to_bits());
+    assert_eq!((x as f64).to_bits(), m.positions[0][0].to_bits());
 
     let p = tmp("s_ascii.ply");
     m.write(&p, Some(MeshFormat::from_path(&p, true).unwrap())).unwrap();
@@ -332,7 +695,7 @@ fn mesh_files() {
     let body: Vec<&str> = t.split("end_header\n").nth(1).unwrap().lines().collect();
     assert_eq!(body.len(), nv + nf);
     let first: Vec<f32> = body[0].split(' ').map(|s| s.parse().unwrap()).collect();
-    assert_eq!(first[..3], m.positions[0][..]);
+    assert_eq!(first[..3], m.positions[0].map(|c| c as f32)[..]);
     assert_eq!(first[3..], m.normals[0][..]);
 
     let p = tmp("s.OBJ");

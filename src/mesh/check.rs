@@ -5,7 +5,7 @@ use super::TriangleMesh;
 
 /// (b − a) × (c − a) of triangle `t`: its normal scaled by twice its area.
 pub(super) fn face_normal(m: &TriangleMesh, t: &[u32; 3]) -> [f64; 3] {
-    let p = |i: u32| m.positions[i as usize].map(|c| c as f64);
+    let p = |i: u32| m.positions[i as usize];
     let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
@@ -96,13 +96,13 @@ impl TriangleMesh {
     /// closed mesh oriented outward, the volume of φ < iso.
     pub fn enclosed_volume(&self) -> f64 {
         // Relative to a vertex of the mesh, so that far-from-origin meshes keep precision.
-        let r = self.positions.first().map_or([0.0; 3], |p| p.map(|c| c as f64));
+        let r = self.positions.first().copied().unwrap_or([0.0; 3]);
         self.triangles
             .iter()
             .map(|t| {
                 let p = |i: u32| {
                     let q = self.positions[i as usize];
-                    [q[0] as f64 - r[0], q[1] as f64 - r[1], q[2] as f64 - r[2]]
+                    [q[0] - r[0], q[1] - r[1], q[2] - r[2]]
                 };
                 let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
                 let bc = [
@@ -113,5 +113,47 @@ impl TriangleMesh {
                 (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / 6.0
             })
             .sum()
+    }
+
+    /// Triangles whose area, computed in f64 from the stored positions, is exactly zero
+    /// (two equal positions or three collinear ones). For positions that are f32 values
+    /// the computation is exact: differences of nearby f32 values and their products are
+    /// exact in f64, so zero means truly degenerate.
+    pub fn degenerate_triangles(&self) -> usize {
+        self.triangles.iter().filter(|t| face_normal(self, t) == [0.0; 3]).count()
+    }
+
+    /// The mesh as a reader that welds coincident vertices sees it (trimesh's
+    /// `merge_vertices`, MeshLab's "merge close vertices" at distance 0): vertices at
+    /// equal positions (`0.0 == -0.0`) become one, numbered in order of first
+    /// appearance, keeping the first one's normal; triangles are kept as they are, even
+    /// where they now repeat a vertex (which [`TriangleMesh::is_closed_manifold`] refuses);
+    /// an index out of range becomes `u32::MAX`.
+    pub fn weld_coincident(&self) -> TriangleMesh {
+        // + 0.0 turns -0.0 into 0.0, so equal positions have equal bits.
+        let bits = |i: usize| self.positions[i].map(|c| (c + 0.0).to_bits());
+        let mut order: Vec<usize> = (0..self.positions.len()).collect();
+        order.sort_by_key(|&i| (bits(i), i));
+        let mut first = vec![0usize; self.positions.len()];
+        for run in order.chunk_by(|&a, &b| bits(a) == bits(b)) {
+            for &i in run {
+                first[i] = run[0];
+            }
+        }
+        let mut index = vec![u32::MAX; self.positions.len()];
+        let mut out = TriangleMesh::default();
+        for i in 0..self.positions.len() {
+            if first[i] == i {
+                index[i] = out.positions.len() as u32;
+                out.positions.push(self.positions[i]);
+                out.normals.push(self.normals.get(i).copied().unwrap_or([0.0; 3]));
+            }
+        }
+        out.triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| first.get(v as usize).map_or(u32::MAX, |&f| index[f])))
+            .collect();
+        out
     }
 }

@@ -1,6 +1,11 @@
-//! Mesh files: PLY (binary little-endian or ASCII, positions and normals as `float`,
-//! faces as `list uchar int`) and Wavefront OBJ (`v`, `vn`, `f a//a b//b c//c`). Every
-//! file is written atomically through [`crate::fsutil::write_atomic`].
+//! Mesh files: PLY (binary little-endian or ASCII, normals as `float`, faces as
+//! `list uchar int`) and Wavefront OBJ (`v`, `vn`, `f a//a b//b c//c`). Every file is
+//! written atomically through [`crate::fsutil::write_atomic`].
+//!
+//! Positions are written without loss: as `float` when every coordinate is an f32 value
+//! (what the isosurface functions store whenever f32 holds the mesh), as `double`
+//! otherwise; in text (ASCII PLY, OBJ) as the shortest decimal that reads back as the
+//! same f32 or f64 value.
 
 use super::{MeshError, TriangleMesh};
 use std::io::{self, Write};
@@ -66,12 +71,20 @@ impl TriangleMesh {
         .map_err(io_err)
     }
 
+    /// Whether every coordinate is an f32 value, so that `float` holds the positions
+    /// exactly (NaN and ±∞ convert exactly too).
+    pub fn positions_are_f32(&self) -> bool {
+        self.positions.iter().flatten().all(|&c| c.is_nan() || c as f32 as f64 == c)
+    }
+
     fn write_ply(&self, w: &mut impl Write, ascii: bool) -> io::Result<()> {
         let fmt = if ascii { "ascii" } else { "binary_little_endian" };
+        let single = self.positions_are_f32();
+        let ty = if single { "float" } else { "double" };
         write!(
             w,
             "ply\nformat {fmt} 1.0\ncomment sparse-levelset simplicial isosurface\n\
-             element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+             element vertex {}\nproperty {ty} x\nproperty {ty} y\nproperty {ty} z\n\
              property float nx\nproperty float ny\nproperty float nz\n\
              element face {}\nproperty list uchar int vertex_indices\nend_header\n",
             self.positions.len(),
@@ -79,14 +92,27 @@ impl TriangleMesh {
         )?;
         if ascii {
             for (p, n) in self.positions.iter().zip(&self.normals) {
-                writeln!(w, "{} {} {} {} {} {}", p[0], p[1], p[2], n[0], n[1], n[2])?;
+                if single {
+                    let q = p.map(|c| c as f32);
+                    write!(w, "{} {} {}", q[0], q[1], q[2])?;
+                } else {
+                    write!(w, "{} {} {}", p[0], p[1], p[2])?;
+                }
+                writeln!(w, " {} {} {}", n[0], n[1], n[2])?;
             }
             for t in &self.triangles {
                 writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
             }
         } else {
             for (p, n) in self.positions.iter().zip(&self.normals) {
-                for c in p.iter().chain(n) {
+                for &c in p {
+                    if single {
+                        w.write_all(&(c as f32).to_le_bytes())?;
+                    } else {
+                        w.write_all(&c.to_le_bytes())?;
+                    }
+                }
+                for c in n {
                     w.write_all(&c.to_le_bytes())?;
                 }
             }
@@ -102,8 +128,14 @@ impl TriangleMesh {
 
     fn write_obj(&self, w: &mut impl Write) -> io::Result<()> {
         writeln!(w, "# sparse-levelset simplicial isosurface")?;
+        let single = self.positions_are_f32();
         for p in &self.positions {
-            writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+            if single {
+                let q = p.map(|c| c as f32);
+                writeln!(w, "v {} {} {}", q[0], q[1], q[2])?;
+            } else {
+                writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+            }
         }
         for n in &self.normals {
             writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;

@@ -18,6 +18,68 @@
 //! (voxel, d). Every tile that computes a vertex computes it from the same values with
 //! the same arithmetic, so copies are bitwise equal; the merged vertex list is sorted by
 //! key ((z, y, x) of the voxel, then d), so the mesh is the same for any thread count.
+//! Positions are placed after the merge, from the key and the edge parameter alone
+//! ([`place`]), so they too are the same for tiles, DT-Grid and dense input and for any
+//! thread count.
+//!
+//! # Exact zeros: vertices kept off the voxels
+//! A value exactly equal to iso counts as outside (the ε rule of Sec. 3): the mesh is
+//! that of the field with +ε there, whose connectivity is always a closed 2-manifold. Its
+//! vertices on the edges from such a voxel lie at parameter 1 − O(ε), i.e. *on* the voxel
+//! once ε → 0: up to 14 vertices at one point and the triangles between them of zero
+//! area (1 668 of them on the r = 100 sphere). A reader that welds coincident vertices
+//! then sees a non-manifold mesh. Two ways out:
+//!
+//! * **Collapse** the vertices at a voxel into one and drop the triangles that degenerate.
+//!   That is a contraction of the mesh patch around the voxel, which is a manifold only
+//!   when the patch is a disk. At a saddle it is not: two balls touching at one voxel,
+//!   a double cone with its apex on a voxel, two wedges meeting along a line of voxels
+//!   (`tests/mesh.rs`) collapse to a pinch, a non-manifold vertex (χ = 3 instead of 4).
+//! * **Keep the ε-perturbation's connectivity and take ε small but finite** (chosen
+//!   here): every vertex's edge parameter t is clamped to `[δ, 1 − δ]`. The connectivity
+//!   (which edges are cut, which triangles join them) depends only on the signs, so the
+//!   mesh stays the closed manifold of the ε rule, and an exact zero now gives vertices a
+//!   distance δ·|edge| off the voxel, along distinct edges.
+//!
+//! Why any clamped parameters give a valid, embedded surface: a triangle has its vertices
+//! on three edges of one Kuhn tetrahedron. In the one-vs-three case those are the edges
+//! e₁, e₂, e₃ from one tetrahedron vertex q, linearly independent (|det| = 1), so the
+//! points q + tᵢeᵢ (tᵢ > 0) are never collinear; in the two-vs-two case (negatives a, b,
+//! positives c, d, vertices P₁ ∈ ac, P₂ ∈ ad, P₃ ∈ bd, P₄ ∈ bc in barycentric coordinates)
+//! the affine function g = t₁λ_a − t₃λ_b + (t₁ − 1)λ_c + (1 − t₃)λ_d vanishes at P₁ and P₃
+//! and is > 0 at P₂, < 0 at P₄ for every t ∈ (0, 1)⁴, so the quad's two triangles lie on
+//! opposite sides of a plane through their common diagonal (for the other diagonal swap
+//! c and d). Pieces of neighbouring tetrahedra share their vertices on shared edges, and
+//! no triangle reaches a grid vertex, so the surface is embedded whatever the parameters
+//! in (0, 1).
+//!
+//! Bounds that survive rounding (h = 1): two vertices on edges from one voxel are at
+//! least δ apart (the edge vectors are distinct vectors in {−1, 0, 1}³ with entries of one
+//! sign, so some coordinate differs by at least δ); vertices on disjoint edges are a
+//! fixed fraction of a voxel apart; and every triangle's smallest height is at least
+//! 0.7 δ (the unit test below checks both over every tetrahedron, sign pattern and piece,
+//! with parameters at every combination of δ and 1 − δ and at random in between).
+//! Rounding moves a point by at most √3/2 ulp, so distinct positions and nonzero areas
+//! survive whenever δh exceeds about 2.5 ulp; [`place`] keeps a factor of ten more.
+//!
+//! # Precision
+//! [`place`] takes δ = 32 ulp / h ([`OFFSET_ULPS`]), with the ulp of the output precision
+//! at the largest coordinate of the edge's end points (a vertex 100 voxels from the
+//! origin keeps 2.4·10⁻⁴ voxels off a voxel in f32; one at 2³¹ voxels in f64, 7.6·10⁻⁶),
+//! and picks the precision from the largest coordinate X of the mesh: f32 when
+//! ulp_f32(X) ≤ h/4096 ([`MAX_ULP_IN_VOXELS`]; rounding error ≤ 1/8192 voxel, X < 4096 h
+//! for h a power of two), else f64 when ulp_f64(X) ≤ h/4096, else
+//! [`MeshError::Precision`]. f32 positions are rounded to f32 values in the mesh itself,
+//! so the file (`float` exactly then, `double` otherwise) holds the very positions the
+//! checks measure. Voxel positions are origin + h·voxel in f64, and a vertex is
+//! interpolated from the nearer end of its edge, so its offset from that voxel is
+//! accurate to an ulp of the coordinate.
+//!
+//! Cost in accuracy: only parameters within δ of an edge's end move, by at most
+//! δ·|edge|. A face on grid planes (a box) moves inwards by δh: for a box of 200 voxels
+//! centred on the origin the volume changes by 8.6·10⁻⁶ (relative). On the r = 100
+//! sphere centred on a voxel the area changes by 1.2·10⁻⁷ and the volume by 4·10⁻⁹
+//! (errors −2.572·10⁻⁵ → −2.561·10⁻⁵ and −5.0011·10⁻⁵ → −5.0015·10⁻⁵).
 
 use super::tables::pieces;
 use super::{MeshError, TriangleMesh};
@@ -84,11 +146,22 @@ fn edge_key(v: [i64; 3], dir: u8) -> u128 {
     (f(v[2]) << 73) | (f(v[1]) << 38) | (f(v[0]) << 3) | dir as u128
 }
 
-/// What one tile produced: its vertices (key, position, normal) and its triangles in
-/// local vertex indices.
+/// The Kuhn edge of a key: its lower voxel and its direction bits.
+#[inline]
+fn edge_of_key(key: u128) -> ([i64; 3], u8) {
+    let f = |shift: u32| ((key >> shift) & ((1u128 << 35) - 1)) as i64 - BIAS;
+    ([f(3), f(38), f(73)], (key & 7) as u8)
+}
+
+/// A vertex as a tile computes it: its edge key, the unclamped parameter t of eq. (2)
+/// measured from the edge's lower voxel, and its normal. Positions are placed after the
+/// merge ([`place`]), once the mesh's precision is known.
+type EdgeVertex = (u128, f64, [f32; 3]);
+
+/// What one tile produced: its vertices and its triangles in local vertex indices.
 #[derive(Default)]
 struct Part {
-    verts: Vec<(u128, [f32; 3], [f32; 3])>,
+    verts: Vec<EdgeVertex>,
     tris: Vec<[u32; 3]>,
 }
 
@@ -114,13 +187,12 @@ impl Scratch {
 }
 
 /// Meshes the cells a block owns into `part`. `iso` is subtracted from every value.
-fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part: &mut Part) {
+fn mesh_block(b: &Block, iso: f64, scratch: &mut Scratch, part: &mut Part) {
     // Early out: no sign change anywhere in the block.
     let first = (b.values[0] as f64) < iso;
     if b.values.iter().all(|&v| ((v as f64) < iso) == first) {
         return;
     }
-    let h = spec.voxel_size as f64;
     let base = [4 * b.tile[0] - 2, 4 * b.tile[1] - 2, 4 * b.tile[2] - 2];
     let corner_off = |c: u8| [(c & 1) as usize, ((c >> 1) & 1) as usize, ((c >> 2) & 1) as usize];
     for oz in 1..6 {
@@ -165,7 +237,7 @@ fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part:
                                 let dp = corner_off(cp);
                                 let pn = [ox + dn[0], oy + dn[1], oz + dn[2]];
                                 let pp = [ox + dp[0], oy + dp[1], oz + dp[2]];
-                                part.verts.push(edge_vertex(b, base, pn, pp, iso, spec, h, dir));
+                                part.verts.push(edge_vertex(b, base, pn, pp, iso, dir));
                             }
                             *w = scratch.slot[s];
                         }
@@ -184,9 +256,9 @@ fn mesh_block(b: &Block, iso: f64, spec: &GridSpec, scratch: &mut Scratch, part:
     scratch.used.clear();
 }
 
-/// The vertex of eq. (2) on the edge from block offset `pn` (φ < iso) to `pp` (φ ≥ iso),
-/// with its normal: the central-difference gradient at both ends, interpolated, unit.
-#[allow(clippy::too_many_arguments)]
+/// The vertex of eq. (2) on the edge from block offset `pn` (φ < iso) to `pp` (φ ≥ iso):
+/// its key, its parameter from the edge's lower voxel (unclamped; [`place`] clamps it)
+/// and its normal, the central-difference gradient at both ends interpolated, unit.
 #[inline]
 fn edge_vertex(
     b: &Block,
@@ -194,13 +266,15 @@ fn edge_vertex(
     pn: [usize; 3],
     pp: [usize; 3],
     iso: f64,
-    spec: &GridSpec,
-    h: f64,
     dir: u8,
-) -> (u128, [f32; 3], [f32; 3]) {
+) -> EdgeVertex {
     let val = |p: [usize; 3]| b.values[bidx(p[0], p[1], p[2])] as f64;
     let (vn, vp) = (val(pn) - iso, val(pp) - iso);
+    // vn < 0 ≤ vp, so both quotients lie in [0, 1]; t_lo is computed from the lower end
+    // directly rather than as 1 − t.
     let t = vn / (vn - vp);
+    let pn_lower = pn.iter().zip(&pp).all(|(a, b)| a <= b);
+    let t_lo = if pn_lower { t } else { vp / (vp - vn) };
     let grad = |p: [usize; 3]| -> [f64; 3] {
         let mut g = [0.0; 3];
         for (a, ga) in g.iter_mut().enumerate() {
@@ -212,26 +286,111 @@ fn edge_vertex(
         g
     };
     let (gn, gp) = (grad(pn), grad(pp));
-    let mut pos = [0f32; 3];
     let mut nrm = [0f64; 3];
     for a in 0..3 {
-        let xn = (base[a] + pn[a] as i64) as f64;
-        let xp = (base[a] + pp[a] as i64) as f64;
-        let x = xn + t * (xp - xn);
-        pos[a] = (spec.origin[a] + h * x) as f32;
         nrm[a] = gn[a] + t * (gp[a] - gn[a]);
     }
     let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
     let nrm = if len > 0.0 && len.is_finite() { nrm.map(|c| (c / len) as f32) } else { [0.0; 3] };
-    let lower = if pn.iter().zip(&pp).all(|(a, b)| a <= b) { pn } else { pp };
+    let lower = if pn_lower { pn } else { pp };
     let lower = [0, 1, 2].map(|a| base[a] + lower[a] as i64);
-    (edge_key(lower, dir), pos, nrm)
+    (edge_key(lower, dir), t_lo, nrm)
+}
+
+/// Floating-point precision of a mesh's positions (see the module docs, "Precision").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Precision {
+    F32,
+    F64,
+}
+
+impl Precision {
+    /// Spacing of the representable values at magnitude `m` (≥ 0): the ulp of `m`, or of
+    /// the next binade when `m` rounds up to a power of two; infinite beyond the range.
+    fn ulp(self, m: f64) -> f64 {
+        match self {
+            Precision::F32 => {
+                let x = m as f32;
+                let up = x.next_up();
+                if up.is_finite() {
+                    (up - x) as f64
+                } else {
+                    f64::INFINITY
+                }
+            }
+            Precision::F64 => {
+                let up = m.next_up();
+                if up.is_finite() {
+                    up - m
+                } else {
+                    f64::INFINITY
+                }
+            }
+        }
+    }
+}
+
+/// A precision may hold a mesh when its ulp at the mesh's largest coordinate is at most
+/// this fraction of a voxel (rounding error ≤ 1/8192 voxel).
+const MAX_ULP_IN_VOXELS: f64 = 1.0 / 4096.0;
+
+/// A vertex keeps at least this many ulps (of the chosen precision, at the magnitude of
+/// its edge's end points) times the edge length away from both ends of its edge.
+const OFFSET_ULPS: f64 = 32.0;
+
+/// Places the merged vertices: picks the precision from the largest coordinate of the
+/// edges' end points, clamps each parameter to `[δ, 1 − δ]` with
+/// `δ = OFFSET_ULPS · ulp / h` and interpolates between the end points' world positions
+/// from the nearer end; with f32 precision the positions are rounded to f32 values.
+fn place(verts: &[EdgeVertex], spec: &GridSpec) -> Result<Vec<[f64; 3]>, MeshError> {
+    let h = spec.voxel_size as f64;
+    let world = |v: [i64; 3]| [0, 1, 2].map(|a| spec.origin[a] + h * v[a] as f64);
+    let magnitude =
+        |a: [f64; 3], b: [f64; 3]| a.iter().chain(&b).fold(0f64, |m, &c| m.max(c.abs()));
+    // The largest coordinate of any end point: |origin + h·v| is convex in v, so it is
+    // reached at the voxel bounds of the end points.
+    let Some((vmin, vmax)) = verts
+        .par_iter()
+        .map(|v| {
+            let (lo, dir) = edge_of_key(v.0);
+            (lo, [0, 1, 2].map(|a| lo[a] + ((dir >> a) & 1) as i64))
+        })
+        .reduce_with(|a, b| {
+            ([0, 1, 2].map(|i| a.0[i].min(b.0[i])), [0, 1, 2].map(|i| a.1[i].max(b.1[i])))
+        })
+    else {
+        return Ok(Vec::new());
+    };
+    let extent = magnitude(world(vmin), world(vmax));
+    let precision = [Precision::F32, Precision::F64]
+        .into_iter()
+        .find(|p| p.ulp(extent) <= MAX_ULP_IN_VOXELS * h)
+        .ok_or(MeshError::Precision { extent, voxel_size: h })?;
+    Ok(verts
+        .par_iter()
+        .map(|&(key, t, _)| {
+            let (lo, dir) = edge_of_key(key);
+            let a = world(lo);
+            let b = world([0, 1, 2].map(|i| lo[i] + ((dir >> i) & 1) as i64));
+            let delta = OFFSET_ULPS * precision.ulp(magnitude(a, b)) / h;
+            let t = t.clamp(delta, 1.0 - delta);
+            let p = if t <= 0.5 {
+                [0, 1, 2].map(|i| a[i] + t * (b[i] - a[i]))
+            } else {
+                [0, 1, 2].map(|i| b[i] + (1.0 - t) * (a[i] - b[i]))
+            };
+            match precision {
+                Precision::F32 => p.map(|c| c as f32 as f64),
+                Precision::F64 => p,
+            }
+        })
+        .collect())
 }
 
 /// Merges the tiles' parts in tile order into one welded mesh: all vertex copies sorted
 /// by key (copies of one key are bitwise equal), numbered in key order, and every part's
 /// local indices mapped through that numbering.
-fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
+fn merge(parts: Vec<Part>, spec: &GridSpec) -> Result<TriangleMesh, MeshError> {
     let mut offsets = Vec::with_capacity(parts.len() + 1);
     offsets.push(0usize);
     for p in &parts {
@@ -253,22 +412,20 @@ fn merge(parts: Vec<Part>) -> Result<TriangleMesh, MeshError> {
         &parts[p].verts[i as usize - offsets[p]]
     };
     let mut remap = vec![0u32; copies];
-    let mut positions = Vec::new();
-    let mut normals = Vec::new();
-    let mut last = None;
+    let mut verts: Vec<EdgeVertex> = Vec::with_capacity(copies);
     for &(key, i) in &order {
-        if last != Some(key) {
-            let v = copy(i);
-            positions.push(v.1);
-            normals.push(v.2);
-            last = Some(key);
-        } else if cfg!(debug_assertions) {
-            let (a, b) = (copy(i), (positions.last().unwrap(), normals.last().unwrap()));
-            let bits = |p: &[f32; 3], n: &[f32; 3]| (p.map(f32::to_bits), n.map(f32::to_bits));
-            debug_assert_eq!(bits(&a.1, &a.2), bits(b.0, b.1), "copies of a vertex differ");
+        let v = copy(i);
+        match verts.last() {
+            Some(last) if last.0 == key => {
+                let bits = |v: &EdgeVertex| (v.1.to_bits(), v.2.map(f32::to_bits));
+                debug_assert_eq!(bits(v), bits(last), "copies of a vertex differ");
+            }
+            _ => verts.push(*v),
         }
-        remap[i as usize] = (positions.len() - 1) as u32;
+        remap[i as usize] = (verts.len() - 1) as u32;
     }
+    let positions = place(&verts, spec)?;
+    let normals = verts.iter().map(|v| v.2).collect();
     let triangles: Vec<[u32; 3]> = parts
         .par_iter()
         .zip(&offsets[..parts.len()])
@@ -325,13 +482,13 @@ pub fn isosurface_tiles_with_progress(
             let cursor = NeighbourCursor::new(coords, start, start + chunk.len());
             for nbrs in cursor {
                 let block = gather_tiles(grid, &nbrs);
-                mesh_block(&block, iso, &spec, scratch, &mut part);
+                mesh_block(&block, iso, scratch, &mut part);
             }
             progress(chunk.len());
             part
         })
         .collect();
-    merge(parts)
+    merge(parts, &spec)
 }
 
 /// The isosurface of a DT-Grid, through its tile grid ([`crate::build::tiles_from_dtgrid`],
@@ -444,9 +601,87 @@ pub fn isosurface_dense(
                 }
             }
             let mut part = Part::default();
-            mesh_block(&Block { tile, values, stored }, iso, spec, scratch, &mut part);
+            mesh_block(&Block { tile, values, stored }, iso, scratch, &mut part);
             part
         })
         .collect();
-    merge(parts)
+    merge(parts, spec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bounds the module docs rely on, at h = 1 for every Kuhn tetrahedron, sign
+    /// pattern and piece, with edge parameters at every combination of δ and 1 − δ and at
+    /// random values in between: every triangle's smallest height is at least δ/6, and
+    /// vertices on two edges from one voxel are at least δ apart.
+    #[test]
+    fn clamped_parameters_keep_vertices_apart_and_triangles_thick() {
+        let delta = 1e-3;
+        let corner = |c: u8| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let norm = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let cross = |u: [f64; 3], v: [f64; 3]| {
+            [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+        };
+        let mut rng = fastrand::Rng::with_seed(3);
+        let mut worst = f64::INFINITY;
+        for (tet, _) in KUHN {
+            for mask in 1..15u32 {
+                for trial in 0..64 + 200 {
+                    // Parameter of tetrahedron edge (i, j), i < j, from its lower-numbered end.
+                    let param = |i: usize, j: usize, rng: &mut fastrand::Rng| {
+                        let e = [0, 0, 1, 2, 0, 0, 3, 4, 0, 0, 0, 5][4 * i.min(j) + i.max(j) - 1];
+                        let s = if trial < 64 {
+                            if (trial >> e) & 1 == 0 {
+                                delta
+                            } else {
+                                1.0 - delta
+                            }
+                        } else {
+                            delta + rng.f64() * (1.0 - 2.0 * delta)
+                        };
+                        if i < j {
+                            s
+                        } else {
+                            1.0 - s
+                        }
+                    };
+                    for piece in pieces(3, mask) {
+                        let p: Vec<[f64; 3]> = piece
+                            .pairs
+                            .iter()
+                            .map(|&(i, j)| {
+                                let (a, b) = (corner(tet[i as usize]), corner(tet[j as usize]));
+                                let s = param(i as usize, j as usize, &mut rng);
+                                [0, 1, 2].map(|k| a[k] + s * (b[k] - a[k]))
+                            })
+                            .collect();
+                        let area2 = norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+                        let longest =
+                            (0..3).map(|k| norm(sub(p[(k + 1) % 3], p[k]))).fold(0.0, f64::max);
+                        worst = worst.min(area2 / longest / delta);
+                    }
+                }
+            }
+        }
+        println!("smallest height / δ: {worst:.4}");
+        assert!(worst >= 1.0 / 6.0, "{worst}");
+        // Two edges from one voxel: directions in {0,1}³ \ 0 and their negatives.
+        let dirs: Vec<[f64; 3]> =
+            (1..8u8).flat_map(|c| [corner(c), corner(c).map(|x| -x)]).collect();
+        let ts = [delta, 0.5, 1.0 - delta];
+        let mut closest = f64::INFINITY;
+        for (k, &d1) in dirs.iter().enumerate() {
+            for &d2 in &dirs[k + 1..] {
+                for &t1 in &ts {
+                    for &t2 in &ts {
+                        closest = closest.min(norm(sub(d1.map(|x| t1 * x), d2.map(|x| t2 * x))));
+                    }
+                }
+            }
+        }
+        assert!(closest >= delta * (1.0 - 1e-9), "{closest}");
+    }
 }
