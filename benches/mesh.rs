@@ -5,13 +5,13 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::mesh::isosurface_tiles;
+use sparse_levelset::mesh::{isosurface, MeshOptions};
 use sparse_levelset::shapes::Shape;
 
 fn mesh(c: &mut Criterion) {
     let sphere = Shape::Sphere { center: [0.0; 3], radius: 100.0 };
     let tiles = tiles_from_shape(&sphere, GridSpec::default()).unwrap();
-    let mesh = isosurface_tiles(&tiles, 0.0).unwrap();
+    let mesh = isosurface(&tiles, &MeshOptions::default()).unwrap();
     let label = format!(
         "{}band_vox_{}tiles_{}tri_{}vert",
         tiles.band_voxels(),
@@ -25,7 +25,7 @@ fn mesh(c: &mut Criterion) {
     for threads in [1, all] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         g.bench_function(BenchmarkId::new(format!("{threads}threads"), &label), |b| {
-            b.iter(|| pool.install(|| isosurface_tiles(&tiles, 0.0).unwrap()))
+            b.iter(|| pool.install(|| isosurface(&tiles, &MeshOptions::default()).unwrap()))
         });
     }
     g.finish();

@@ -5,7 +5,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::render::{render, RenderOptions};
+use sparse_levelset::render::{self, RenderOptions};
 use sparse_levelset::shapes::Shape;
 
 fn render(c: &mut Criterion) {
@@ -21,10 +21,10 @@ fn render(c: &mut Criterion) {
         g.sample_size(10);
         g.throughput(Throughput::Elements(rays));
         g.bench_function(BenchmarkId::new("tiles", format!("{rays}rays")), |b| {
-            b.iter(|| render(&tiles, &opts).unwrap())
+            b.iter(|| render::render(&tiles, &opts).unwrap())
         });
         g.bench_function(BenchmarkId::new("dtgrid", format!("{rays}rays")), |b| {
-            b.iter(|| render(&dt, &opts).unwrap())
+            b.iter(|| render::render(&dt, &opts).unwrap())
         });
         g.finish();
     }

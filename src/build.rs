@@ -50,9 +50,16 @@ pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridEr
     Ok(dtgrid_from_tiles(&tiles_from_shape(shape, spec)?))
 }
 
-/// The DT-Grid of any level set: its band voxels (|φ| < γ) pushed in [`Coord`] order.
-/// O(band voxels) plus the level set's own pass over them.
+/// The DT-Grid of any level set: its band voxels (|φ| < γ) pushed in [`Coord`] order,
+/// O(band voxels) plus the level set's own pass over them. A tile grid whose band does
+/// not separate inside from outside (the interior of a dense field touching the array's
+/// edge) also gets the closing layer of [`dtgrid_from_dense`], so that the DT-Grid reads
+/// what the tiles read at every voxel.
 pub fn dtgrid_from<G: LevelSet + ?Sized>(grid: &G) -> DtGrid {
+    if let Some(tiles) = grid.as_tiles() {
+        return dtgrid_closed_from_tiles(tiles)
+            .expect("tile voxels are visited in order, are finite and lie in the i32 range");
+    }
     let mut dt = DtGrid::new(grid.spec());
     grid.for_each_band_voxel(&mut |c, v| {
         dt.push(c, v).expect("band voxels are visited in order and are finite");

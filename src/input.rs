@@ -17,9 +17,8 @@
 //!    neighbouring voxels change sign while both lie outside the band (|φ| ≥ γ); the band
 //!    would lose those crossings ([`InputError::NotDistance`],
 //!    [`crate::build::dense_sign_jumps`]).
-//! 7. **Positions**: the voxels, band included, lie in the `i32` coordinate range; a tool
-//!    that writes `f32` positions (meshes, [`Expect::f32_positions`]) also needs them
-//!    resolved to 1/64 voxel ([`InputError::Imprecise`]).
+//! 7. **Positions**: the voxels, band included, lie in the `i32` coordinate range. (Meshes
+//!    far from the origin are written with `f64` positions; see [`crate::mesh`].)
 //!
 //! Shapes ([`check_shape`]) follow rules 2, 4 and 7 and have their parameters checked
 //! ([`Shape::validate`]).
@@ -51,11 +50,6 @@ use crate::shapes::Shape;
 use rayon::prelude::*;
 use std::path::Path;
 
-/// Farthest a voxel may lie from the world origin, in voxels, when positions are written
-/// as `f32` ([`Expect::f32_positions`]): below 2¹⁷ voxels the spacing of `f32` values is
-/// at most 1/32 voxel, so rounding moves a position by at most 1/64 voxel.
-pub const F32_POSITION_LIMIT: f64 = (1u64 << 17) as f64;
-
 /// What a tool expects of its input level set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Expect {
@@ -67,9 +61,6 @@ pub struct Expect {
     /// module docs): true for every tool that builds a band from it, false for one that
     /// computes distances from any level set (`levelset distance`).
     pub distance_field: bool,
-    /// The tool writes voxel positions as `f32` (meshes), so they must resolve 1/64 voxel:
-    /// no voxel farther than [`F32_POSITION_LIMIT`] voxels from the world origin.
-    pub f32_positions: bool,
     /// Arrays the size of the input (dense fields) or of its band (shapes) that the tool
     /// holds at once, the input included (≥ 1); sizes the memory check.
     pub copies: f64,
@@ -78,7 +69,7 @@ pub struct Expect {
 impl Expect {
     /// A signed distance field on `spec` with its interface at 0, one copy in memory.
     pub fn new(spec: GridSpec) -> Expect {
-        Expect { spec, iso: 0.0, distance_field: true, f32_positions: false, copies: 1.0 }
+        Expect { spec, iso: 0.0, distance_field: true, copies: 1.0 }
     }
 }
 
@@ -121,14 +112,6 @@ pub enum InputError {
          `levelset distance`"
     )]
     NotDistance { input: String, pairs: usize, gamma: f32, half_width: f32 },
-    /// Positions too far from the origin for `f32` output to resolve them.
-    #[error(
-        "{input}: voxels up to {far:e} world units from the origin ({voxels:.0} voxels) cannot \
-         be written as f32 positions to 1/64 voxel; keep the input within {} voxels of the \
-         origin",
-        F32_POSITION_LIMIT
-    )]
-    Imprecise { input: String, far: f64, voxels: f64 },
     /// A parameter outside its domain (a shape's, or a band leaving the `i32` range).
     #[error(transparent)]
     Grid(#[from] GridError),
@@ -158,16 +141,6 @@ pub fn load_npy(path: &Path, expect: &Expect) -> Result<DenseField, InputError> 
 /// names it in errors) and clamps its `±∞` to `±γ`. On error the field is unchanged.
 pub fn check_field(input: &str, field: &mut DenseField, expect: &Expect) -> Result<(), InputError> {
     check_iso(input, expect)?;
-    if expect.f32_positions {
-        // Meshes of a dense field reach one voxel beyond it on every side.
-        let (lo, hi) = (field.origin(), field.max_coord());
-        let (h, o) = (expect.spec.voxel_size as f64, expect.spec.origin);
-        let at = |c: Coord, d: f64| -> [f64; 3] {
-            let v = [c.x, c.y, c.z];
-            std::array::from_fn(|a| o[a] + (v[a] as f64 + d) * h)
-        };
-        check_positions(input, at(lo, -1.0), at(hi, 1.0), &expect.spec)?;
-    }
     let data = field.data();
     if let Some(i) = data.par_iter().position_first(|v| v.is_nan()) {
         let coord = field.coord_of(i).expect("index in range");
@@ -204,18 +177,14 @@ pub fn check_field(input: &str, field: &mut DenseField, expect: &Expect) -> Resu
 }
 
 /// Checks an analytic shape against `expect` before anything is built: its parameters
-/// ([`Shape::validate`]), the isovalue, its band within the `i32` voxel range (and within
-/// [`F32_POSITION_LIMIT`] for [`Expect::f32_positions`]), and the memory of
+/// ([`Shape::validate`]), the isovalue, its band within the `i32` voxel range, and the memory of
 /// [`Expect::copies`] bands ([`check_band_fits`]). `input` names it in errors.
 pub fn check_shape(input: &str, shape: &Shape, expect: &Expect) -> Result<(), InputError> {
     shape.validate()?;
     check_iso(input, expect)?;
     let spec = &expect.spec;
     let (lo, hi) = shape.bounds();
-    let (vlo, vhi) = band_voxel_box(lo, hi, spec)?;
-    if expect.f32_positions {
-        check_positions(input, spec.world(vlo), spec.world(vhi), spec)?;
-    }
+    band_voxel_box(lo, hi, spec)?;
     check_band_fits(shape, spec, expect.copies)
         .map_err(|error| InputError::OutOfMemory { input: input.to_string(), error })
 }
@@ -226,22 +195,6 @@ fn check_iso(input: &str, expect: &Expect) -> Result<(), InputError> {
         Ok(())
     } else {
         Err(InputError::IsoOutsideBand { input: input.to_string(), iso: expect.iso, gamma: g })
-    }
-}
-
-/// Refuses a world box `[lo, hi]` with a coordinate beyond [`F32_POSITION_LIMIT`] voxels.
-fn check_positions(
-    input: &str,
-    lo: [f64; 3],
-    hi: [f64; 3],
-    spec: &GridSpec,
-) -> Result<(), InputError> {
-    let far = lo.iter().chain(&hi).fold(0.0f64, |m, v| m.max(v.abs()));
-    let voxels = far / spec.voxel_size as f64;
-    if voxels < F32_POSITION_LIMIT {
-        Ok(())
-    } else {
-        Err(InputError::Imprecise { input: input.to_string(), far, voxels })
     }
 }
 
@@ -338,13 +291,8 @@ mod tests {
         assert!(err.to_string().contains("i32"), "{err}");
         let err = check_shape("sphere", &sphere([0.0; 3], 1e8), &e).unwrap_err();
         assert!(matches!(err, InputError::OutOfMemory { .. }), "{err}");
-        // In the i32 range, but meshes at f32 positions would be wrong there.
-        let far = sphere([2147483000.0, 0.0, 0.0], 10.0);
-        check_shape("far", &far, &e).unwrap();
-        let mesh = Expect { f32_positions: true, ..e };
-        let err = check_shape("far", &far, &mesh).unwrap_err();
-        assert!(matches!(err, InputError::Imprecise { .. }), "{err}");
-        check_shape("near", &sphere([100000.0, 0.0, 0.0], 10.0), &mesh).unwrap();
+        // In the i32 range: accepted (meshes there are written with f64 positions).
+        check_shape("far", &sphere([2147483000.0, 0.0, 0.0], 10.0), &e).unwrap();
     }
 
     #[test]

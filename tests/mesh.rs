@@ -8,8 +8,8 @@ use sparse_levelset::build::{
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::mesh::{
-    cell_simplex_bound, isosurface_dense, isosurface_dtgrid, isosurface_nd, isosurface_tiles,
-    MeshError, MeshFormat, NdField, TriangleMesh,
+    cell_simplex_bound, isosurface, isosurface_dense, isosurface_nd, MeshError, MeshFormat,
+    MeshOptions, NdField, TriangleMesh,
 };
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
@@ -23,6 +23,14 @@ use common::tmp;
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
+/// The one isosurface function at `iso` (every storage goes through it).
+fn mesh_at<G: sparse_levelset::LevelSet>(
+    g: &G,
+    iso: f64,
+) -> Result<sparse_levelset::mesh::TriangleMesh, sparse_levelset::mesh::MeshError> {
+    isosurface(g, &MeshOptions { iso, ..Default::default() })
+}
+
 fn canonical(m: &TriangleMesh) -> Vec<[[u64; 3]; 3]> {
     let mut out: Vec<[[u64; 3]; 3]> = m
         .triangles
@@ -181,7 +189,7 @@ fn sphere_r100_closed_manifold_area_volume() {
     )
     .unwrap();
     let t0 = std::time::Instant::now();
-    let m = isosurface_tiles(&tiles, 0.0).unwrap();
+    let m = mesh_at(&tiles, 0.0).unwrap();
     println!(
         "sphere r=100: {} vertices, {} triangles from {} band voxels in {:.3} s",
         m.num_vertices(),
@@ -209,12 +217,12 @@ fn sphere_r100_closed_manifold_area_volume() {
 fn torus_has_euler_characteristic_0_and_sphere_2() {
     let spec = GridSpec::default();
     let torus = Shape::Torus { center: [1.5, -2.25, 0.7], major_radius: 24.0, minor_radius: 7.0 };
-    let m = isosurface_tiles(&tiles_from_shape(&torus, spec).unwrap(), 0.0).unwrap();
+    let m = mesh_at(&tiles_from_shape(&torus, spec).unwrap(), 0.0).unwrap();
     assert!(m.is_closed_manifold());
     assert_eq!(m.euler_characteristic(), 0);
     close("torus volume", m.enclosed_volume(), 2.0 * PI * PI * 24.0 * 49.0, 1e-2);
     let s = Shape::Sphere { center: [-40.2, 13.7, -7.1], radius: 9.5 };
-    let m = isosurface_tiles(&tiles_from_shape(&s, spec).unwrap(), 0.0).unwrap();
+    let m = mesh_at(&tiles_from_shape(&s, spec).unwrap(), 0.0).unwrap();
     assert!(m.is_closed_manifold());
     assert_eq!(m.euler_characteristic(), 2);
 }
@@ -229,7 +237,7 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
         Shape::Box { center: [-6.25, 4.0, -10.5], half_extents: [5.0, 3.5, 4.0] },
     ] {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
-        let mt = isosurface_tiles(&tiles, 0.0).unwrap();
+        let mt = mesh_at(&tiles, 0.0).unwrap();
         assert!(mt.is_closed_manifold(), "{shape:?}");
         // The box's faces lie on voxel planes: φ = 0 exactly at voxels. The ε rule keeps
         // the mesh closed; its vertices sit a hair off those voxels (never on one), so
@@ -253,7 +261,7 @@ fn tiles_dense_and_dtgrid_give_the_same_mesh() {
         assert_eq!(canonical(&mt), canonical(&md), "{shape:?}: tiles vs dense");
         // Same key order in both, so even the vertex order and normals agree.
         assert_eq!(mt, md);
-        let mg = isosurface_dtgrid(&dtgrid_from_shape(&shape, spec).unwrap(), 0.0).unwrap();
+        let mg = mesh_at(&dtgrid_from_shape(&shape, spec).unwrap(), 0.0).unwrap();
         assert_eq!(canonical(&mt), canonical(&mg), "{shape:?}: tiles vs DT-Grid");
     }
 }
@@ -266,7 +274,7 @@ fn same_bytes_for_one_and_two_threads() {
     let mut files = Vec::new();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let m = pool.install(|| isosurface_tiles(&tiles, 0.0)).unwrap();
+        let m = pool.install(|| mesh_at(&tiles, 0.0)).unwrap();
         assert!(m.is_closed_manifold());
         let p = tmp(&format!("spiral{threads}.ply"));
         m.write(&p, None).unwrap();
@@ -287,7 +295,7 @@ fn exact_zeros_give_no_zero_area_triangles_sphere_r100() {
             .unwrap();
     let zeros = tiles.values().iter().flat_map(|t| t.0).filter(|&v| v == 0.0).count();
     assert!(zeros > 100, "{zeros} exact zeros");
-    let m = isosurface_tiles(&tiles, 0.0).unwrap();
+    let m = mesh_at(&tiles, 0.0).unwrap();
     println!(
         "sphere r=100 at a voxel: {zeros} exact zeros, {} vertices, {} triangles",
         m.num_vertices(),
@@ -388,10 +396,10 @@ fn exact_zeros_on_tiles_dtgrid_and_dense_give_closed_manifolds() {
         let mut files = Vec::new();
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let mt = pool.install(|| isosurface_tiles(&tiles, 0.0)).unwrap();
+            let mt = pool.install(|| mesh_at(&tiles, 0.0)).unwrap();
             let md = pool.install(|| isosurface_dense(&field, &spec, 0.0)).unwrap();
             let dt = dtgrid_from_dense(&field, spec).unwrap();
-            let mg = pool.install(|| isosurface_dtgrid(&dt, 0.0)).unwrap();
+            let mg = pool.install(|| mesh_at(&dt, 0.0)).unwrap();
             assert_eq!(mt, md, "{name}: tiles vs dense, {threads} threads");
             assert_eq!(mt, mg, "{name}: tiles vs DT-Grid, {threads} threads");
             let p = tmp(&format!("zeros-{threads}.ply"));
@@ -430,12 +438,12 @@ fn exact_zeros_on_tiles_dtgrid_and_dense_give_closed_manifolds() {
 fn far_from_the_origin_positions_keep_voxel_accuracy() {
     let spec = GridSpec::default();
     let sphere = |x: f64| Shape::Sphere { center: [x, 0.0, 0.0], radius: 10.0 };
-    let near = isosurface_tiles(&tiles_from_shape(&sphere(0.0), spec).unwrap(), 0.0).unwrap();
+    let near = mesh_at(&tiles_from_shape(&sphere(0.0), spec).unwrap(), 0.0).unwrap();
     assert!(!check_as_written(&near, "near", 2));
     let exact_area = 4.0 * PI * 100.0;
     close("area near the origin", near.area(), exact_area, 5e-3);
     for x in [16_777_216.0, 2_147_483_000.0] {
-        let far = isosurface_tiles(&tiles_from_shape(&sphere(x), spec).unwrap(), 0.0).unwrap();
+        let far = mesh_at(&tiles_from_shape(&sphere(x), spec).unwrap(), 0.0).unwrap();
         assert!(check_as_written(&far, &format!("far{x}"), 2), "written as double");
         assert!(!far.positions_are_f32());
         // Same values (integer differences from the centre), same mesh moved by x: the
@@ -460,19 +468,6 @@ fn far_from_the_origin_positions_keep_voxel_accuracy() {
             })
             .collect();
         assert_eq!(vs, far.positions);
-        // The command line reports what it wrote.
-        let ply = tmp("far-cli.ply");
-        let center = format!("{x},0,0");
-        let args = ["mesh", "--radius", "10", "--center", &center, "--quiet", "-o"];
-        let o = levelset(&[&args[..], &[ply.to_str().unwrap()]].concat());
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let s = String::from_utf8(o.stdout).unwrap();
-        assert!(s.contains("closed manifold: yes, Euler characteristic 2"), "{s}");
-        let area: f64 =
-            s.split("area ").nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
-        close(&format!("command-line area at {x}"), area, near.area(), 1e-5);
-        let (read, double) = read_ply(&ply);
-        assert!(double && read.positions == far.positions);
     }
 }
 
@@ -482,13 +477,13 @@ fn coordinates_beyond_f64_precision_are_an_error() {
     let spec = GridSpec::new(1.0, [1e15, 0.0, 0.0], 3.0).unwrap();
     let tiles =
         tiles_from_shape(&Shape::Sphere { center: [1e15, 0.0, 0.0], radius: 5.0 }, spec).unwrap();
-    let err = isosurface_tiles(&tiles, 0.0).unwrap_err();
+    let err = mesh_at(&tiles, 0.0).unwrap_err();
     assert!(matches!(err, MeshError::Precision { .. }), "{err}");
     assert!(err.to_string().contains("f64"), "{err}");
     // 2⁴⁰ voxels still work (f64 ulp 2⁻¹² there).
     let spec = GridSpec::new(1.0, [(1u64 << 39) as f64, 0.0, 0.0], 3.0).unwrap();
     let c = (1u64 << 39) as f64;
-    let m = isosurface_tiles(
+    let m = mesh_at(
         &tiles_from_shape(&Shape::Sphere { center: [c, 0.0, 0.0], radius: 5.0 }, spec).unwrap(),
         0.0,
     )
@@ -504,7 +499,7 @@ fn level_set_near_the_i32_limit() {
     let spec = GridSpec::new(1.0, [o, o, 0.0], 3.0).unwrap();
     let tiles =
         tiles_from_shape(&Shape::Sphere { center: [0.0, 0.0, 0.0], radius: 6.0 }, spec).unwrap();
-    let m = isosurface_tiles(&tiles, 0.0).unwrap();
+    let m = mesh_at(&tiles, 0.0).unwrap();
     assert!(m.is_closed_manifold());
     assert_eq!(m.euler_characteristic(), 2);
 }
@@ -663,7 +658,7 @@ fn higher_dimensions_are_closed() {
 
 #[test]
 fn mesh_files() {
-    let m = isosurface_tiles(
+    let m = mesh_at(
         &tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, GridSpec::default())
             .unwrap(),
         0.0,
@@ -735,10 +730,10 @@ fn bad_input_is_an_error() {
     d.set(Coord::new(-1, 1, 3), f32::NAN).unwrap();
     assert!(matches!(isosurface_dense(&d, &spec, 0.0), Err(MeshError::NaN { .. })));
     let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
-    assert!(isosurface_tiles(&tiles, f64::NAN).is_err());
-    assert!(isosurface_tiles(&tiles, 3.0).is_err(), "iso at γ");
+    assert!(mesh_at(&tiles, f64::NAN).is_err());
+    assert!(mesh_at(&tiles, 3.0).is_err(), "iso at γ");
     // Empty level sets give empty meshes, which are not closed manifolds.
-    let m = isosurface_tiles(&sparse_levelset::tiles::TileGrid::new(spec), 0.0).unwrap();
+    let m = mesh_at(&sparse_levelset::tiles::TileGrid::new(spec), 0.0).unwrap();
     assert!(m.is_empty() && !m.is_closed_manifold());
     let m = isosurface_dense(
         &DenseField::new(Coord::new(0, 0, 0), [3, 3, 3], 2.0).unwrap(),
@@ -747,7 +742,7 @@ fn bad_input_is_an_error() {
     )
     .unwrap();
     assert!(m.is_empty());
-    let m = isosurface_tiles(&tiles, 0.0).unwrap();
+    let m = mesh_at(&tiles, 0.0).unwrap();
     assert!(matches!(m.write(&tmp("x.stl"), None), Err(MeshError::UnknownFormat(_))));
     assert!(matches!(m.write(&tmp("noext"), None), Err(MeshError::UnknownFormat(_))));
     assert!(matches!(m.write(&tmp("no/such/dir/x.ply"), None), Err(MeshError::Io { .. })));

@@ -175,7 +175,7 @@ fn run_tools(
         .build()
         .map_err(|e| format!("thread pool: {e}"))?;
     let (s, m) = best_of(reps, || {
-        pool.install(|| sparse_levelset::mesh::isosurface_tiles(&tiles, 0.0))
+        pool.install(|| sparse_levelset::mesh::isosurface(&tiles, &Default::default()))
             .map_err(|e| e.to_string())
     })?;
     push(name, "tiles", s, format!("{} triangles, {} thread(s)", m.triangles.len(), cfg.threads));

@@ -854,23 +854,6 @@ fn what_the_computation_cannot_represent_is_refused_before_any_work() {
         // γ = 3e38: used to exit 0 with ±inf in the output.
         (vec!["distance", f, "-o", out.to_str().unwrap(), "--voxel-size", "1e38"], "γ²", &out),
         (vec!["info", "--radius", "10", "--voxel-size", "1e-30"], "too small", &out),
-        // Voxels inside the i32 range, but f32 vertices there are 128 units apart: used to
-        // exit 0 with a flattened mesh.
-        (
-            vec![
-                "mesh",
-                "--shape",
-                "sphere",
-                "--radius",
-                "10",
-                "--center",
-                "2147483000,0,0",
-                "-o",
-                ply.to_str().unwrap(),
-            ],
-            "f32 positions",
-            &ply,
-        ),
         (
             vec!["info", "--shape", "sphere", "--radius", "10", "--center", "2147483640,0,0"],
             "i32",
@@ -887,17 +870,24 @@ fn what_the_computation_cannot_represent_is_refused_before_any_work() {
         );
         assert!(!written.exists(), "{args:?} wrote {}", written.display());
     }
-    // Near the origin the same sphere meshes fine.
-    let o = levelset(&[
-        "mesh",
-        "--radius",
-        "10",
-        "--center",
-        "100000,0,0",
-        "-o",
-        ply.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    // Voxels inside the i32 range where f32 vertices would be 128 units apart (this used to
+    // exit 0 with a flattened mesh of area 627): the mesh is written with double
+    // positions, closed, with the sphere's area.
+    for x in ["16777216", "2147483000"] {
+        let center = format!("{x},0,0");
+        let o =
+            levelset(&["mesh", "--radius", "10", "--center", &center, "-o", ply.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let s = String::from_utf8(o.stdout).unwrap();
+        assert!(s.contains("closed manifold: yes, Euler characteristic 2"), "{s}");
+        let area: f64 =
+            s.split("area ").nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+        let exact = 4.0 * std::f64::consts::PI * 100.0;
+        assert!((area - exact).abs() <= 5e-3 * exact, "area {area} at x = {x}");
+        let bytes = std::fs::read(&ply).unwrap();
+        let header = String::from_utf8_lossy(&bytes[..bytes.len().min(400)]).to_string();
+        assert!(header.contains("property double x"), "{header}");
+    }
 }
 
 /// A `.npy` whose header and file size both claim a (4096, 2048, 2048) float32 array

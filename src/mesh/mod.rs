@@ -1,7 +1,7 @@
 //! Meshes of level sets by simplicial isosurfacing (Min, "Simplicial isosurfacing in
 //! arbitrary dimension and codimension", `simplicial-isosurfacing.txt`).
 //!
-//! * [`isosurface_tiles`], [`isosurface_dtgrid`], [`isosurface_dense`]: the φ = iso
+//! * [`isosurface`] (any level set), [`isosurface_dense`]: the φ = iso
 //!   surface of a 3D level set as one welded, outward-oriented [`TriangleMesh`] in world
 //!   coordinates with per-vertex normals from ∇φ, tile by tile in parallel and the same
 //!   bits for any thread count;
@@ -38,7 +38,7 @@
 //!
 //! let sphere = Shape::Sphere { center: [0.0; 3], radius: 10.0 };
 //! let tiles = build::tiles_from_shape(&sphere, GridSpec::default()).unwrap();
-//! let m = mesh::isosurface_tiles(&tiles, 0.0).unwrap();
+//! let m = mesh::isosurface(&tiles, &Default::default()).unwrap();
 //! assert!(m.is_closed_manifold());
 //! assert_eq!(m.euler_characteristic(), 2);
 //! let exact = 4.0 / 3.0 * std::f64::consts::PI * 1000.0;
@@ -53,9 +53,7 @@ pub mod tables;
 
 pub use io::MeshFormat;
 pub use simplicial::{cell_simplex_bound, isosurface_nd, ComplexStats, NdField, SimplicialComplex};
-pub use surface::{
-    isosurface_dense, isosurface_dtgrid, isosurface_tiles, isosurface_tiles_with_progress,
-};
+pub use surface::{isosurface, isosurface_dense};
 
 use crate::Coord;
 use std::path::PathBuf;
@@ -77,6 +75,15 @@ pub struct TriangleMesh {
 }
 
 /// Errors of meshing and mesh output.
+/// Options of [`isosurface`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshOptions {
+    /// The iso value φ = iso of the surface (world units, strictly inside (−γ, γ)).
+    pub iso: f64,
+    /// Progress (tiles done) and cancellation.
+    pub progress: crate::progress::Progress,
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     /// A parameter outside its documented domain.
@@ -95,6 +102,9 @@ pub enum MeshError {
          1/4096 of a voxel there (move the grid's origin closer to the level set)"
     )]
     Precision { extent: f64, voxel_size: f64 },
+    /// Cancelled through [`MeshOptions::progress`].
+    #[error("meshing was cancelled")]
+    Cancelled(#[from] crate::progress::Cancelled),
     /// More vertices or triangles than a format or index type holds.
     #[error("mesh too large: {0}")]
     TooLarge(String),

@@ -82,10 +82,11 @@
 //! (errors −2.572·10⁻⁵ → −2.561·10⁻⁵ and −5.0011·10⁻⁵ → −5.0015·10⁻⁵).
 
 use super::tables::pieces;
-use super::{MeshError, TriangleMesh};
+use super::{MeshError, MeshOptions, TriangleMesh};
 use crate::dense::DenseField;
-use crate::dtgrid::DtGrid;
 use crate::grid::GridSpec;
+use crate::levelset::LevelSet;
+use crate::progress::Cancelled;
 use crate::tiles::{NeighbourCursor, Neighbours, Tile, TileGrid, TILE_MAX, TILE_MIN};
 use crate::Coord;
 use rayon::prelude::*;
@@ -447,36 +448,43 @@ fn check_iso(iso: f64) -> Result<(), MeshError> {
     }
 }
 
-/// The isosurface φ = `iso` of a tile grid as one welded, outward-oriented triangle mesh
-/// in world coordinates (see the module docs for the cells, welding and determinism).
-/// Values exactly equal to `iso` count as outside (the ε rule of Sec. 3), so the mesh of a
-/// level set inside the band is closed and manifold; `iso` must lie strictly inside
-/// (−γ, γ), where the band carries the surface. An empty level set gives an empty mesh.
-pub fn isosurface_tiles(grid: &TileGrid, iso: f64) -> Result<TriangleMesh, MeshError> {
-    isosurface_tiles_with_progress(grid, iso, &|_| {})
-}
-
-/// [`isosurface_tiles`] reporting progress: `progress(k)` is called after every finished
-/// chunk of k tiles (from worker threads; the sum of all k is the tile count).
-pub fn isosurface_tiles_with_progress(
-    grid: &TileGrid,
-    iso: f64,
-    progress: &(dyn Fn(usize) + Sync),
+/// The isosurface φ = `opts.iso` of any level set as one welded, outward-oriented
+/// triangle mesh in world coordinates (see the module docs for the cells, welding and
+/// determinism). Values exactly equal to the iso value count as outside (the ε rule of
+/// Sec. 3), so the mesh of a level set inside the band is closed and manifold; the iso
+/// value must lie strictly inside (−γ, γ), where the band carries the surface. An empty
+/// level set gives an empty mesh. A tile grid is meshed as it is; any other storage
+/// through [`crate::build::tiles_from`] (same values, so the same mesh). Progress counts
+/// tiles.
+pub fn isosurface<G: LevelSet + ?Sized>(
+    grid: &G,
+    opts: &MeshOptions,
 ) -> Result<TriangleMesh, MeshError> {
+    let iso = opts.iso;
     check_iso(iso)?;
-    let g = grid.gamma() as f64;
+    let g = grid.spec().gamma() as f64;
     if iso.abs() >= g {
         return Err(MeshError::InvalidParameter(format!(
             "iso value {iso} is outside the band (-{g}, {g}) that carries the level set"
         )));
     }
+    let converted;
+    let grid = match grid.as_tiles() {
+        Some(t) => t,
+        None => {
+            converted = crate::build::tiles_from(grid);
+            &converted
+        }
+    };
     let spec = *grid.spec();
     let coords = grid.tile_coords();
+    let ticker = opts.progress.start(coords.len() as u64);
     const CHUNK: usize = 64;
     let parts: Vec<Part> = coords
         .par_chunks(CHUNK)
         .enumerate()
         .map_init(Scratch::new, |scratch, (ci, chunk)| {
+            ticker.check()?;
             let mut part = Part::default();
             let start = ci * CHUNK;
             let cursor = NeighbourCursor::new(coords, start, start + chunk.len());
@@ -484,17 +492,11 @@ pub fn isosurface_tiles_with_progress(
                 let block = gather_tiles(grid, &nbrs);
                 mesh_block(&block, iso, scratch, &mut part);
             }
-            progress(chunk.len());
-            part
+            ticker.advance(chunk.len() as u64)?;
+            Ok(part)
         })
-        .collect();
+        .collect::<Result<_, Cancelled>>()?;
     merge(parts, &spec)
-}
-
-/// The isosurface of a DT-Grid, through its tile grid ([`crate::build::tiles_from_dtgrid`],
-/// same values, same mesh as [`isosurface_tiles`] on the equivalent tiles).
-pub fn isosurface_dtgrid(grid: &DtGrid, iso: f64) -> Result<TriangleMesh, MeshError> {
-    isosurface_tiles(&crate::build::tiles_from_dtgrid(grid), iso)
 }
 
 /// The block of the tile at `nbrs.pos`, its neighbours found by the list walk of
@@ -541,7 +543,7 @@ fn gather_tiles(grid: &TileGrid, nbrs: &Neighbours) -> Block {
 /// `iso + γ` (outside; for iso = 0 the `+γ` of [`crate::build::tiles_from_dense`]), so a
 /// surface that reaches the array's boundary is closed along it. ±∞ is a far-away
 /// distance (as in [`crate::npy::read_npy`]) and reads as `iso ± γ`. On the same values
-/// the mesh is the one [`isosurface_tiles`] makes (same cells, same arithmetic). Errors
+/// the mesh is the one [`isosurface`] makes (same cells, same arithmetic). Errors
 /// on NaN or a non-finite iso.
 pub fn isosurface_dense(
     field: &DenseField,

@@ -32,7 +32,7 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
     let spec = a.source.spec()?;
     check_output(&a.output)?;
     // Vertices are written as f32 positions.
-    let expect = Expect { iso: a.iso, f32_positions: true, ..Expect::new(spec) };
+    let expect = Expect { iso: a.iso, ..Expect::new(spec) };
     let bar = progress::spinner(a.quiet);
     let start = std::time::Instant::now();
     if let Some(path) = &a.source.field {
@@ -55,7 +55,12 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
                 )
                 .expect("valid template"),
             );
-            mesh::isosurface_tiles_with_progress(&tiles, a.iso, &|k| bar.inc(k as u64))
+            let b = bar.clone();
+            let progress = sparse_levelset::progress::Progress::new(move |done, _| {
+                b.set_position(done);
+                true
+            });
+            mesh::isosurface(&tiles, &mesh::MeshOptions { iso: a.iso, progress })
                 .map_err(|e| e.to_string())?
         }
     };

@@ -185,7 +185,7 @@ impl Frames {
         sim: &sparse_levelset::evolve::Simulation,
     ) -> Result<(), sparse_levelset::evolve::EvolveError> {
         use sparse_levelset::evolve::EvolveError;
-        use sparse_levelset::mesh::{isosurface_dtgrid, isosurface_tiles, MeshFormat};
+        use sparse_levelset::mesh::{isosurface, MeshFormat};
         use sparse_levelset::render::{render, FrameBox, RenderOptions};
         let step = sim.steps();
         let due = |every: Option<u64>| every.is_some_and(|k| step.is_multiple_of(k));
@@ -195,16 +195,8 @@ impl Frames {
             return Ok(());
         }
         let output = |e: &dyn std::fmt::Display| EvolveError::Output(format!("step {step}: {e}"));
-        let (tiles, dt) = (sim.tiles(), sim.dtgrid());
-        if tiles.is_none() && dt.is_none() {
-            return Err(output(&"frames need a sparse grid"));
-        }
         if mesh_due {
-            let mesh = match tiles {
-                Some(t) => isosurface_tiles(t, 0.0),
-                None => isosurface_dtgrid(dt.expect("checked above"), 0.0),
-            }
-            .map_err(|e| output(&e))?;
+            let mesh = isosurface(sim, &Default::default()).map_err(|e| output(&e))?;
             let path = self.dir.join(format!("mesh-{step:06}.ply"));
             mesh.write(&path, Some(MeshFormat::PlyBinary)).map_err(|e| output(&e))?;
             self.written += 1;
