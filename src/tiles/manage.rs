@@ -59,11 +59,21 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
+        self.manage_tiles_checked(|_| Ok(())).map(|(stats, _)| stats)
+    }
+
+    /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
+    /// of `tiles` tiles (an error from it is returned and leaves the grid unchanged), and
+    /// returns the previous grid when the list changed (`None` when nothing changed), so
+    /// that a caller can put it back.
+    pub(crate) fn manage_tiles_checked(
+        &mut self,
+        admit: impl FnOnce(usize) -> Result<(), GridError>,
+    ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
         if n == 0 {
-            return Ok(ManageStats::default());
+            return Ok((ManageStats::default(), None));
         }
-        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
         let coords = &self.coords[..];
         let activity = &self.activity[..];
         let border_new: Vec<AtomicU32> = self.border.iter().map(|&b| AtomicU32::new(b)).collect();
@@ -132,7 +142,7 @@ impl TileGrid {
         if stats.removed == 0 && stats.created == 0 {
             // Nothing changed (and without removals no border flag did either).
             self.debug_check();
-            return Ok(stats);
+            return Ok((stats, None));
         }
         // Lines 22-27: the sign of each new tile from its present neighbours' flags. The
         // new tiles are sorted, so per row of neighbours (dy, dz) a pointer into the old
@@ -183,9 +193,8 @@ impl TileGrid {
             })
             .collect();
         let total = stats.kept + stats.created;
-        if u32::try_from(total).is_err() {
-            return Err(GridError::InvalidParameter("more than 2^32 tiles".into()));
-        }
+        super::grid::check_list_len(total)?;
+        admit(total)?;
         let mut new_coords = vec![Coord::default(); total];
         let mut new_arena = vec![Tile::splat(0.0); total];
         let mut new_border = vec![0u32; total];
@@ -226,7 +235,7 @@ impl TileGrid {
                 }
                 debug_assert_eq!(o, oc.len());
             });
-        self.replace_list(new_coords, new_arena, new_border, new_activity);
-        Ok(stats)
+        let prev = self.replace_list(new_coords, new_arena, new_border, new_activity);
+        Ok((stats, Some(prev)))
     }
 }
