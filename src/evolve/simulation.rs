@@ -232,9 +232,10 @@ impl Simulation {
         let opts = crate::fmm::FmmOptions { order, half_width: None };
         let pool = &self.settings.pool;
         let budget = self.budget();
-        // The new band is built next to the current one: about as many bytes again.
+        // The new band is built next to the current one: the marched band and the grid
+        // built from it, about twice the current grid's bytes.
         let current = self.footprint();
-        let needed = current + self.rep.get().bytes() as u64;
+        let needed = current + 2 * self.rep.get().bytes() as u64;
         budget.admit(needed, current, "the reinitialised band")?;
         let mut rep = match &self.rep {
             Rep::Tiles(t) => {
@@ -438,8 +439,7 @@ impl Simulation {
             self.inputs.prepare(rep, &self.flow, &self.settings, self.time, true, self.steps)?;
         let (dt, lands) = self.time_step(until)?;
         let budget = self.budget();
-        let needed = rep.step_footprint(budget.keeps_phi_n);
-        budget.admit(needed, self.footprint(), "the step's buffers")?;
+        budget.admit(rep.step_bytes(budget.keeps_phi_n), self.footprint(), "the step's buffers")?;
         // The step proper: on an error everything is put back.
         match self.advance(dt) {
             Ok(collapsed) => {

@@ -1,7 +1,7 @@
 //! The dense reference: every voxel of a box, the same kernels over a padded copy, the
 //! band mask of [`BandMasked`]. For tests on small grids.
 
-use super::{vec_bytes, KappaBarTerm, MemoryBudget, Representation, Undo};
+use super::{growth_bytes, vec_bytes, KappaBarTerm, MemoryBudget, Representation, Undo};
 use crate::coord::Coord;
 use crate::dense::DenseField;
 use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
@@ -111,11 +111,6 @@ impl Sweep for DenseSweep<'_> {
         DenseBlock::<R>::new(&rep.padded, dims)?.apply::<f32, _>(&k, &mut rep.out)?;
         Ok(())
     }
-}
-
-/// Bytes of the padded copy of a box with a 3-voxel halo (HJ-WENO5's reach).
-fn padded_bytes(dims: [usize; 3]) -> u64 {
-    DenseBlock::<3>::padded_len(dims).map_or(u64::MAX, |n| 4 * n as u64)
 }
 
 impl Representation for DenseRep {
@@ -256,9 +251,15 @@ impl Representation for DenseRep {
             + vec_bytes(&self.padded)
     }
 
-    fn step_footprint(&self, keeps_phi_n: bool) -> u64 {
-        // Values, the double buffer, the band mask, φⁿ and the padded copy.
-        let arrays = if keeps_phi_n { 4 } else { 3 };
-        4 * arrays * self.field.data().len() as u64 + padded_bytes(self.field.dims())
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+        // The double buffer, the band mask, φⁿ and the padded copy (3-voxel halo, the
+        // reach of HJ-WENO5).
+        let n = self.field.data().len();
+        let padded = DenseBlock::<3>::padded_len(self.field.dims()).unwrap_or(usize::MAX);
+        (self.bytes() + self.work_bytes()) as u64
+            + growth_bytes(&self.out, n)
+            + growth_bytes(&self.box_min, n)
+            + growth_bytes(&self.padded, padded)
+            + if keeps_phi_n { growth_bytes(&self.phi_n, n) } else { 0 }
     }
 }

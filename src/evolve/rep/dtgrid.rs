@@ -2,7 +2,9 @@
 //! point by point, scalar and on one thread; after each step the grid is rebuilt
 //! (Sec. 3.6.2) to the voxels within one voxel of the band, so it needs no band mask.
 
-use super::{kappa_terms, vec_bytes, MemoryBudget, Representation, Undo};
+use super::{
+    growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
+};
 use crate::coord::Coord;
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
@@ -65,6 +67,13 @@ fn stencil_of(offsets: &[[i32; 3]]) -> Stencil {
 }
 
 impl DtRep {
+    /// Bytes the value buffers (double buffer, and φⁿ with `keeps_phi_n`) have to allocate
+    /// to serve `points` points.
+    fn buffer_growth(&self, points: usize, keeps_phi_n: bool) -> u64 {
+        growth_bytes(&self.out, points)
+            + if keeps_phi_n { growth_bytes(&self.phi_n, points) } else { 0 }
+    }
+
     pub fn new(grid: DtGrid) -> Self {
         let spec = grid.spec();
         DtRep {
@@ -97,7 +106,7 @@ impl Sweep for DtSweep<'_> {
         let k = make(0..n);
         k.check(n)?;
         self.out.clear();
-        self.out.resize(n, 0.0);
+        resize_exact(self.out, n, 0.0);
         let out = &mut self.out[..];
         let mut it = StencilIter::new(&self.rep.grid, <Halo<R>>::stencil(self.rep));
         while it.advance() {
@@ -130,12 +139,6 @@ fn for_each_run(g: &DtGrid, mut f: impl FnMut(usize, Coord, usize)) {
     if let Some((i0, s, len)) = run {
         f(i0, s, len);
     }
-}
-
-/// Bytes per point of a step's value buffers: the double buffer, and φⁿ with
-/// `keeps_phi_n`.
-const fn point_step_bytes(keeps_phi_n: bool) -> u64 {
-    (if keeps_phi_n { 2 } else { 1 }) * std::mem::size_of::<f32>() as u64
 }
 
 impl Representation for DtRep {
@@ -191,15 +194,24 @@ impl Representation for DtRep {
     fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError> {
         let current = (self.bytes() + self.work_bytes()) as u64;
         // Sec. 3.6.2: keep the band (|φ| < γ), dilate it by one voxel; new points read ±γ.
-        // The rebuild is built in the scratch grids (`src/dtgrid` has no hook to admit it
-        // before it allocates); it replaces the current grid only once admitted.
+        // The rebuild is built in the scratch grids (`DtGrid::rebuild_into` has no hook to
+        // admit it before it allocates, so the DT-Grid may exceed the budget by one rebuilt
+        // grid for a moment); it replaces the current grid only once admitted, and a
+        // refused one is freed.
         self.grid.rebuild_into(self.grid.gamma(), 1, &mut self.kept, &mut self.next)?;
+        // All three grids stay allocated (the current one becomes the next scratch grid,
+        // or the undo of a step in progress); the value buffers grow to the new points in
+        // the next step, which admits them before its first stage.
+        let needed = (self.grid.memory().total() + self.kept.memory().total()) as u64
+            + self.next.memory().total() as u64
+            + (vec_bytes(&self.out) + vec_bytes(&self.phi_n)) as u64;
+        if let Err(e) = budget.admit(needed, current, "the band's points") {
+            // Give the refused rebuild's memory back.
+            let spec = self.grid.spec();
+            (self.kept, self.next) = (DtGrid::new(spec), DtGrid::new(spec));
+            return Err(e.into());
+        }
         let keep_prev = self.undo != Undo::Nothing;
-        let needed = self.next.memory().total() as u64
-            + self.kept.memory().total() as u64
-            + self.next.len() as u64 * point_step_bytes(budget.keeps_phi_n)
-            + if keep_prev { self.grid.memory().total() as u64 } else { 0 };
-        budget.admit(needed, current, "the band's points")?;
         std::mem::swap(&mut self.grid, &mut self.next);
         self.rebuilt = keep_prev;
         Ok(())
@@ -292,9 +304,7 @@ impl Representation for DtRep {
             + self.next.memory().total()
     }
 
-    fn step_footprint(&self, keeps_phi_n: bool) -> u64 {
-        (self.grid.memory().total() + self.kept.memory().total() + self.next.memory().total())
-            as u64
-            + self.grid.len() as u64 * point_step_bytes(keeps_phi_n)
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+        (self.bytes() + self.work_bytes()) as u64 + self.buffer_growth(self.grid.len(), keeps_phi_n)
     }
 }

@@ -80,10 +80,11 @@ pub(crate) trait Representation: Send + Sync {
     /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask, rebuild scratch)
     /// and the representation's unused capacity.
     fn work_bytes(&self) -> usize;
-    /// Estimated bytes of the data and every buffer of a step at the current size: what
-    /// a step needs once its buffers have grown to the band (`keeps_phi_n`: with a φⁿ
-    /// buffer of its own, TVD-RK3).
-    fn step_footprint(&self, keeps_phi_n: bool) -> u64;
+    /// Bytes of the representation and its buffers (as [`Representation::bytes`] +
+    /// [`Representation::work_bytes`]) once a step's buffers hold the current band
+    /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3): what its first stage may
+    /// allocate.
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64;
 }
 
 /// The representation a simulation runs on.
@@ -177,6 +178,20 @@ pub(crate) fn kappa_terms<L: Lane, W: Window<L>>(w: &W, inv_h: f32, width: f32) 
 pub(crate) fn vec_bytes<T>(v: &Vec<T>) -> usize {
     let (used, slack) = crate::grid::vec_bytes(v);
     used + slack
+}
+
+/// Bytes a vector has to allocate to hold `n` elements.
+pub(crate) fn growth_bytes<T>(v: &Vec<T>, n: usize) -> u64 {
+    (n.saturating_sub(v.capacity()) * std::mem::size_of::<T>()) as u64
+}
+
+/// Resizes a buffer to `n` elements without the amortised over-allocation of a growing
+/// `Vec` (so its capacity is what the memory budget admitted).
+pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
+    if n > v.capacity() {
+        v.reserve_exact(n - v.len());
+    }
+    v.resize(n, fill);
 }
 
 /// Which buffer holds φⁿ while a step is in progress (no copy is made: the first stage's

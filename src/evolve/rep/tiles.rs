@@ -2,7 +2,9 @@
 //! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
 //! (tile paper Sec. 4.7), tile management after each step (Sec. 4.6).
 
-use super::{kappa_terms, vec_bytes, MemoryBudget, Representation, Undo};
+use super::{
+    growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
+};
 use crate::coord::Coord;
 use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
 use crate::evolve::exact::ExactSum;
@@ -10,8 +12,7 @@ use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme};
 use crate::grid::GridSpec;
 use crate::tiles::{
-    compute_activity, voxel_of, NeighbourRow, NeighbourTable, PaddedBlock, Tile, TileGrid,
-    ACTIVE_MASK,
+    compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
 use levelset_kernels::{BandMasked, BoxMinAbs, DefaultLane, Lane, TileBlock, VoxelKernel};
 use rayon::prelude::*;
@@ -21,19 +22,8 @@ use std::ops::Range;
 /// own and reductions are exact (see [`ExactSum`]).
 const TILE_CHUNK: usize = 64;
 
-/// Bytes per tile of the grid and a step's buffers: values, the double buffer and the band
-/// mask (64 f32 each), the coordinate, border and activity flags (and the activity of the
-/// double buffer), the neighbour-table row; with `keeps_phi_n`, φⁿ and its activity too.
-const fn tile_step_bytes(keeps_phi_n: bool) -> u64 {
-    let base = 3 * std::mem::size_of::<Tile>()
-        + std::mem::size_of::<Coord>()
-        + 3 * std::mem::size_of::<u32>()
-        + std::mem::size_of::<NeighbourRow>();
-    let phi_n = std::mem::size_of::<Tile>() + std::mem::size_of::<u32>();
-    (if keeps_phi_n { base + phi_n } else { base }) as u64
-}
-
-/// Bytes per tile of the grid's own arrays (values, coordinate, border and activity).
+/// Bytes per tile of the grid's own arrays (values, coordinate, border and activity; the
+/// row directory is small against them).
 const TILE_GRID_BYTES: u64 =
     (std::mem::size_of::<Tile>() + std::mem::size_of::<Coord>() + 2 * 4) as u64;
 
@@ -52,13 +42,44 @@ pub(crate) struct TilesRep {
     pub grid: TileGrid,
     pub lanes: Lanes,
     table: NeighbourTable,
-    phi_n: Vec<Tile>,
-    phi_n_activity: Vec<u32>,
-    out: Vec<Tile>,
-    box_min: Vec<f32>,
-    activity: Vec<u32>,
+    buf: Buffers,
     undo: Undo,
     prev: Option<TileGrid>,
+}
+
+/// The buffers of a step, one entry per tile in list order.
+#[derive(Clone, Default)]
+struct Buffers {
+    /// φⁿ and its activity flags (TVD-RK3).
+    phi_n: Vec<Tile>,
+    phi_n_activity: Vec<u32>,
+    /// The double buffer and the activity flags the sweep computes with it.
+    out: Vec<Tile>,
+    activity: Vec<u32>,
+    /// The band mask (min |φⁿ| over each voxel's box), 64 per tile.
+    box_min: Vec<f32>,
+}
+
+impl Buffers {
+    /// Bytes they have to allocate to serve `tiles` tiles (φⁿ only with `keeps_phi_n`).
+    fn growth(&self, tiles: usize, keeps_phi_n: bool) -> u64 {
+        let mut b = growth_bytes(&self.out, tiles)
+            + growth_bytes(&self.box_min, 64 * tiles)
+            + growth_bytes(&self.activity, tiles);
+        if keeps_phi_n {
+            b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
+        }
+        b
+    }
+
+    /// Bytes held, used or not.
+    fn bytes(&self) -> usize {
+        vec_bytes(&self.phi_n)
+            + vec_bytes(&self.phi_n_activity)
+            + vec_bytes(&self.out)
+            + vec_bytes(&self.box_min)
+            + vec_bytes(&self.activity)
+    }
 }
 
 impl TilesRep {
@@ -66,18 +87,7 @@ impl TilesRep {
     pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
         let mut table = NeighbourTable::default();
         table.rebuild(grid.tile_coords());
-        TilesRep {
-            grid,
-            lanes,
-            table,
-            phi_n: Vec::new(),
-            phi_n_activity: Vec::new(),
-            out: Vec::new(),
-            box_min: Vec::new(),
-            activity: Vec::new(),
-            undo: Undo::Nothing,
-            prev: None,
-        }
+        TilesRep { grid, lanes, table, buf: Buffers::default(), undo: Undo::Nothing, prev: None }
     }
 
     /// The neighbour table, checked against the list in debug builds.
@@ -205,31 +215,33 @@ impl Representation for TilesRep {
         last: bool,
     ) -> Result<(), EvolveError> {
         let n = self.grid.len();
-        self.out.resize(n, Tile::splat(0.0));
-        self.box_min.resize(64 * n, 0.0);
-        self.activity.resize(n, 0);
-        let p =
-            StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.phi_n) }, ..*p };
+        resize_exact(&mut self.buf.out, n, Tile::splat(0.0));
+        resize_exact(&mut self.buf.box_min, 64 * n, 0.0);
+        resize_exact(&mut self.buf.activity, n, 0);
+        let p = StageParams {
+            phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.buf.phi_n) },
+            ..*p
+        };
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
         let sweep = TileSweep {
             grid: &self.grid,
             table: &self.table,
             lanes: self.lanes,
-            out: &mut self.out,
-            box_min: &mut self.box_min,
+            out: &mut self.buf.out,
+            box_min: &mut self.buf.box_min,
             compute_mask: p.stage == 1,
-            activity: &mut self.activity,
+            activity: &mut self.buf.activity,
         };
         dispatch(&p, scheme, sweep)?;
-        self.grid.swap_values(&mut self.out, &mut self.activity)?;
+        self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
         // `out` and `activity` now hold the previous values and their flags.
         if p.stage == 1 {
             self.undo = if last {
                 Undo::Out
             } else {
                 // Keep φⁿ for stages 2 and 3 (and for undoing the step).
-                std::mem::swap(&mut self.phi_n, &mut self.out);
-                std::mem::swap(&mut self.phi_n_activity, &mut self.activity);
+                std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
+                std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
                 Undo::PhiN
             };
         }
@@ -238,10 +250,13 @@ impl Representation for TilesRep {
 
     fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError> {
         let current = (self.bytes() + self.work_bytes()) as u64;
-        // The previous list stays until the step is committed (it is the undo).
-        let kept = self.grid.len() as u64 * TILE_GRID_BYTES;
+        // The new list and its neighbour table are allocated next to the current list
+        // (which a step in progress keeps until it stands); the step buffers grow to the
+        // new list in the next step, which admits them before its first stage.
+        let table = &self.table;
         let (_, prev) = self.grid.manage_tiles_checked(|tiles| {
-            let needed = tiles as u64 * tile_step_bytes(budget.keeps_phi_n) + kept;
+            let needed =
+                current + tiles as u64 * TILE_GRID_BYTES + table.growth_bytes(tiles) as u64;
             budget.admit(needed, current, "the band's tiles")
         })?;
         if let Some(prev) = prev {
@@ -257,8 +272,8 @@ impl Representation for TilesRep {
     fn step_start(&self) -> &[f32] {
         match self.undo {
             Undo::Nothing => &[],
-            Undo::Out => tile_flat(&self.out),
-            Undo::PhiN => tile_flat(&self.phi_n),
+            Undo::Out => tile_flat(&self.buf.out),
+            Undo::PhiN => tile_flat(&self.buf.phi_n),
         }
     }
 
@@ -269,8 +284,8 @@ impl Representation for TilesRep {
         }
         let (values, activity) = match self.undo {
             Undo::Nothing => return,
-            Undo::Out => (&mut self.out, &mut self.activity),
-            Undo::PhiN => (&mut self.phi_n, &mut self.phi_n_activity),
+            Undo::Out => (&mut self.buf.out, &mut self.buf.activity),
+            Undo::PhiN => (&mut self.buf.phi_n, &mut self.buf.phi_n_activity),
         };
         self.undo = Undo::Nothing;
         // φⁿ has one tile per entry of the list it was computed on (restored above).
@@ -369,16 +384,15 @@ impl Representation for TilesRep {
 
     fn work_bytes(&self) -> usize {
         self.grid.memory().slack
-            + vec_bytes(&self.phi_n)
-            + vec_bytes(&self.phi_n_activity)
-            + vec_bytes(&self.out)
-            + vec_bytes(&self.box_min)
-            + vec_bytes(&self.activity)
+            + self.buf.bytes()
             + self.table.bytes()
             + self.prev.as_ref().map_or(0, |p| p.memory().total())
     }
 
-    fn step_footprint(&self, keeps_phi_n: bool) -> u64 {
-        self.grid.len() as u64 * tile_step_bytes(keeps_phi_n)
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+        let tiles = self.grid.len();
+        (self.bytes() + self.work_bytes()) as u64
+            + self.buf.growth(tiles, keeps_phi_n)
+            + self.table.growth_bytes(tiles) as u64
     }
 }
