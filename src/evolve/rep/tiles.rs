@@ -44,7 +44,8 @@ pub(crate) struct TilesRep {
     table: NeighbourTable,
     buf: Buffers,
     undo: Undo,
-    prev: Option<TileGrid>,
+    /// Boxed: kept only while a step is in progress.
+    prev: Option<Box<TileGrid>>,
 }
 
 /// The buffers of a step, one entry per tile in list order.
@@ -263,7 +264,7 @@ impl Representation for TilesRep {
             self.table.rebuild(self.grid.tile_coords());
             // A step in progress keeps the list its φⁿ belongs to.
             if self.undo != Undo::Nothing && self.prev.is_none() {
-                self.prev = Some(prev);
+                self.prev = Some(Box::new(prev));
             }
         }
         Ok(())
@@ -279,7 +280,7 @@ impl Representation for TilesRep {
 
     fn undo_step(&mut self) {
         if let Some(prev) = self.prev.take() {
-            self.grid = prev;
+            self.grid = *prev;
             self.table.rebuild(self.grid.tile_coords());
         }
         let (values, activity) = match self.undo {
