@@ -4,7 +4,7 @@
 
 use super::dispatch::StageParams;
 use super::field::{Speed, Velocity};
-use super::rep::Representation;
+use super::rep::{growth_bytes, resize_exact, vec_bytes, Representation};
 use super::{in_pool, EvolveError, Flow, Settings};
 use crate::grid::GridSpec;
 use std::sync::Arc;
@@ -38,6 +38,25 @@ impl Default for Inputs {
 }
 
 impl Inputs {
+    /// Bytes held, used or not.
+    pub fn bytes(&self) -> usize {
+        vec_bytes(&self.speed)
+            + vec_bytes(&self.base)
+            + self.velocity.iter().map(vec_bytes).sum::<usize>()
+    }
+
+    /// Bytes the inputs of `flow` have to allocate for `n` voxels.
+    pub fn growth_bytes(&self, n: usize, flow: &Flow) -> u64 {
+        let mut b = 0;
+        if !matches!(flow.speed, Speed::Constant(_)) {
+            b += growth_bytes(&self.speed, n) + growth_bytes(&self.base, n);
+        }
+        if flow.velocity.is_some() {
+            b += self.velocity.iter().map(|c| growth_bytes(c, n)).sum::<u64>();
+        }
+        b
+    }
+
     /// Fills the per-voxel F and u of `rep`'s voxels for a stage at time `t` of step
     /// `step`; returns κ̄ when the flow is volume-conserving. `first` marks stage 1 (the
     /// layout may have changed since the last step, so everything is sampled anew);
@@ -85,7 +104,7 @@ impl Inputs {
         let n = rep.flat().len();
         self.uniform_speed = None;
         if !matches!(speed, Speed::Constant(_)) {
-            self.speed.resize(n, 0.0);
+            resize_exact(&mut self.speed, n, 0.0);
         }
         match speed {
             Speed::Constant(f) => {
@@ -94,7 +113,7 @@ impl Inputs {
             }
             Speed::Field(f) => {
                 if first || f.time_dependent() {
-                    self.base.resize(n, 0.0);
+                    resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(f.as_ref(), t, base));
                 }
@@ -104,7 +123,7 @@ impl Inputs {
             }
             Speed::MorphTo(target) => {
                 if first {
-                    self.base.resize(n, 0.0);
+                    resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(target.as_ref(), t, base));
                     let g = rep.spec().gamma();
@@ -131,7 +150,7 @@ impl Inputs {
         let Some(vel) = velocity else { return false };
         let n = rep.flat().len();
         for c in &mut self.velocity {
-            c.resize(n, 0.0);
+            resize_exact(c, n, 0.0);
         }
         match vel {
             Velocity::Constant(u) => {

@@ -251,12 +251,15 @@ pub struct Settings {
     /// Reinitialise the band to a signed distance by fast marching every so many steps
     /// (sparse grids only; see [`Simulation::reinitialize`]).
     pub reinit: Option<Reinit>,
-    /// The most bytes the representation and its buffers ([`Measures::bytes`] +
-    /// [`Measures::work_bytes`], estimated) may take during a step: a step whose band
-    /// would outgrow it fails with [`GridError::OutOfMemory`] before the new tiles are
-    /// allocated (the DT-Grid: before its rebuilt grid replaces the current one; the dense
-    /// box never grows) and the simulation keeps its last state. `None`: every growth
-    /// must fit in what the machine can give ([`crate::memory::limit`]).
+    /// The most bytes the simulation's data and buffers ([`Measures::bytes`] +
+    /// [`Measures::work_bytes`]) may take during a step, a reinitialisation included: a
+    /// step whose band would outgrow it fails with [`GridError::OutOfMemory`] and the
+    /// simulation keeps its last state. Growth is admitted before it is allocated — the
+    /// step's buffers before its first stage, a new tile list before tile management
+    /// builds it, a reinitialisation's second band (estimated at twice the grid) before
+    /// the march — except the DT-Grid's rebuild, which is checked once built in its
+    /// scratch grids and freed when refused. The dense box never grows. `None`: every
+    /// growth must fit in what the machine can give ([`crate::memory::limit`]).
     pub memory_limit: Option<u64>,
 }
 
@@ -270,7 +273,8 @@ pub struct Reinit {
 }
 
 impl Default for Settings {
-    /// First-order upwind, forward Euler, CFL 0.5, δ width 1.5 voxels, no reinitialisation.
+    /// First-order upwind, forward Euler, CFL 0.5, δ width 1.5 voxels, no reinitialisation,
+    /// memory bounded by what the machine can give.
     fn default() -> Self {
         Settings {
             scheme: SpatialScheme::Upwind1,
@@ -392,7 +396,9 @@ pub struct Measures {
     pub area: f64,
     /// Bytes of the representation's data (unused array capacity excluded).
     pub bytes: usize,
-    /// Bytes of the evolution's buffers and the representation's unused capacity.
+    /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask, per-voxel speed and
+    /// velocity, rebuild scratch, the previous tile list or DT-Grid kept by a step) and the
+    /// representation's unused capacity.
     pub work_bytes: usize,
 }
 

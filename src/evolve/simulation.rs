@@ -205,11 +205,12 @@ impl Simulation {
         MemoryBudget {
             limit: self.settings.memory_limit,
             keeps_phi_n: self.settings.integrator == Integrator::Rk3,
+            held: self.inputs.bytes() as u64,
         }
     }
 
     /// Bytes of the representation and its buffers now.
-    fn footprint(&self) -> u64 {
+    fn rep_bytes(&self) -> u64 {
         let rep = self.rep.get();
         (rep.bytes() + rep.work_bytes()) as u64
     }
@@ -234,7 +235,7 @@ impl Simulation {
         let budget = self.budget();
         // The new band is built next to the current one: the marched band and the grid
         // built from it, about twice the current grid's bytes.
-        let current = self.footprint();
+        let current = self.rep_bytes();
         let needed = current + 2 * self.rep.get().bytes() as u64;
         budget.admit(needed, current, "the reinitialised band")?;
         let mut rep = match &self.rep {
@@ -356,7 +357,7 @@ impl Simulation {
             // The sums hold δ|∇φ|·h (see `KappaBarTerm`): area = h³ Σ δ|∇φ| = h² Σ den.
             area: h3 / h as f64 * den.value(),
             bytes: rep.bytes(),
-            work_bytes: rep.work_bytes(),
+            work_bytes: rep.work_bytes() + self.inputs.bytes(),
         })
     }
 
@@ -433,13 +434,15 @@ impl Simulation {
                 self.time
             )));
         }
-        // Stage 1's inputs, Δt and the buffers' memory: nothing changes yet.
+        // The buffers' memory, stage 1's inputs and Δt: nothing changes yet (but scratch).
         let rep = self.rep.get();
+        let budget = self.budget();
+        let needed = rep.step_bytes(budget.keeps_phi_n)
+            + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
+        budget.admit(needed, self.rep_bytes(), "the step's buffers")?;
         let kappa_bar =
             self.inputs.prepare(rep, &self.flow, &self.settings, self.time, true, self.steps)?;
         let (dt, lands) = self.time_step(until)?;
-        let budget = self.budget();
-        budget.admit(rep.step_bytes(budget.keeps_phi_n), self.footprint(), "the step's buffers")?;
         // The step proper: on an error everything is put back.
         match self.advance(dt) {
             Ok(collapsed) => {

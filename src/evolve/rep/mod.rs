@@ -118,25 +118,36 @@ impl Rep {
 /// before it is allocated.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MemoryBudget {
-    /// The most bytes the representation and its buffers may take; `None`: what the
-    /// machine can give ([`crate::memory::limit`]) bounds each growth instead.
+    /// The most bytes the simulation may take; `None`: what the machine can give
+    /// ([`crate::memory::limit`]) bounds each growth instead.
     pub limit: Option<u64>,
     /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3), for the estimates.
     pub keeps_phi_n: bool,
+    /// Bytes the simulation holds besides the representation (the per-voxel inputs),
+    /// counted against the limit.
+    pub held: u64,
 }
 
 impl MemoryBudget {
-    /// Admits a state of `needed` bytes (data and buffers, estimated) that replaces one of
-    /// `current` bytes; `what` names it in the error ([`GridError::OutOfMemory`]).
+    /// Admits a representation of `needed` bytes (data and buffers, estimated) that
+    /// replaces one of `current` bytes; `what` names it in the error
+    /// ([`GridError::OutOfMemory`]).
     pub fn admit(&self, needed: u64, current: u64, what: &str) -> Result<(), GridError> {
+        let needed = needed.saturating_add(self.held);
         match self.limit {
             Some(limit) if needed > limit => {
                 Err(GridError::OutOfMemory { what: what.to_string(), needed, limit })
             }
             Some(_) => Ok(()),
             // The growth is what is allocated while the current state still exists.
-            None if needed > current => crate::memory::check((needed - current) as f64, what),
-            None => Ok(()),
+            None => {
+                let current = current.saturating_add(self.held);
+                if needed > current {
+                    crate::memory::check((needed - current) as f64, what)
+                } else {
+                    Ok(())
+                }
+            }
         }
     }
 }
