@@ -33,6 +33,19 @@
 //! representations, every lane type and every thread count compute the same numbers,
 //! bit for bit; the tests check it.
 //!
+//! # Steps are atomic
+//! A step either completes — stages, band maintenance, collapse test, a due
+//! reinitialisation — or fails and leaves the simulation exactly as it was (see
+//! [`Simulation`]); growth is admitted against [`Settings::memory_limit`] before it is
+//! allocated. Collapse means that no interface is left as seen from the band
+//! ([`Simulation::step_until`], "Collapse").
+//!
+//! # Layout
+//! `dispatch` turns the run-time choices of a stage into one kernel type (scheme →
+//! inputs → stage, plain generic functions); `rep` holds one file per representation
+//! behind the internal `Representation` trait; `inputs` samples F and u; `simulation`
+//! runs the steps.
+//!
 //! ```
 //! use sparse_levelset::{build, evolve::{Flow, Settings, Simulation, GridKind, Lanes}, grid::GridSpec, shapes::Shape};
 //!
