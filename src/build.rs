@@ -47,7 +47,7 @@ pub fn tiles_from_shape(shape: &Shape, spec: GridSpec) -> Result<TileGrid, GridE
 
 /// The DT-Grid of an analytic shape: the band voxels of the same culled samples.
 pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridError> {
-    Ok(dtgrid_from_tiles(&tiles_from_shape(shape, spec)?))
+    Ok(dtgrid_from(&tiles_from_shape(shape, spec)?))
 }
 
 /// The DT-Grid of any level set: its band voxels (|φ| < γ) pushed in [`Coord`] order,
@@ -256,12 +256,18 @@ pub fn to_dense<G: LevelSet + ?Sized>(
 /// (each side clamped to the i32 range), or `None` for an empty grid.
 pub fn dense_box<G: LevelSet + ?Sized>(grid: &G, margin: u32) -> Option<(Coord, [usize; 3])> {
     let (lo, hi) = grid.band_bounding_box()?;
+    Some(margin_box(lo, hi, margin))
+}
+
+/// The inclusive box `lo..=hi` grown by `margin` voxels on every side (each side clamped
+/// to the i32 range), as an origin and dimensions.
+pub(crate) fn margin_box(lo: Coord, hi: Coord, margin: u32) -> (Coord, [usize; 3]) {
     let m = margin as i64;
     let clamp = |v: i64| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
     let lo = Coord::new(clamp(lo.x as i64 - m), clamp(lo.y as i64 - m), clamp(lo.z as i64 - m));
     let hi = Coord::new(clamp(hi.x as i64 + m), clamp(hi.y as i64 + m), clamp(hi.z as i64 + m));
     let n = |a: i32, b: i32| (b as i64 - a as i64 + 1) as usize;
-    Some((lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)]))
+    (lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)])
 }
 
 /// Counts neighbouring voxel pairs of a dense field whose signs differ while both lie
@@ -329,15 +335,3 @@ pub fn check_band_fits(shape: &Shape, spec: &GridSpec, copies: f64) -> Result<()
     let tile_bytes = area * (2.0 * spec.half_width as f64 + 8.0) * 4.0 * 1.5;
     crate::memory::check(tile_bytes * copies.max(1.0), "the band of this shape")
 }
-
-// TEMPORARY (removed once the parallel branches are merged): the old names.
-#[doc(hidden)]
-pub fn dtgrid_from_tiles(tiles: &TileGrid) -> DtGrid {
-    dtgrid_from(tiles)
-}
-#[doc(hidden)]
-pub fn tiles_from_dtgrid(dt: &DtGrid) -> TileGrid {
-    tiles_from(dt)
-}
-#[doc(hidden)]
-pub use crate::levelset::LevelSet as SparseGrid;

@@ -2,13 +2,14 @@
 //! field: shapes, dense fields, round trips, far coordinates.
 
 use sparse_levelset::build::{
-    dense_box, dtgrid_from_dense, dtgrid_from_shape, dtgrid_from_tiles, tiles_from_dense,
-    tiles_from_dtgrid, tiles_from_shape, to_dense, SparseGrid,
+    dense_box, dtgrid_from, dtgrid_from_dense, dtgrid_from_shape, tiles_from, tiles_from_dense,
+    tiles_from_shape, to_dense,
 };
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::{GridError, GridSpec};
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
+use sparse_levelset::LevelSet;
 
 /// Every voxel of a box, visited in order.
 fn for_box(lo: Coord, hi: Coord, mut f: impl FnMut(Coord)) {
@@ -23,7 +24,7 @@ fn for_box(lo: Coord, hi: Coord, mut f: impl FnMut(Coord)) {
 
 /// Asserts that two grids read the same value at every voxel of their bounding box grown
 /// by `margin`.
-fn assert_same<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, margin: u32) {
+fn assert_same<A: LevelSet, B: LevelSet>(a: &A, b: &B, margin: u32) {
     let (lo, dims) = dense_box(a, margin).expect("non-empty");
     let hi =
         Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);
@@ -32,7 +33,7 @@ fn assert_same<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, margin: u32) {
 
 /// Asserts that a grid holds the analytic field: the clamped signed distance in the band,
 /// ±γ with the right sign outside, at every voxel of its box grown by 2.
-fn assert_analytic<G: SparseGrid>(g: &G, shape: &Shape) {
+fn assert_analytic<G: LevelSet>(g: &G, shape: &Shape) {
     let spec = g.spec();
     let gamma = spec.gamma();
     let (lo, dims) = dense_box(g, 2).expect("non-empty");
@@ -88,8 +89,8 @@ fn conversions_round_trip() {
     let spec = GridSpec::default();
     for shape in shapes() {
         let tiles = tiles_from_shape(&shape, spec).unwrap();
-        let dt = dtgrid_from_tiles(&tiles);
-        let back = tiles_from_dtgrid(&dt);
+        let dt = dtgrid_from(&tiles);
+        let back = tiles_from(&dt);
         back.check_invariants().unwrap();
         assert_eq!(back.tile_coords(), tiles.tile_coords());
         for p in 0..tiles.len() {
@@ -97,7 +98,7 @@ fn conversions_round_trip() {
         }
         assert_same(&tiles, &back, 3);
         assert_same(&dt, &back, 3);
-        let dt2 = dtgrid_from_tiles(&back);
+        let dt2 = dtgrid_from(&back);
         assert_eq!(dt2.values(), dt.values());
     }
 }
@@ -154,7 +155,7 @@ fn far_coordinates_work_and_beyond_i32_is_an_error() {
     for c in [2_147_483_600.0, -2_147_483_600.0] {
         let shape = Shape::Sphere { center: [c, -c, c], radius: 9.5 };
         let tiles = tiles_from_shape(&shape, spec).unwrap();
-        let dt = dtgrid_from_tiles(&tiles);
+        let dt = dtgrid_from(&tiles);
         assert!(tiles.band_voxels() > 1000);
         assert_analytic(&tiles, &shape);
         assert_analytic(&dt, &shape);
@@ -224,7 +225,7 @@ fn closures_build_the_same_tiles_as_shapes() {
 }
 
 /// Asserts that two grids read the same value at every voxel of `lo..=hi`.
-fn assert_same_box<A: SparseGrid, B: SparseGrid>(a: &A, b: &B, lo: Coord, hi: Coord, what: &str) {
+fn assert_same_box<A: LevelSet, B: LevelSet>(a: &A, b: &B, lo: Coord, hi: Coord, what: &str) {
     for_box(lo, hi, |c| assert_eq!(a.value(c), b.value(c), "{what}: at {c:?}"));
 }
 

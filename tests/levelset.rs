@@ -153,7 +153,7 @@ fn measures_match_the_analytic_shape_and_the_evolution() {
             Settings::default(),
         )
         .unwrap();
-        let e = sim.measure();
+        let e = sim.measure().unwrap();
         assert_eq!(e.volume.to_bits(), m.volume.to_bits(), "{kind:?}");
         assert_eq!(e.area.to_bits(), m.area.to_bits(), "{kind:?}");
         assert_eq!(e.band_voxels, m.band_voxels, "{kind:?}");

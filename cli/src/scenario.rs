@@ -472,7 +472,7 @@ impl Scenario {
             Integrator::Euler => 1,
             Integrator::Rk3 => 3,
         };
-        let m0 = self.sim.measure();
+        let m0 = self.sim.measure()?;
         let mut records = vec![record(0, 0.0, 0.0, &m0, 0.0)];
         let mut seconds = 0.0;
         let mut updates = 0f64;
@@ -493,7 +493,7 @@ impl Scenario {
             let hit = milestones.first().is_some_and(|&m| self.sim.time() >= m);
             let last = self.sim.steps() >= max_steps || self.sim.time() >= end_time || r.collapsed;
             if hit || last || r.step % p.record_every == 0 {
-                let m = self.sim.measure();
+                let m = self.sim.measure()?;
                 if hit {
                     ratios.push(m.volume / m0.volume);
                     milestones.remove(0);

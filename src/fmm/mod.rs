@@ -364,16 +364,3 @@ pub fn arrival_times<F: Fn([f64; 3]) -> f64>(
         times: idx.iter().map(|&i| times[i]).collect(),
     })
 }
-
-// TEMPORARY (removed once the parallel branches are merged): the old names.
-#[doc(hidden)]
-pub fn reinitialize_tiles(grid: &TileGrid, opts: &FmmOptions) -> Result<TileGrid, FmmError> {
-    reinitialize(grid, opts)
-}
-#[doc(hidden)]
-pub fn reinitialize_dtgrid(
-    grid: &crate::dtgrid::DtGrid,
-    opts: &FmmOptions,
-) -> Result<crate::dtgrid::DtGrid, FmmError> {
-    Ok(crate::build::dtgrid_from(&reinitialize(grid, opts)?))
-}

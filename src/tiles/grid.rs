@@ -12,22 +12,23 @@ use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
 /// # Invariants
 /// * `coords` is strictly increasing in [`Coord`] order (sorted, no duplicates) and every
 ///   coordinate is within [`super::TILE_MIN`]..=[`super::TILE_MAX`];
-/// * `ids.len() == coords.len() == arena.len()` and `ids` is the identity: entry `pos`
-///   owns arena tile `pos` (tile data in list order, nothing orphaned), which
-///   [`TileGrid::values`] and [`TileGrid::swap_values`] rely on;
-/// * `border`, `activity` have one entry per arena tile; border flags use only
-///   [`BORDER_MASK`] bits and activity flags only [`ACTIVE_MASK`] | [`INSIDE`], never
+/// * the arena is in list order: `arena.len() == coords.len()` and list entry `pos` owns
+///   arena tile `pos` (nothing orphaned, no indirection), which [`TileGrid::values`] and
+///   [`TileGrid::swap_values`] rely on. Construction appends in list order and tile
+///   management compacts the arena in list order, so a tile's list position is its
+///   identity (the index to the tile data the paper's list holds, Sec. 4.1 and
+///   Algorithm 3's `index[]`, would be the identity map and is not stored);
+/// * `border`, `activity` have one entry per list entry, in list order; border flags use
+///   only [`BORDER_MASK`] bits and activity flags only [`ACTIVE_MASK`] | [`INSIDE`], never
 ///   [`INSIDE`] together with a region bit;
 /// * every value is finite and within `[-γ, γ]`.
 ///
-/// Construction ([`TileGrid::append`]) and [`TileGrid::manage_tiles`] keep `ids` the
-/// identity; [`TileGrid::check_invariants`] checks all of the above and runs after every
-/// mutation in debug builds.
+/// [`TileGrid::check_invariants`] checks all of the above and runs after every mutation in
+/// debug builds.
 #[derive(Clone, Debug)]
 pub struct TileGrid {
     spec: GridSpec,
     pub(super) coords: Vec<Coord>,
-    pub(super) ids: Vec<u32>,
     pub(super) arena: Vec<Tile>,
     pub(super) border: Vec<u32>,
     pub(super) activity: Vec<u32>,
@@ -44,6 +45,15 @@ pub struct ManageStats {
 }
 
 const PLUS_X: usize = direction_index(1, 0, 0);
+
+/// Refuses a list of `n` tiles when it has 2³² or more (the neighbour table addresses
+/// tiles with u32).
+pub(super) fn check_list_len(n: usize) -> Result<(), GridError> {
+    if u32::try_from(n).is_err() {
+        return Err(GridError::InvalidParameter("more than 2^32 tiles".into()));
+    }
+    Ok(())
+}
 const MINUS_X: usize = direction_index(-1, 0, 0);
 
 impl TileGrid {
@@ -52,7 +62,6 @@ impl TileGrid {
         TileGrid {
             spec,
             coords: Vec::new(),
-            ids: Vec::new(),
             arena: Vec::new(),
             border: Vec::new(),
             activity: Vec::new(),
@@ -83,41 +92,38 @@ impl TileGrid {
         &self.coords
     }
 
-    /// Arena id of each list entry.
-    pub fn tile_ids(&self) -> &[u32] {
-        &self.ids
-    }
-
     /// Values of the tile at list position `pos`.
     #[inline]
     pub fn tile(&self, pos: usize) -> &Tile {
-        &self.arena[self.ids[pos] as usize]
+        &self.arena[pos]
     }
 
     /// Mutable values of the tile at list position `pos`. Values must stay finite and
     /// within `[-γ, γ]`; call [`TileGrid::refresh_activity`] after changing them.
     #[inline]
     pub fn tile_mut(&mut self, pos: usize) -> &mut Tile {
-        &mut self.arena[self.ids[pos] as usize]
+        &mut self.arena[pos]
     }
 
     /// The values of every tile in list order: entry `pos` belongs to list position `pos`
-    /// (every operation keeps the arena in list order, so `ids` is the identity).
+    /// (every operation keeps the arena in list order).
     #[inline]
     pub fn values(&self) -> &[Tile] {
         &self.arena
     }
 
-    /// Replaces the values of every tile at once (the double-buffered time step of
-    /// Sec. 4.7): `values` (one tile per list position, in list order) is swapped with the
-    /// arena, so afterwards it holds the previous values; `activity` holds the new activity
-    /// flags (as computed while the step wrote the tiles). Values are clamped to
-    /// `[-γ, γ]` and finite by the caller (the time-step kernels clamp; checked in debug
-    /// builds); a length mismatch is an error and leaves the grid as it was.
+    /// Replaces the values and activity flags of every tile at once (the double-buffered
+    /// time step of Sec. 4.7): `values` (one tile per list position, in list order) is
+    /// swapped with the arena and `activity` (the new flags, as computed while the step
+    /// wrote the tiles; bits outside [`ACTIVE_MASK`] | [`INSIDE`] are dropped) with the
+    /// activity flags, so afterwards both hold the previous state, and swapping them back
+    /// restores it exactly. Values are clamped to `[-γ, γ]` and finite by the caller (the
+    /// time-step kernels clamp; checked in debug builds); a length mismatch is an error
+    /// and leaves the grid as it was.
     pub fn swap_values(
         &mut self,
         values: &mut Vec<Tile>,
-        activity: &[u32],
+        activity: &mut Vec<u32>,
     ) -> Result<(), GridError> {
         let n = self.coords.len();
         if values.len() != n || activity.len() != n {
@@ -127,11 +133,12 @@ impl TileGrid {
                 activity.len()
             )));
         }
-        std::mem::swap(&mut self.arena, values);
-        for (a, &f) in self.activity.iter_mut().zip(activity) {
-            let f = f & (ACTIVE_MASK | INSIDE);
+        for a in activity.iter_mut() {
+            let f = *a & (ACTIVE_MASK | INSIDE);
             *a = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
         }
+        std::mem::swap(&mut self.arena, values);
+        std::mem::swap(&mut self.activity, activity);
         self.debug_check();
         Ok(())
     }
@@ -139,13 +146,13 @@ impl TileGrid {
     /// Border flags of the tile at list position `pos` (see [`super::flags`]).
     #[inline]
     pub fn border_flags(&self, pos: usize) -> u32 {
-        self.border[self.ids[pos] as usize]
+        self.border[pos]
     }
 
     /// Activity flags of the tile at list position `pos` (see [`super::flags`]).
     #[inline]
     pub fn activity_flags(&self, pos: usize) -> u32 {
-        self.activity[self.ids[pos] as usize]
+        self.activity[pos]
     }
 
     /// Sets the activity flags of the tile at `pos` (as the time step does while it
@@ -154,7 +161,7 @@ impl TileGrid {
     pub fn set_activity_flags(&mut self, pos: usize, flags: u32) {
         let f = flags & (ACTIVE_MASK | INSIDE);
         let f = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
-        self.activity[self.ids[pos] as usize] = f;
+        self.activity[pos] = f;
     }
 
     /// Recomputes every tile's activity flags from its values.
@@ -184,6 +191,7 @@ impl TileGrid {
         if !tile_in_range(tile_coord) {
             return Err(GridError::OutOfRange { coord: tile_coord });
         }
+        check_list_len(self.coords.len() + 1)?;
         let g = self.gamma();
         let mut t = *values;
         for (i, v) in t.0.iter_mut().enumerate() {
@@ -192,8 +200,6 @@ impl TileGrid {
             }
             *v = v.clamp(-g, g);
         }
-        let id = u32::try_from(self.arena.len())
-            .map_err(|_| GridError::InvalidParameter("more than 2^32 tiles".into()))?;
         self.activity.push(compute_activity(&t, g));
         self.arena.push(t);
         self.border.push(border & BORDER_MASK);
@@ -201,7 +207,6 @@ impl TileGrid {
         // The directory no longer covers the list; lookups fall back to the plain search
         // until the next rebuild (`from_sorted_tiles`, `manage_tiles`, `build_directory`).
         self.dir = None;
-        self.ids.push(id);
         Ok(self.coords.len() - 1)
     }
 
@@ -233,7 +238,7 @@ impl TileGrid {
                     flags |= 1 << d;
                 }
             }
-            g.border[g.ids[nb.pos] as usize] = flags;
+            g.border[nb.pos] = flags;
         }
         g.build_directory();
         g.debug_check();
@@ -243,7 +248,6 @@ impl TileGrid {
     /// Reserves room for `additional` more tiles.
     pub fn reserve(&mut self, additional: usize) {
         self.coords.reserve(additional);
-        self.ids.reserve(additional);
         self.arena.reserve(additional);
         self.border.reserve(additional);
         self.activity.reserve(additional);
@@ -301,9 +305,9 @@ impl TileGrid {
     fn absent_tile_inside(&self, t: Coord, p: usize) -> bool {
         let same_row = |c: Coord| c.z == t.z && c.y == t.y;
         if p > 0 && same_row(self.coords[p - 1]) {
-            self.border[self.ids[p - 1] as usize] & (1 << PLUS_X) != 0
+            self.border[p - 1] & (1 << PLUS_X) != 0
         } else if p < self.coords.len() && same_row(self.coords[p]) {
-            self.border[self.ids[p] as usize] & (1 << MINUS_X) != 0
+            self.border[p] & (1 << MINUS_X) != 0
         } else {
             false
         }
@@ -315,7 +319,7 @@ impl TileGrid {
     pub fn value(&self, voxel: Coord) -> f32 {
         let (t, l) = tile_of(voxel);
         match self.locate(t) {
-            Ok(p) => self.arena[self.ids[p] as usize].0[l],
+            Ok(p) => self.arena[p].0[l],
             Err(inside) => self.spec.background(inside),
         }
     }
@@ -332,10 +336,7 @@ impl TileGrid {
     /// Number of stored voxels with `|φ| < γ`.
     pub fn band_voxels(&self) -> usize {
         let g = self.gamma();
-        self.ids
-            .iter()
-            .map(|&id| self.arena[id as usize].0.iter().filter(|v| v.abs() < g).count())
-            .sum()
+        self.arena.iter().map(|t| t.0.iter().filter(|v| v.abs() < g).count()).sum()
     }
 
     /// Number of stored voxels, tile padding included.
@@ -389,27 +390,20 @@ impl TileGrid {
         }
     }
 
-    /// Bytes by part: values (the arena), indices (coordinate list and ids), flags
-    /// (border and activity), slack (unused capacity).
+    /// Bytes by part: values (the arena), indices (coordinate list and row directory),
+    /// flags (border and activity), slack (unused capacity).
     pub fn memory(&self) -> MemoryReport {
         let (v, vs) = vec_bytes(&self.arena);
         let (c, cs) = vec_bytes(&self.coords);
-        let (i, is) = vec_bytes(&self.ids);
         let (b, bs) = vec_bytes(&self.border);
         let (a, as_) = vec_bytes(&self.activity);
         let (d, ds) = self.dir.as_ref().map_or((0, 0), RowDirectory::bytes);
-        MemoryReport {
-            values: v,
-            indices: c + i + d,
-            flags: b + a,
-            slack: vs + cs + is + bs + as_ + ds,
-        }
+        MemoryReport { values: v, indices: c + d, flags: b + a, slack: vs + cs + bs + as_ + ds }
     }
 
     /// Releases unused capacity.
     pub fn shrink_to_fit(&mut self) {
         self.coords.shrink_to_fit();
-        self.ids.shrink_to_fit();
         self.arena.shrink_to_fit();
         self.border.shrink_to_fit();
         self.activity.shrink_to_fit();
@@ -428,12 +422,12 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles_streamed(&mut self) -> Result<ManageStats, GridError> {
-        self.restructure(|nb, activity, ids| {
+        self.restructure(|nb, activity| {
             let mut m = nb.matched;
             while m != 0 {
                 let d = m.trailing_zeros() as usize;
                 m &= m - 1;
-                if activity[ids[nb.ptr[d]] as usize] & NEIGHBOUR_TRIGGER[d] != 0 {
+                if activity[nb.ptr[d]] & NEIGHBOUR_TRIGGER[d] != 0 {
                     return true;
                 }
             }
@@ -445,40 +439,46 @@ impl TileGrid {
     /// element of Sec. 4.6): every tile is kept and every absent neighbour is created,
     /// filled with ±γ from the border flags. Sorted output, data compacted in list order.
     pub fn dilate(&mut self) -> Result<ManageStats, GridError> {
-        self.restructure(|_, _, _| true)
+        self.restructure(|_, _| true)
     }
 
     /// Algorithms 2 and 3 with `trigger` deciding which positions must hold a tile, then
-    /// compaction of the arena into list order.
+    /// compaction of the arena into list order. A tile's list position is its index into
+    /// the arena (Algorithm 3's `index[]` is the identity, see the type's invariants).
     fn restructure<T>(&mut self, trigger: T) -> Result<ManageStats, GridError>
     where
-        T: Fn(&super::Neighbours, &[u32], &[u32]) -> bool,
+        T: Fn(&super::Neighbours, &[u32]) -> bool,
     {
-        let old_tiles = self.arena.len();
+        /// Where an entry of the new list comes from.
+        enum Entry {
+            /// The tile at this position of the old list.
+            Kept(usize),
+            /// A new tile, inside or not.
+            Created(bool),
+        }
         let mut new_coords = Vec::with_capacity(self.coords.len() + self.coords.len() / 4 + 16);
-        let mut new_ids: Vec<u32> = Vec::with_capacity(new_coords.capacity());
+        let mut entries: Vec<Entry> = Vec::with_capacity(new_coords.capacity());
         // Border flags change for removals; work on a copy so an error leaves `self` as is.
         let mut border = self.border.clone();
-        let mut created_inside: Vec<bool> = Vec::new();
         let mut stats = ManageStats::default();
 
         let mut stream = DilationStream::new(&self.coords);
         while let Some(nb) = stream.next() {
-            let triggered = trigger(&nb, &self.activity, &self.ids);
+            let triggered = trigger(&nb, &self.activity);
             if nb.matched & (1 << MID) != 0 {
-                let id = self.ids[nb.ptr[MID]];
+                let pos = nb.ptr[MID];
                 if triggered {
                     new_coords.push(nb.coord);
-                    new_ids.push(id);
+                    entries.push(Entry::Kept(pos));
                     stats.kept += 1;
                 } else {
                     // Algorithm 3 lines 11-18: tell the neighbours what the tile was.
-                    let inside = self.activity[id as usize] & INSIDE != 0;
+                    let inside = self.activity[pos] & INSIDE != 0;
                     let mut m = nb.matched & !(1 << MID);
                     while m != 0 {
                         let d = m.trailing_zeros() as usize;
                         m &= m - 1;
-                        let b = &mut border[self.ids[nb.ptr[d]] as usize];
+                        let b = &mut border[nb.ptr[d]];
                         let bit = 1 << reverse(d);
                         *b = if inside { *b | bit } else { *b & !bit };
                     }
@@ -494,13 +494,10 @@ impl TileGrid {
                 while m != 0 {
                     let d = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    inside |= border[self.ids[nb.ptr[d]] as usize] & (1 << reverse(d)) != 0;
+                    inside |= border[nb.ptr[d]] & (1 << reverse(d)) != 0;
                 }
-                let id = u32::try_from(old_tiles + created_inside.len())
-                    .map_err(|_| GridError::InvalidParameter("more than 2^32 tiles".into()))?;
-                created_inside.push(inside);
                 new_coords.push(nb.coord);
-                new_ids.push(id);
+                entries.push(Entry::Created(inside));
                 stats.created += 1;
             }
         }
@@ -510,23 +507,26 @@ impl TileGrid {
             self.debug_check();
             return Ok(stats);
         }
+        check_list_len(new_coords.len())?;
 
         // Compaction: gather the tiles in list order into a fresh arena.
         let n = new_coords.len();
         let mut arena = Vec::with_capacity(n);
         let mut new_border = Vec::with_capacity(n);
         let mut activity = Vec::with_capacity(n);
-        for &id in &new_ids {
-            let id = id as usize;
-            if id < old_tiles {
-                arena.push(self.arena[id]);
-                new_border.push(border[id]);
-                activity.push(self.activity[id]);
-            } else {
-                let (t, b, a) = self.created_tile(created_inside[id - old_tiles]);
-                arena.push(t);
-                new_border.push(b);
-                activity.push(a);
+        for e in &entries {
+            match *e {
+                Entry::Kept(pos) => {
+                    arena.push(self.arena[pos]);
+                    new_border.push(border[pos]);
+                    activity.push(self.activity[pos]);
+                }
+                Entry::Created(inside) => {
+                    let (t, b, a) = self.created_tile(inside);
+                    arena.push(t);
+                    new_border.push(b);
+                    activity.push(a);
+                }
             }
         }
         self.replace_list(new_coords, arena, new_border, activity);
@@ -545,22 +545,19 @@ impl TileGrid {
         }
     }
 
-    /// Installs a new list whose arrays are in list order (so `ids` is the identity) and
-    /// rebuilds the row directory.
+    /// Installs a new list whose arrays are in list order and rebuilds the row directory;
+    /// returns the previous grid.
     pub(super) fn replace_list(
         &mut self,
         coords: Vec<Coord>,
         arena: Vec<Tile>,
         border: Vec<u32>,
         activity: Vec<u32>,
-    ) {
-        self.ids = (0..coords.len() as u32).collect();
-        self.coords = coords;
-        self.arena = arena;
-        self.border = border;
-        self.activity = activity;
-        self.build_directory();
-        self.debug_check();
+    ) -> TileGrid {
+        let mut next = TileGrid { spec: self.spec, coords, arena, border, activity, dir: None };
+        next.build_directory();
+        next.debug_check();
+        std::mem::replace(self, next)
     }
 
     #[inline]
@@ -574,9 +571,6 @@ impl TileGrid {
     /// Checks every invariant listed on the type; O(N) plus O(64 N) for the values.
     pub fn check_invariants(&self) -> Result<(), String> {
         let n = self.coords.len();
-        if self.ids.len() != n {
-            return Err(format!("{} ids for {} coordinates", self.ids.len(), n));
-        }
         let t = self.arena.len();
         if self.border.len() != t || self.activity.len() != t {
             return Err("flag arrays and arena differ in length".into());
@@ -591,12 +585,6 @@ impl TileGrid {
         }
         if let Some(c) = self.coords.iter().find(|&&c| !tile_in_range(c)) {
             return Err(format!("tile {c:?} out of range"));
-        }
-        if let Some(p) = self.ids.iter().enumerate().position(|(p, &id)| id as usize != p) {
-            return Err(format!(
-                "tile data not in list order: entry {p} owns arena tile {}",
-                self.ids[p]
-            ));
         }
         if self.border.iter().any(|b| b & !BORDER_MASK != 0) {
             return Err("border flag outside BORDER_MASK".into());

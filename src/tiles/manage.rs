@@ -59,17 +59,50 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
+        self.manage_tiles_checked(|_| Ok(())).map(|(stats, _)| stats)
+    }
+
+    /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
+    /// of `tiles` tiles (an error from it is returned and leaves the grid unchanged), and
+    /// returns the previous grid when the list changed (`None` when nothing changed), so
+    /// that a caller can put it back.
+    pub(crate) fn manage_tiles_checked(
+        &mut self,
+        admit: impl FnOnce(usize) -> Result<(), GridError>,
+    ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
         if n == 0 {
-            return Ok(ManageStats::default());
+            return Ok((ManageStats::default(), None));
         }
-        debug_assert!(self.ids.iter().enumerate().all(|(p, &id)| p == id as usize));
-        let coords = &self.coords[..];
-        let activity = &self.activity[..];
         let border_new: Vec<AtomicU32> = self.border.iter().map(|&b| AtomicU32::new(b)).collect();
         let mut keep = vec![false; n];
+        let created = self.keep_and_find_created(&border_new, &mut keep);
+        if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
+            return Err(GridError::OutOfRange { coord: c });
+        }
+        let kept = keep.iter().filter(|&&k| k).count();
+        let stats = ManageStats { kept, removed: n - kept, created: created.len() };
+        if stats.removed == 0 && stats.created == 0 {
+            // Nothing changed (and without removals no border flag did either).
+            self.debug_check();
+            return Ok((stats, None));
+        }
+        let created_inside = self.created_signs(&created);
+        let total = stats.kept + stats.created;
+        super::grid::check_list_len(total)?;
+        admit(total)?;
+        let (coords, arena, border, activity) =
+            self.compact(&keep, &border_new, &created, &created_inside, total);
+        let prev = self.replace_list(coords, arena, border, activity);
+        Ok((stats, Some(prev)))
+    }
 
-        // 1 + 2: keep/remove, removal notices, candidates for creation, per chunk.
+    /// Phases 1 and 2, per chunk: marks the tiles to keep in `keep`, writes the removal
+    /// notices into `border_new` (Algorithm 3 lines 11–18) and returns the absent
+    /// positions the active tiles trigger, sorted and without duplicates.
+    fn keep_and_find_created(&self, border_new: &[AtomicU32], keep: &mut [bool]) -> Vec<Coord> {
+        let coords = &self.coords[..];
+        let activity = &self.activity[..];
         let found: Vec<Vec<Coord>> = keep
             .par_chunks_mut(CHUNK)
             .enumerate()
@@ -124,20 +157,15 @@ impl TileGrid {
         let mut created: Vec<Coord> = found.concat();
         created.par_sort_unstable();
         created.dedup();
-        if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
-            return Err(GridError::OutOfRange { coord: c });
-        }
-        let kept = keep.iter().filter(|&&k| k).count();
-        let stats = ManageStats { kept, removed: n - kept, created: created.len() };
-        if stats.removed == 0 && stats.created == 0 {
-            // Nothing changed (and without removals no border flag did either).
-            self.debug_check();
-            return Ok(stats);
-        }
-        // Lines 22-27: the sign of each new tile from its present neighbours' flags. The
-        // new tiles are sorted, so per row of neighbours (dy, dz) a pointer into the old
-        // list only moves forward (as in Algorithm 1); chunks seed theirs by binary search.
-        let old_border = &self.border[..];
+        created
+    }
+
+    /// Lines 22–27: the sign of each new tile from its present neighbours' border flags.
+    /// The new tiles are sorted, so per row of neighbours (dy, dz) a pointer into the old
+    /// list only moves forward (as in Algorithm 1); chunks seed theirs by binary search.
+    fn created_signs(&self, created: &[Coord]) -> Vec<bool> {
+        let (coords, old_border) = (&self.coords[..], &self.border[..]);
+        let n = coords.len();
         let mut created_inside = vec![false; created.len()];
         created_inside.par_chunks_mut(CHUNK).zip(created.par_chunks(CHUNK)).for_each(
             |(inside, created)| {
@@ -166,8 +194,24 @@ impl TileGrid {
                 }
             },
         );
+        created_inside
+    }
 
-        // 3: each chunk's kept tiles and the created tiles of its coordinate range.
+    /// Phase 3: the new list of `total` tiles in list order (coordinates, values, border
+    /// and activity flags). Each chunk merges its kept tiles with the created tiles of its
+    /// coordinate range; a prefix sum over the chunks' counts places every chunk's output,
+    /// written in parallel.
+    #[allow(clippy::type_complexity)] // the four arrays of a list
+    fn compact(
+        &self,
+        keep: &[bool],
+        border_new: &[AtomicU32],
+        created: &[Coord],
+        created_inside: &[bool],
+        total: usize,
+    ) -> (Vec<Coord>, Vec<Tile>, Vec<u32>, Vec<u32>) {
+        let (coords, arena, activity) = (&self.coords[..], &self.arena[..], &self.activity[..]);
+        let n = coords.len();
         let chunks = n.div_ceil(CHUNK);
         let cuts: Vec<usize> = (0..=chunks)
             .map(|c| match c {
@@ -182,15 +226,10 @@ impl TileGrid {
                 k + cuts[c + 1] - cuts[c]
             })
             .collect();
-        let total = stats.kept + stats.created;
-        if u32::try_from(total).is_err() {
-            return Err(GridError::InvalidParameter("more than 2^32 tiles".into()));
-        }
         let mut new_coords = vec![Coord::default(); total];
         let mut new_arena = vec![Tile::splat(0.0); total];
         let mut new_border = vec![0u32; total];
         let mut new_activity = vec![0u32; total];
-        let (grid, arena) = (&*self, &self.arena[..]);
         split_by(&mut new_coords, &lens)
             .into_par_iter()
             .zip(split_by(&mut new_arena, &lens))
@@ -219,14 +258,13 @@ impl TileGrid {
                         p += 1;
                     } else {
                         oc[o] = created[q];
-                        (oa[o], ob[o], of[o]) = grid.created_tile(created_inside[q]);
+                        (oa[o], ob[o], of[o]) = self.created_tile(created_inside[q]);
                         q += 1;
                     }
                     o += 1;
                 }
                 debug_assert_eq!(o, oc.len());
             });
-        self.replace_list(new_coords, new_arena, new_border, new_activity);
-        Ok(stats)
+        (new_coords, new_arena, new_border, new_activity)
     }
 }

@@ -173,6 +173,8 @@ impl NeighbourTable {
         assert!(coords.len() < u32::MAX as usize, "tile list too long for a neighbour table");
         let empty = NeighbourRow { matched: 0, ptr: [0; 27] };
         self.rows.clear();
+        // Exactly the rows needed (a growing band would otherwise double the capacity).
+        self.rows.reserve_exact(coords.len());
         self.rows.resize(coords.len(), empty);
         self.rows.par_chunks_mut(Self::CHUNK).enumerate().for_each(|(c, rows)| {
             let start = c * Self::CHUNK;
@@ -208,6 +210,11 @@ impl NeighbourTable {
     /// Bytes held, used or not.
     pub fn bytes(&self) -> usize {
         self.rows.capacity() * std::mem::size_of::<NeighbourRow>()
+    }
+
+    /// Bytes a rebuild for a list of `len` tiles has to allocate.
+    pub fn growth_bytes(&self, len: usize) -> usize {
+        len.saturating_sub(self.rows.capacity()) * std::mem::size_of::<NeighbourRow>()
     }
 }
 

@@ -363,6 +363,62 @@ fn management_with_random_activity_keeps_list_valid() {
     }
 }
 
+/// Two grids hold the same list, values and flags.
+fn assert_same_grid(a: &TileGrid, b: &TileGrid) {
+    assert_eq!(a.tile_coords(), b.tile_coords());
+    assert_eq!(a.values(), b.values());
+    for p in 0..a.len() {
+        assert_eq!(a.border_flags(p), b.border_flags(p), "border of {p}");
+        assert_eq!(a.activity_flags(p), b.activity_flags(p), "activity of {p}");
+    }
+}
+
+/// Management that is refused before it allocates leaves the grid as it was; management
+/// that changes the list hands back the previous grid, which puts the state back exactly
+/// (the evolution's undo); swapping values and activity twice is the identity.
+#[test]
+fn management_admission_and_undo_restore_the_grid() {
+    let mut rng = fastrand::Rng::with_seed(5);
+    for case in cases(31, 3) {
+        let mut grid = build(&case.shape, case.spec, case.lo, case.hi);
+        randomize_activity(&mut grid, &mut rng);
+        let before = grid.clone();
+        let refuse = |_: usize| Err(GridError::InvalidParameter("refused".into()));
+        assert!(grid.manage_tiles_checked(refuse).is_err());
+        grid.check_invariants().unwrap();
+        assert_same_grid(&grid, &before);
+        let mut asked = None;
+        let (stats, prev) = grid
+            .manage_tiles_checked(|n| {
+                asked = Some(n);
+                Ok(())
+            })
+            .unwrap();
+        grid.check_invariants().unwrap();
+        let changed = stats.removed + stats.created > 0;
+        assert_eq!(prev.is_some(), changed);
+        assert_eq!(asked, changed.then_some(grid.len()));
+        if let Some(prev) = prev {
+            assert_same_grid(&prev, &before);
+        }
+        // The double buffer: values and activity swap in and back out unchanged.
+        let mut values: Vec<Tile> = grid.values().iter().map(|t| Tile(t.0.map(|v| -v))).collect();
+        let g = grid.gamma();
+        let mut activity: Vec<u32> = values.iter().map(|t| compute_activity(t, g)).collect();
+        let (want_values, want_activity) = (values.clone(), activity.clone());
+        let kept = grid.clone();
+        grid.swap_values(&mut values, &mut activity).unwrap();
+        assert_eq!(grid.values(), &want_values[..]);
+        for (p, &a) in want_activity.iter().enumerate() {
+            assert_eq!(grid.activity_flags(p), a);
+        }
+        grid.swap_values(&mut values, &mut activity).unwrap();
+        assert_same_grid(&grid, &kept);
+        assert_eq!(values, want_values);
+        assert_eq!(activity, want_activity);
+    }
+}
+
 /// The parallel management equals the paper's streamed Algorithms 2 + 3 in every list,
 /// value and flag, for any number of threads.
 #[test]
@@ -544,8 +600,9 @@ fn memory_reports_every_part() {
     let grid = build(&case.shape, case.spec, case.lo, case.hi);
     let m = grid.memory();
     assert_eq!(m.values, grid.len() * 256);
-    // The list (12-byte coordinate + 4-byte id per tile) plus the row directory.
-    assert!(m.indices >= grid.len() * 16 && m.indices < grid.len() * 16 + grid.len() * 8 + 4096);
+    // The list (a 12-byte coordinate per tile, no id: the arena is in list order) plus the
+    // row directory.
+    assert!(m.indices >= grid.len() * 12 && m.indices < grid.len() * 12 + grid.len() * 8 + 4096);
     assert_eq!(m.flags, grid.len() * 8);
     assert_eq!(m.total(), m.values + m.indices + m.flags + m.slack);
 }

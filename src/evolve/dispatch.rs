@@ -1,0 +1,146 @@
+//! The dispatch: the run-time choices of a stage — spatial scheme, F uniform or per
+//! voxel, advection on or off, Runge–Kutta stage — become one kernel type, decided once
+//! per stage and outside every loop (STYLE: "decide once"; the way OpenVDB's
+//! `LevelSetTracker` nests `normalize1<S>` → `normalize2<S, T>`). Three plain generic
+//! functions, one per choice:
+//!
+//! 1. [`dispatch`]: the scheme ([`Upwind1`] with the 27-point reach 1, [`Weno5`] with
+//!    reach 3);
+//! 2. `inputs::<S, R>`: the rate from the stage's inputs — eq. (3) with a uniform or a
+//!    per-voxel F, alone or plus advection (`Sum<Eq3Rate, AdvectionRate>`);
+//! 3. `stage::<R>`: the TVD-RK3 stage around the rate (`Rk3<_, 1 | 2 | 3>`; forward
+//!    Euler is stage 1 alone),
+//!
+//! and the result goes to the representation's [`Sweep`], which runs it over its voxels
+//! (the tile sweep then picks the lane type, the DT-Grid sweep its point window).
+
+use super::rep::dtgrid::PointWindow;
+use super::{EvolveError, SpatialScheme};
+use levelset_kernels::{
+    AdvectionRate, Eq3Rate, Rk3, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
+};
+use std::ops::Range;
+
+/// Inputs of one Runge–Kutta stage (or one Euler step, which is stage 1 alone).
+#[derive(Clone, Copy)]
+pub(crate) struct StageParams<'a> {
+    /// 1, 2 or 3 (TVD-RK3 stage; forward Euler is stage 1).
+    pub stage: u8,
+    pub dt: f32,
+    pub gamma: f32,
+    pub h: f32,
+    /// ε, the curvature weight.
+    pub eps: f32,
+    /// Weight of the rescaling term of eq. (3).
+    pub rescale: f32,
+    /// F, the same everywhere (then `speed` is unused)...
+    pub uniform_speed: Option<f32>,
+    /// ... or per voxel (flat order).
+    pub speed: &'a [f32],
+    /// u per voxel (flat order), if the flow advects.
+    pub velocity: Option<[&'a [f32]; 3]>,
+    /// Factor of the velocity in this stage (a time-separable field; 1 otherwise).
+    pub velocity_scale: f32,
+    /// φⁿ per voxel (flat order), read in stages 2 and 3 (empty in stage 1); set by the
+    /// representation, which keeps φⁿ.
+    pub phi_n: &'a [f32],
+}
+
+/// A sweep that runs kernels of any type over a representation: the visitor the dispatch
+/// hands the chosen kernel to. `make(range)` builds the kernel for the voxels `range` of
+/// the flat order (their per-voxel inputs sliced to start at the block's first voxel).
+/// `R` is the halo the kernel needs.
+pub(crate) trait Sweep {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: PointWindow;
+}
+
+/// A stencil reach `R` (1: the 3×3×3 box; 3: the box and ±3 along the axes) as a type, so
+/// that the DT-Grid's sweep picks its point window at compile time.
+pub(crate) struct Halo<const R: usize>;
+
+/// Level 1: the scheme, with its reach.
+pub(crate) fn dispatch<V: Sweep>(
+    p: &StageParams<'_>,
+    scheme: SpatialScheme,
+    sweep: V,
+) -> Result<(), EvolveError> {
+    match scheme {
+        SpatialScheme::Upwind1 => inputs::<Upwind1, 1, V>(p, sweep),
+        SpatialScheme::Weno5 => inputs::<Weno5, 3, V>(p, sweep),
+    }
+}
+
+/// Level 2: the rate from the inputs — F uniform (`f32`) or per voxel (`&[f32]`), with or
+/// without advection.
+fn inputs<'a, S: Scheme, const R: usize, V: Sweep>(
+    p: &StageParams<'a>,
+    sweep: V,
+) -> Result<(), EvolveError>
+where
+    Halo<R>: PointWindow,
+{
+    let (h, eps, w) = (p.h, p.eps, p.rescale);
+    let speed: &'a [f32] = p.speed;
+    let scale = p.velocity_scale;
+    let advection = move |u: [&'a [f32]; 3], r: Range<usize>| {
+        let components = [&u[0][r.clone()], &u[1][r.clone()], &u[2][r]];
+        AdvectionRate::<S, ScaledVelocity<'a>>::new(h, ScaledVelocity { components, scale })
+    };
+    match (p.uniform_speed, p.velocity) {
+        (Some(f), None) => {
+            stage::<R, _, _, V>(p, sweep, move |_| Eq3Rate::<S, f32>::new(h, f, eps, w))
+        }
+        (Some(f), Some(u)) => stage::<R, _, _, V>(p, sweep, move |r| {
+            Sum(Eq3Rate::<S, f32>::new(h, f, eps, w), advection(u, r))
+        }),
+        (None, None) => stage::<R, _, _, V>(p, sweep, move |r| {
+            Eq3Rate::<S, &'a [f32]>::new(h, &speed[r], eps, w)
+        }),
+        (None, Some(u)) => stage::<R, _, _, V>(p, sweep, move |r: Range<usize>| {
+            Sum(Eq3Rate::<S, &'a [f32]>::new(h, &speed[r.clone()], eps, w), advection(u, r))
+        }),
+    }
+}
+
+/// Level 3: the TVD-RK3 stage around the rate (stage 1 is forward Euler), handed to the
+/// sweep.
+fn stage<'a, const R: usize, K, F, V>(
+    p: &StageParams<'a>,
+    sweep: V,
+    rate: F,
+) -> Result<(), EvolveError>
+where
+    K: VoxelKernel,
+    F: Fn(Range<usize>) -> K + Sync,
+    V: Sweep,
+    Halo<R>: PointWindow,
+{
+    let (dt, gamma) = (p.dt, p.gamma);
+    let phi_n: &'a [f32] = p.phi_n;
+    // φⁿ of the voxels `r` (empty in stage 1).
+    let phi_n = move |r: Range<usize>| if phi_n.is_empty() { &[][..] } else { &phi_n[r] };
+    match p.stage {
+        1 => sweep.run::<_, _, R>(move |r: Range<usize>| Rk3::<K, 1> {
+            rate: rate(r.clone()),
+            dt,
+            gamma,
+            phi_n: phi_n(r),
+        }),
+        2 => sweep.run::<_, _, R>(move |r: Range<usize>| Rk3::<K, 2> {
+            rate: rate(r.clone()),
+            dt,
+            gamma,
+            phi_n: phi_n(r),
+        }),
+        _ => sweep.run::<_, _, R>(move |r: Range<usize>| Rk3::<K, 3> {
+            rate: rate(r.clone()),
+            dt,
+            gamma,
+            phi_n: phi_n(r),
+        }),
+    }
+}

@@ -1,0 +1,250 @@
+//! The per-voxel inputs of a stage: the normal speed F and the advection velocity u
+//! sampled at the representation's voxels (flat order), κ̄ of the volume-conserving flow
+//! (eq. (5)–(7)), and the maxima the time step comes from.
+
+use super::dispatch::StageParams;
+use super::field::{Speed, Velocity};
+use super::rep::{growth_bytes, resize_exact, vec_bytes, Representation};
+use super::{in_pool, EvolveError, Flow, Settings};
+use crate::grid::GridSpec;
+use std::sync::Arc;
+
+/// F and u of the current stage, and what is kept between stages.
+#[derive(Clone)]
+pub(crate) struct Inputs {
+    /// Per-voxel F (flat order); empty when F is uniform.
+    speed: Vec<f32>,
+    /// F when it is the same everywhere (a constant, plus ε κ̄); then `speed` is empty.
+    uniform_speed: Option<f32>,
+    /// u per voxel, one array per component.
+    velocity: [Vec<f32>; 3],
+    /// The factor of `velocity` in the current stage ([`super::VectorFn::time_scale`];
+    /// else 1).
+    velocity_scale: f32,
+    /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
+    base: Vec<f32>,
+}
+
+impl Default for Inputs {
+    fn default() -> Self {
+        Inputs {
+            speed: Vec::new(),
+            uniform_speed: None,
+            velocity: Default::default(),
+            velocity_scale: 1.0,
+            base: Vec::new(),
+        }
+    }
+}
+
+impl Inputs {
+    /// Bytes held, used or not.
+    pub fn bytes(&self) -> usize {
+        vec_bytes(&self.speed)
+            + vec_bytes(&self.base)
+            + self.velocity.iter().map(vec_bytes).sum::<usize>()
+    }
+
+    /// Bytes the inputs of `flow` have to allocate for `n` voxels.
+    pub fn growth_bytes(&self, n: usize, flow: &Flow) -> u64 {
+        let mut b = 0;
+        if !matches!(flow.speed, Speed::Constant(_)) {
+            b += growth_bytes(&self.speed, n) + growth_bytes(&self.base, n);
+        }
+        if flow.velocity.is_some() {
+            b += self.velocity.iter().map(|c| growth_bytes(c, n)).sum::<u64>();
+        }
+        b
+    }
+
+    /// Fills the per-voxel F and u of `rep`'s voxels for a stage at time `t` of step
+    /// `step`; returns κ̄ when the flow is volume-conserving. `first` marks stage 1 (the
+    /// layout may have changed since the last step, so everything is sampled anew);
+    /// fields that do not depend on time are sampled only then, into `base` (F) and
+    /// `velocity` (u). Every sample the stage reads must be finite
+    /// ([`EvolveError::NonFiniteField`] otherwise). Changes only these inputs.
+    pub fn prepare(
+        &mut self,
+        rep: &dyn Representation,
+        flow: &Flow,
+        settings: &Settings,
+        t: f64,
+        first: bool,
+        step: u64,
+    ) -> Result<Option<f64>, EvolveError> {
+        let pool = &settings.pool;
+        let kappa_bar = kappa_bar(rep, flow, settings)?;
+        // Volume conservation: F += ε κ̄ of the current stage's φ.
+        let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
+        self.fill_speed(rep, &flow.speed, pool, t, first, add);
+        let check_velocity = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
+        // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
+        // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
+        // when written; a scale in every stage.)
+        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        let velocity_ok = self.velocity_scale.is_finite()
+            && (!check_velocity || self.velocity.iter().all(|c| finite(c)));
+        let speed_ok = self.uniform_speed.map_or_else(|| finite(&self.speed), f32::is_finite);
+        if !speed_ok || !velocity_ok {
+            return Err(EvolveError::NonFiniteField { step, time: t });
+        }
+        Ok(kappa_bar)
+    }
+
+    /// Normal speed F = base + `add`, uniform (no per-voxel array) for a constant F.
+    fn fill_speed(
+        &mut self,
+        rep: &dyn Representation,
+        speed: &Speed,
+        pool: &Option<Arc<rayon::ThreadPool>>,
+        t: f64,
+        first: bool,
+        add: f32,
+    ) {
+        let n = rep.flat().len();
+        self.uniform_speed = None;
+        if !matches!(speed, Speed::Constant(_)) {
+            resize_exact(&mut self.speed, n, 0.0);
+        }
+        match speed {
+            Speed::Constant(f) => {
+                self.uniform_speed = Some(*f + add);
+                self.speed.clear();
+            }
+            Speed::Field(f) => {
+                if first || f.time_dependent() {
+                    resize_exact(&mut self.base, n, 0.0);
+                    let base = &mut self.base;
+                    in_pool(pool, || rep.fill_scalar(f.as_ref(), t, base));
+                }
+                for (s, &b) in self.speed.iter_mut().zip(&self.base) {
+                    *s = b + add;
+                }
+            }
+            Speed::MorphTo(target) => {
+                if first {
+                    resize_exact(&mut self.base, n, 0.0);
+                    let base = &mut self.base;
+                    in_pool(pool, || rep.fill_scalar(target.as_ref(), t, base));
+                    let g = rep.spec().gamma();
+                    self.base.iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                }
+                for ((s, &phi), &psi) in self.speed.iter_mut().zip(rep.flat()).zip(&self.base) {
+                    *s = (phi - psi) + add;
+                }
+            }
+        }
+    }
+
+    /// Advection velocity u; returns whether the arrays were written (and must be
+    /// checked).
+    fn fill_velocity(
+        &mut self,
+        rep: &dyn Representation,
+        velocity: Option<&Velocity>,
+        pool: &Option<Arc<rayon::ThreadPool>>,
+        t: f64,
+        first: bool,
+    ) -> bool {
+        self.velocity_scale = 1.0;
+        let Some(vel) = velocity else { return false };
+        let n = rep.flat().len();
+        for c in &mut self.velocity {
+            resize_exact(c, n, 0.0);
+        }
+        match vel {
+            Velocity::Constant(u) => {
+                if first {
+                    for (c, &v) in self.velocity.iter_mut().zip(u) {
+                        c.fill(v);
+                    }
+                }
+                first
+            }
+            Velocity::Field(f) => match f.time_scale(t) {
+                // u(x, t) = s(t) u(x, 0): u(x, 0) sampled once per step, the kernels
+                // multiply by s.
+                Some(scale) => {
+                    if first {
+                        let [a, b, c] = &mut self.velocity;
+                        in_pool(pool, || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
+                    }
+                    self.velocity_scale = scale;
+                    first
+                }
+                None => {
+                    let sample = first || f.time_dependent();
+                    if sample {
+                        let [a, b, c] = &mut self.velocity;
+                        in_pool(pool, || rep.fill_vector(f.as_ref(), t, [a, b, c]));
+                    }
+                    sample
+                }
+            },
+        }
+    }
+
+    /// max |F| and max (|u|+|v|+|w|) over the band voxels of `flat` (the set every
+    /// representation holds, so every representation takes the same Δt).
+    pub fn band_maxima(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32) {
+        let mut max_f = 0.0f32;
+        match self.uniform_speed {
+            // Every step starts with band voxels (or the interface has collapsed).
+            Some(f) => max_f = f.abs(),
+            None => {
+                for (&v, &f) in flat.iter().zip(&self.speed) {
+                    if v.abs() < g {
+                        max_f = max_f.max(f.abs());
+                    }
+                }
+            }
+        }
+        let mut max_u = 0.0f32;
+        if advects {
+            let [a, b, c] = &self.velocity;
+            let s = self.velocity_scale;
+            for (i, &v) in flat.iter().enumerate() {
+                if v.abs() < g {
+                    max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
+                }
+            }
+        }
+        (max_f, max_u)
+    }
+
+    /// The inputs of stage `stage` with step `dt` (φⁿ is set by the representation).
+    pub fn params(&self, stage: u8, dt: f32, spec: &GridSpec, flow: &Flow) -> StageParams<'_> {
+        StageParams {
+            stage,
+            dt,
+            gamma: spec.gamma(),
+            h: spec.voxel_size,
+            eps: flow.curvature,
+            rescale: flow.rescale,
+            uniform_speed: self.uniform_speed,
+            speed: &self.speed,
+            velocity: flow
+                .velocity
+                .as_ref()
+                .map(|_| [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]),
+            velocity_scale: self.velocity_scale,
+            phi_n: &[],
+        }
+    }
+}
+
+/// κ̄ of the current values (eq. (6)), for a volume-conserving flow.
+fn kappa_bar(
+    rep: &dyn Representation,
+    flow: &Flow,
+    settings: &Settings,
+) -> Result<Option<f64>, EvolveError> {
+    if !flow.volume_conserving {
+        return Ok(None);
+    }
+    let width = settings.delta_width * rep.spec().voxel_size;
+    let (num, den) = in_pool(&settings.pool, || rep.kappa_bar_sums(width))?;
+    let h = rep.spec().voxel_size as f64;
+    // The sums hold κδ|∇φ|·h² and δ|∇φ|·h (see `KappaBarTerm`).
+    Ok(Some(if den.value() > 0.0 { num.value() / den.value() / h } else { 0.0 }))
+}

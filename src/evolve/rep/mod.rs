@@ -1,0 +1,219 @@
+//! The three representations the evolution runs on — Sorted Tile List ([`tiles`]),
+//! DT-Grid ([`dtgrid`]), dense reference ([`dense`]) — behind one internal trait,
+//! [`Representation`].
+//!
+//! Every representation stores its values as one flat array (tiles: list position × 64 +
+//! local index; DT-Grid: point order; dense: x-fastest box order). Per-voxel inputs (F,
+//! u, φⁿ, the band mask) are flat arrays in the same order, so a kernel reads them with
+//! the index of its voxel.
+//!
+//! # Atomic steps
+//! A step is *begun* by its first stage and ends with [`Representation::commit_step`] or
+//! [`Representation::undo_step`]. Until then the representation keeps what it needs to
+//! put the state before the step back: φⁿ (the double buffer the first stage swapped
+//! out, or the φⁿ buffer of TVD-RK3, so no copy is made) and, when the band maintenance of
+//! [`Representation::finish_step`] replaced the tile list or the DT-Grid, the previous one
+//! (which the replacement would otherwise drop).
+
+pub(crate) mod dense;
+pub(crate) mod dtgrid;
+pub(crate) mod tiles;
+
+pub(crate) use dense::DenseRep;
+pub(crate) use dtgrid::DtRep;
+pub(crate) use tiles::TilesRep;
+
+use super::dispatch::StageParams;
+use super::exact::ExactSum;
+use super::field::{ScalarFn, VectorFn};
+use super::{EvolveError, SpatialScheme};
+use crate::coord::Coord;
+use crate::grid::{GridError, GridSpec};
+use levelset_kernels::speed::kappa_bar_integrands;
+use levelset_kernels::{Lane, VoxelKernel, Window};
+
+/// What every representation does for the evolution.
+pub(crate) trait Representation: Send + Sync {
+    fn spec(&self) -> GridSpec;
+    /// The current values in flat order.
+    fn flat(&self) -> &[f32];
+    /// Samples a scalar field at every stored voxel (flat order).
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]);
+    /// Samples a vector field at every stored voxel (flat order).
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
+    /// Runs one stage: the current values become the stage's result; in stages 2 and 3
+    /// the kernel reads φⁿ, kept from stage 1. `last` marks the step's final stage. On
+    /// an error the values are those before the stage.
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError>;
+    /// Band maintenance after a step or a reinitialisation: tile management, DT-Grid
+    /// rebuild, dense bounds. New storage is admitted by `budget` before it is allocated
+    /// (the DT-Grid: before its rebuilt grid replaces the current one). On an error the
+    /// representation is as before the call.
+    fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError>;
+    /// φⁿ of the step in progress (flat order of the state before the step; empty when no
+    /// stage has run).
+    fn step_start(&self) -> &[f32];
+    /// Puts back the state before the step in progress: values, stored set, flags.
+    fn undo_step(&mut self);
+    /// The step in progress stands: drops what [`Representation::undo_step`] needed.
+    fn commit_step(&mut self);
+    /// (Σ κδ|∇φ|, Σ δ|∇φ|) over the current values (eq. (6) without the h³ that cancels).
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError>;
+    /// Interior voxels the representation does not store (each counts fully inside).
+    fn unstored_inside(&self) -> u64;
+    /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32));
+    /// Whether `f` holds for some stored voxel, visited in flat order until it does.
+    fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool;
+    /// Value at any voxel (±γ where nothing is stored).
+    fn value(&self, c: Coord) -> f32;
+    /// Tiles (tiles), points (DT-Grid) or voxels (dense) stored.
+    fn units(&self) -> usize;
+    /// Bytes of the representation's data (values, indices, flags; unused capacity of
+    /// its arrays excluded).
+    fn bytes(&self) -> usize;
+    /// Bytes of the evolution's buffers (double buffer, φⁿ, band mask, rebuild scratch)
+    /// and the representation's unused capacity.
+    fn work_bytes(&self) -> usize;
+    /// Bytes of the representation and its buffers (as [`Representation::bytes`] +
+    /// [`Representation::work_bytes`]) once a step's buffers hold the current band
+    /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3): what its first stage may
+    /// allocate.
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64;
+}
+
+/// The representation a simulation runs on.
+#[derive(Clone)]
+pub(crate) enum Rep {
+    Tiles(TilesRep),
+    // Boxed: the DT-Grid engine holds three grids (current, rebuild scratch, result).
+    DtGrid(Box<DtRep>),
+    Dense(DenseRep),
+}
+
+impl Rep {
+    pub fn get(&self) -> &dyn Representation {
+        match self {
+            Rep::Tiles(r) => r,
+            Rep::DtGrid(r) => r.as_ref(),
+            Rep::Dense(r) => r,
+        }
+    }
+
+    pub fn get_mut(&mut self) -> &mut dyn Representation {
+        match self {
+            Rep::Tiles(r) => r,
+            Rep::DtGrid(r) => r.as_mut(),
+            Rep::Dense(r) => r,
+        }
+    }
+}
+
+/// The memory a run may use ([`super::Settings::memory_limit`]): new storage is admitted
+/// before it is allocated.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MemoryBudget {
+    /// The most bytes the simulation may take; `None`: what the machine can give
+    /// ([`crate::memory::limit`]) bounds each growth instead.
+    pub limit: Option<u64>,
+    /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3), for the estimates.
+    pub keeps_phi_n: bool,
+    /// Bytes the simulation holds besides the representation (the per-voxel inputs),
+    /// counted against the limit.
+    pub held: u64,
+}
+
+impl MemoryBudget {
+    /// Admits a representation of `needed` bytes (data and buffers, estimated) that
+    /// replaces one of `current` bytes; `what` names it in the error
+    /// ([`GridError::OutOfMemory`]).
+    pub fn admit(&self, needed: u64, current: u64, what: &str) -> Result<(), GridError> {
+        let needed = needed.saturating_add(self.held);
+        match self.limit {
+            Some(limit) if needed > limit => {
+                Err(GridError::OutOfMemory { what: what.to_string(), needed, limit })
+            }
+            Some(_) => Ok(()),
+            // The growth is what is allocated while the current state still exists.
+            None => {
+                let current = current.saturating_add(self.held);
+                if needed > current {
+                    crate::memory::check((needed - current) as f64, what)
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+}
+
+/// The integrands of κ̄ (eq. (6)) with the smoothed delta of eq. (7), made
+/// dimensionless so that their fixed-point sums neither overflow nor lose precision at any
+/// voxel size: `NUM` selects κ δ(φ)|∇φ| · h² (numerator) or δ(φ)|∇φ| · h (denominator,
+/// which summed times h² is the interface area); κ̄ = Σ num / (h Σ den).
+#[derive(Clone, Copy)]
+pub(crate) struct KappaBarTerm<const NUM: bool> {
+    pub inv_h: f32,
+    pub width: f32,
+}
+
+impl<const NUM: bool> VoxelKernel for KappaBarTerm<NUM> {
+    const AXIS_REACH: i32 = 1;
+    const BOX_REACH: i32 = 1;
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, _first: usize) -> L {
+        let (num, den) = kappa_terms(w, self.inv_h, self.width);
+        if NUM {
+            num
+        } else {
+            den
+        }
+    }
+}
+
+/// Both integrands of [`KappaBarTerm`] from one evaluation of the stencil.
+#[inline(always)]
+pub(crate) fn kappa_terms<L: Lane, W: Window<L>>(w: &W, inv_h: f32, width: f32) -> (L, L) {
+    let inv_h = L::splat(inv_h);
+    let (num, den) = kappa_bar_integrands(w, inv_h, L::splat(width));
+    let h = L::splat(1.0) / inv_h;
+    (num * (h * h), den * h)
+}
+
+/// Bytes a vector holds, used or not.
+pub(crate) fn vec_bytes<T>(v: &Vec<T>) -> usize {
+    let (used, slack) = crate::grid::vec_bytes(v);
+    used + slack
+}
+
+/// Bytes a vector has to allocate to hold `n` elements.
+pub(crate) fn growth_bytes<T>(v: &Vec<T>, n: usize) -> u64 {
+    (n.saturating_sub(v.capacity()) * std::mem::size_of::<T>()) as u64
+}
+
+/// Resizes a buffer to `n` elements without the amortised over-allocation of a growing
+/// `Vec` (so its capacity is what the memory budget admitted).
+pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
+    if n > v.capacity() {
+        v.reserve_exact(n - v.len());
+    }
+    v.resize(n, fill);
+}
+
+/// Which buffer holds φⁿ while a step is in progress (no copy is made: the first stage's
+/// double buffer, swapped out of the grid, is kept).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) enum Undo {
+    /// No step in progress, or its first stage failed before changing anything.
+    #[default]
+    Nothing,
+    /// Forward Euler: the output buffer `out` holds φⁿ.
+    Out,
+    /// TVD-RK3: the φⁿ buffer holds it.
+    PhiN,
+}

@@ -1,0 +1,399 @@
+//! The Sorted Tile List engine: every tile gathered with its halo into a padded block,
+//! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
+//! (tile paper Sec. 4.7), tile management after each step (Sec. 4.6).
+
+use super::{
+    growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
+};
+use crate::coord::Coord;
+use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
+use crate::evolve::exact::ExactSum;
+use crate::evolve::field::{ScalarFn, VectorFn};
+use crate::evolve::{EvolveError, Lanes, SpatialScheme};
+use crate::grid::GridSpec;
+use crate::tiles::{
+    compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
+};
+use levelset_kernels::{BandMasked, BoxMinAbs, DefaultLane, Lane, TileBlock, VoxelKernel};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Tiles per parallel task. Results do not depend on it: every tile is computed on its
+/// own and reductions are exact (see [`ExactSum`]).
+const TILE_CHUNK: usize = 64;
+
+/// Bytes per tile of the grid's own arrays (values, coordinate, border and activity; the
+/// row directory is small against them).
+const TILE_GRID_BYTES: u64 =
+    (std::mem::size_of::<Tile>() + std::mem::size_of::<Coord>() + 2 * 4) as u64;
+
+/// The tile engine: the grid holds the current values; `out` is the double buffer the
+/// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.
+///
+/// # Invariants
+/// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
+///   management; checked in debug builds where it is read);
+/// * while a step is in progress, `undo` names the buffer holding φⁿ (with its activity
+///   flags: `activity` for `out`, `phi_n_activity` for `phi_n`) in the list order of the
+///   state before the step, and `prev` holds that state's grid when tile management has
+///   replaced it.
+#[derive(Clone)]
+pub(crate) struct TilesRep {
+    pub grid: TileGrid,
+    pub lanes: Lanes,
+    table: NeighbourTable,
+    buf: Buffers,
+    undo: Undo,
+    /// Boxed: kept only while a step is in progress.
+    prev: Option<Box<TileGrid>>,
+}
+
+/// The buffers of a step, one entry per tile in list order.
+#[derive(Clone, Default)]
+struct Buffers {
+    /// φⁿ and its activity flags (TVD-RK3).
+    phi_n: Vec<Tile>,
+    phi_n_activity: Vec<u32>,
+    /// The double buffer and the activity flags the sweep computes with it.
+    out: Vec<Tile>,
+    activity: Vec<u32>,
+    /// The band mask (min |φⁿ| over each voxel's box), 64 per tile.
+    box_min: Vec<f32>,
+}
+
+impl Buffers {
+    /// Bytes they have to allocate to serve `tiles` tiles (φⁿ only with `keeps_phi_n`).
+    fn growth(&self, tiles: usize, keeps_phi_n: bool) -> u64 {
+        let mut b = growth_bytes(&self.out, tiles)
+            + growth_bytes(&self.box_min, 64 * tiles)
+            + growth_bytes(&self.activity, tiles);
+        if keeps_phi_n {
+            b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
+        }
+        b
+    }
+
+    /// Bytes held, used or not.
+    fn bytes(&self) -> usize {
+        vec_bytes(&self.phi_n)
+            + vec_bytes(&self.phi_n_activity)
+            + vec_bytes(&self.out)
+            + vec_bytes(&self.box_min)
+            + vec_bytes(&self.activity)
+    }
+}
+
+impl TilesRep {
+    /// The engine over `grid`; builds the neighbour table in the current rayon pool.
+    pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
+        let mut table = NeighbourTable::default();
+        table.rebuild(grid.tile_coords());
+        TilesRep { grid, lanes, table, buf: Buffers::default(), undo: Undo::Nothing, prev: None }
+    }
+
+    /// The neighbour table, checked against the list in debug builds.
+    fn table(&self) -> &NeighbourTable {
+        debug_assert_eq!(self.table.len(), self.grid.len(), "stale neighbour table");
+        &self.table
+    }
+}
+
+struct TileSweep<'a> {
+    grid: &'a TileGrid,
+    table: &'a NeighbourTable,
+    lanes: Lanes,
+    out: &'a mut [Tile],
+    box_min: &'a mut [f32],
+    /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
+    compute_mask: bool,
+    activity: &'a mut [u32],
+}
+
+impl Sweep for TileSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: super::dtgrid::PointWindow,
+    {
+        match self.lanes {
+            Lanes::Scalar => self.run_lanes::<f32, K, M, R>(make),
+            Lanes::Simd => self.run_lanes::<DefaultLane, K, M, R>(make),
+        }
+    }
+}
+
+impl TileSweep<'_> {
+    fn run_lanes<L: Lane, K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+    {
+        let TileSweep { grid, table, out, box_min, compute_mask, activity, .. } = self;
+        let gamma = grid.gamma();
+        out.par_chunks_mut(TILE_CHUNK)
+            .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
+            .zip(activity.par_chunks_mut(TILE_CHUNK))
+            .enumerate()
+            .try_for_each(|(c, ((out, mask), act))| {
+                let start = c * TILE_CHUNK;
+                let mut block = PaddedBlock::<R>::new();
+                for i in 0..out.len() {
+                    let pos = start + i;
+                    block.gather_row(grid, pos, table.row(pos));
+                    let tb = TileBlock::<R>::new(block.data())?;
+                    let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
+                        .try_into()
+                        .expect("64 mask values per tile");
+                    if compute_mask {
+                        tb.apply::<L, _>(&BoxMinAbs, m)?;
+                    }
+                    let k =
+                        BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
+                    tb.apply::<L, _>(&k, &mut out[i].0)?;
+                    act[i] = compute_activity(&out[i], gamma);
+                }
+                Ok::<(), EvolveError>(())
+            })
+    }
+}
+
+/// The κ̄ integrands of one tile (both in one pass over the block).
+#[inline(always)]
+fn kappa_tile<L: Lane>(
+    tb: &TileBlock<1>,
+    inv_h: f32,
+    width: f32,
+    num: &mut [f32; 64],
+    den: &mut [f32; 64],
+) {
+    tb.for_each::<L>(|first, w| {
+        let (a, b) = kappa_terms(w, inv_h, width);
+        a.store(&mut num[first..]);
+        b.store(&mut den[first..]);
+    });
+}
+
+fn tile_flat(t: &[Tile]) -> &[f32] {
+    bytemuck::cast_slice(t)
+}
+
+impl Representation for TilesRep {
+    fn spec(&self) -> GridSpec {
+        *self.grid.spec()
+    }
+
+    fn flat(&self) -> &[f32] {
+        tile_flat(self.grid.values())
+    }
+
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+        let spec = self.spec();
+        let coords = self.grid.tile_coords();
+        out.par_chunks_mut(64).zip(coords.par_iter()).for_each(|(o, &tc)| {
+            for (row, o) in o.chunks_mut(4).enumerate() {
+                let start = voxel_of(tc, 4 * row);
+                f.fill_run(&spec, start, t, o);
+            }
+        });
+    }
+
+    fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
+        let spec = self.spec();
+        let coords = self.grid.tile_coords();
+        let [u, v, w] = out;
+        u.par_chunks_mut(64)
+            .zip(v.par_chunks_mut(64))
+            .zip(w.par_chunks_mut(64))
+            .zip(coords.par_iter())
+            .for_each(|(((u, v), w), &tc)| f.fill_tile(&spec, voxel_of(tc, 0), t, [u, v, w]));
+    }
+
+    fn stage(
+        &mut self,
+        p: &StageParams,
+        scheme: SpatialScheme,
+        last: bool,
+    ) -> Result<(), EvolveError> {
+        let n = self.grid.len();
+        resize_exact(&mut self.buf.out, n, Tile::splat(0.0));
+        resize_exact(&mut self.buf.box_min, 64 * n, 0.0);
+        resize_exact(&mut self.buf.activity, n, 0);
+        let p = StageParams {
+            phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.buf.phi_n) },
+            ..*p
+        };
+        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
+        let sweep = TileSweep {
+            grid: &self.grid,
+            table: &self.table,
+            lanes: self.lanes,
+            out: &mut self.buf.out,
+            box_min: &mut self.buf.box_min,
+            compute_mask: p.stage == 1,
+            activity: &mut self.buf.activity,
+        };
+        dispatch(&p, scheme, sweep)?;
+        self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+        // `out` and `activity` now hold the previous values and their flags.
+        if p.stage == 1 {
+            self.undo = if last {
+                Undo::Out
+            } else {
+                // Keep φⁿ for stages 2 and 3 (and for undoing the step).
+                std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
+                std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
+                Undo::PhiN
+            };
+        }
+        Ok(())
+    }
+
+    fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError> {
+        let current = (self.bytes() + self.work_bytes()) as u64;
+        // The new list and its neighbour table are allocated next to the current list
+        // (which a step in progress keeps until it stands); the step buffers grow to the
+        // new list in the next step, which admits them before its first stage.
+        let table = &self.table;
+        let (_, prev) = self.grid.manage_tiles_checked(|tiles| {
+            let needed =
+                current + tiles as u64 * TILE_GRID_BYTES + table.growth_bytes(tiles) as u64;
+            budget.admit(needed, current, "the band's tiles")
+        })?;
+        if let Some(prev) = prev {
+            self.table.rebuild(self.grid.tile_coords());
+            // A step in progress keeps the list its φⁿ belongs to.
+            if self.undo != Undo::Nothing && self.prev.is_none() {
+                self.prev = Some(Box::new(prev));
+            }
+        }
+        Ok(())
+    }
+
+    fn step_start(&self) -> &[f32] {
+        match self.undo {
+            Undo::Nothing => &[],
+            Undo::Out => tile_flat(&self.buf.out),
+            Undo::PhiN => tile_flat(&self.buf.phi_n),
+        }
+    }
+
+    fn undo_step(&mut self) {
+        if let Some(prev) = self.prev.take() {
+            self.grid = *prev;
+            self.table.rebuild(self.grid.tile_coords());
+        }
+        let (values, activity) = match self.undo {
+            Undo::Nothing => return,
+            Undo::Out => (&mut self.buf.out, &mut self.buf.activity),
+            Undo::PhiN => (&mut self.buf.phi_n, &mut self.buf.phi_n_activity),
+        };
+        self.undo = Undo::Nothing;
+        // φⁿ has one tile per entry of the list it was computed on (restored above).
+        self.grid.swap_values(values, activity).expect("φⁿ matches the list before the step");
+    }
+
+    fn commit_step(&mut self) {
+        self.undo = Undo::Nothing;
+        self.prev = None;
+    }
+
+    fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
+        let inv_h = 1.0 / self.grid.spec().voxel_size;
+        let table = self.table();
+        let n = self.grid.len();
+        let lanes = self.lanes;
+        let grid = &self.grid;
+        let skip_inactive = width <= grid.gamma();
+        let sums = (0..n.div_ceil(TILE_CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let start = c * TILE_CHUNK;
+                let end = (start + TILE_CHUNK).min(n);
+                let mut block = PaddedBlock::<1>::new();
+                let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+                let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
+                for pos in start..end {
+                    // A tile without band voxels holds only ±γ, where δ vanishes when
+                    // its width does not exceed γ: its terms are exactly zero.
+                    if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
+                        continue;
+                    }
+                    block.gather_row(grid, pos, table.row(pos));
+                    let tb = TileBlock::<1>::new(block.data())?;
+                    match lanes {
+                        Lanes::Scalar => kappa_tile::<f32>(&tb, inv_h, width, &mut a, &mut b),
+                        Lanes::Simd => kappa_tile::<DefaultLane>(&tb, inv_h, width, &mut a, &mut b),
+                    }
+                    num.add_all(&a);
+                    den.add_all(&b);
+                }
+                Ok::<_, EvolveError>((num, den))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(sums.into_iter().fold((ExactSum::default(), ExactSum::default()), |(a, b), (c, d)| {
+            (a.merge(c), b.merge(d))
+        }))
+    }
+
+    fn unstored_inside(&self) -> u64 {
+        const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
+        let coords = self.grid.tile_coords();
+        let mut n = 0u64;
+        for p in 1..coords.len() {
+            let (a, b) = (coords[p - 1], coords[p]);
+            if a.z == b.z
+                && a.y == b.y
+                && b.x > a.x + 1
+                && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
+            {
+                n += 64 * (b.x - a.x - 1) as u64;
+            }
+        }
+        n
+    }
+
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        let g = self.grid.gamma();
+        self.grid.for_each_voxel_sorted(|c, v| {
+            if v.abs() < g {
+                f(c, v)
+            }
+        });
+    }
+
+    fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool {
+        let coords = self.grid.tile_coords();
+        self.grid
+            .values()
+            .iter()
+            .zip(coords)
+            .any(|(t, &tc)| t.0.iter().enumerate().any(|(l, &v)| f(voxel_of(tc, l), v)))
+    }
+
+    fn value(&self, c: Coord) -> f32 {
+        self.grid.value(c)
+    }
+
+    fn units(&self) -> usize {
+        self.grid.len()
+    }
+
+    fn bytes(&self) -> usize {
+        self.grid.memory().used()
+    }
+
+    fn work_bytes(&self) -> usize {
+        self.grid.memory().slack
+            + self.buf.bytes()
+            + self.table.bytes()
+            + self.prev.as_ref().map_or(0, |p| p.memory().total())
+    }
+
+    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+        let tiles = self.grid.len();
+        (self.bytes() + self.work_bytes()) as u64
+            + self.buf.growth(tiles, keeps_phi_n)
+            + self.table.growth_bytes(tiles) as u64
+    }
+}

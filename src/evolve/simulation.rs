@@ -1,0 +1,559 @@
+//! [`Simulation`]: one level set evolving under a [`Flow`] on one representation, one
+//! atomic step at a time.
+
+use super::exact::ExactSum;
+use super::inputs::Inputs;
+use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
+use super::{
+    in_pool, EvolveError, Flow, GridKind, Integrator, Measures, Settings, StepReport, TimeStep,
+    DENSE_MARGIN,
+};
+use crate::coord::Coord;
+use crate::dense::DenseField;
+use crate::dtgrid::DtGrid;
+use crate::grid::{GridError, GridSpec};
+use crate::shapes::Shape;
+use crate::tiles::TileGrid;
+use levelset_kernels::rk::{cfl_rate_advection, cfl_rate_eq3};
+
+/// A level set evolving under a [`Flow`] on one representation.
+///
+/// # Atomic steps
+/// [`Simulation::step`], [`Simulation::step_until`] and [`Simulation::run_until`] either
+/// take a whole step — every stage, the band maintenance (tile management, DT-Grid
+/// rebuild), the collapse test and a due reinitialisation — or fail and leave the
+/// simulation exactly as before the step: values, stored tiles or points, flags, time,
+/// step count and the collapsed flag. Nothing is copied for this: the double buffer the
+/// first stage swaps out of the grid still holds φⁿ, and the tile list or DT-Grid the
+/// band maintenance replaces is kept until the step stands.
+#[derive(Clone)]
+pub struct Simulation {
+    rep: Rep,
+    kind: GridKind,
+    flow: Flow,
+    settings: Settings,
+    time: f64,
+    steps: u64,
+    collapsed: bool,
+    /// Per-voxel F and u of the current stage (scratch: every step samples them anew).
+    inputs: Inputs,
+}
+
+/// The face-neighbour offsets.
+const FACES: [Coord; 6] = [
+    Coord::new(-1, 0, 0),
+    Coord::new(1, 0, 0),
+    Coord::new(0, -1, 0),
+    Coord::new(0, 1, 0),
+    Coord::new(0, 0, -1),
+    Coord::new(0, 0, 1),
+];
+
+impl Simulation {
+    /// A simulation of the band of an analytic shape on representation `kind` (the dense
+    /// reference gets the band's bounding box with a margin of [`DENSE_MARGIN`] voxels).
+    pub fn from_shape(
+        kind: GridKind,
+        shape: &Shape,
+        spec: GridSpec,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        let tiles = crate::build::tiles_from_shape(shape, spec)?;
+        Simulation::from_tile_grid(kind, tiles, flow, settings)
+    }
+
+    /// A simulation starting from a tile grid, converted to representation `kind` (the
+    /// dense reference gets the grid's bounding box with a margin of [`DENSE_MARGIN`]
+    /// voxels).
+    pub fn from_tile_grid(
+        kind: GridKind,
+        tiles: TileGrid,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        let spec = *tiles.spec();
+        let rep = match kind {
+            GridKind::Tiles(lanes) => {
+                Rep::Tiles(in_pool(&settings.pool, || TilesRep::new(tiles, lanes)))
+            }
+            GridKind::DtGrid => {
+                Rep::DtGrid(Box::new(DtRep::new(crate::build::dtgrid_from(&tiles))))
+            }
+            GridKind::Dense => {
+                let (lo, hi) = tiles.bounding_box().ok_or(EvolveError::EmptyLevelSet)?;
+                let (origin, dims) = crate::build::margin_box(lo, hi, DENSE_MARGIN);
+                let field = crate::build::to_dense(&tiles, origin, dims)?;
+                Rep::Dense(DenseRep::new(field, spec)?)
+            }
+        };
+        Simulation::start(rep, kind, flow, settings)
+    }
+
+    /// A simulation starting from a DT-Grid (kept as a DT-Grid).
+    pub fn from_dtgrid(
+        grid: DtGrid,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        Simulation::start(Rep::DtGrid(Box::new(DtRep::new(grid))), GridKind::DtGrid, flow, settings)
+    }
+
+    /// A simulation starting from a dense field (φ < 0 inside, world units, values
+    /// clamped to ±γ), on representation `kind`. Non-finite values are an error.
+    pub fn from_dense(
+        kind: GridKind,
+        field: &DenseField,
+        spec: GridSpec,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        if let Some(i) = field.data().iter().position(|v| !v.is_finite()) {
+            let c = field.coord_of(i).unwrap_or_default();
+            return Err(EvolveError::InvalidParameter(format!(
+                "the initial field is not finite at voxel {c} (value {})",
+                field.data()[i]
+            )));
+        }
+        match kind {
+            GridKind::Dense => {
+                let g = spec.gamma();
+                let mut f = field.clone();
+                f.data_mut().iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                Simulation::start(Rep::Dense(DenseRep::new(f, spec)?), kind, flow, settings)
+            }
+            _ => {
+                let tiles = crate::build::tiles_from_dense(field, spec)?;
+                Simulation::from_tile_grid(kind, tiles, flow, settings)
+            }
+        }
+    }
+
+    fn start(
+        rep: Rep,
+        kind: GridKind,
+        flow: Flow,
+        settings: Settings,
+    ) -> Result<Simulation, EvolveError> {
+        flow.validate()?;
+        settings.validate()?;
+        if settings.reinit.is_some() && kind == GridKind::Dense {
+            return Err(EvolveError::InvalidParameter(
+                "reinitialisation by fast marching runs on the sparse grids (tiles, DT-Grid), \
+                 not on the dense reference"
+                    .into(),
+            ));
+        }
+        let mut sim = Simulation {
+            rep,
+            kind,
+            flow,
+            settings,
+            time: 0.0,
+            steps: 0,
+            collapsed: false,
+            inputs: Inputs::default(),
+        };
+        let g = sim.spec().gamma();
+        if !sim.rep.get().flat().iter().any(|v| v.abs() < g) {
+            return Err(EvolveError::EmptyLevelSet);
+        }
+        // Bring the initial band to the band rule: every voxel within one voxel of the
+        // band stored (tile management, DT-Grid rebuild).
+        let budget = sim.budget();
+        let rep = sim.rep.get_mut();
+        in_pool(&sim.settings.pool, || rep.finish_step(&budget))?;
+        Ok(sim)
+    }
+
+    /// The grid's voxel size, origin and band half-width.
+    pub fn spec(&self) -> GridSpec {
+        self.rep.get().spec()
+    }
+
+    /// The representation this simulation runs on.
+    pub fn kind(&self) -> GridKind {
+        self.kind
+    }
+
+    pub fn flow(&self) -> &Flow {
+        &self.flow
+    }
+
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Simulated time.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Whether the interface has collapsed: no interface is left as seen from the band
+    /// (see [`Simulation::step`]).
+    pub fn collapsed(&self) -> bool {
+        self.collapsed
+    }
+
+    /// The memory budget of [`Settings::memory_limit`].
+    fn budget(&self) -> MemoryBudget {
+        MemoryBudget {
+            limit: self.settings.memory_limit,
+            keeps_phi_n: self.settings.integrator == Integrator::Rk3,
+            held: self.inputs.bytes() as u64,
+        }
+    }
+
+    /// Bytes of the representation and its buffers now.
+    fn rep_bytes(&self) -> u64 {
+        let rep = self.rep.get();
+        (rep.bytes() + rep.work_bytes()) as u64
+    }
+
+    /// Reinitialises the band to a signed distance by fast marching
+    /// ([`crate::fmm::reinitialize`], the same values on both grids), keeping the half-width, then brings the band to the band rule
+    /// again. The interface stays where it is (its voxels keep their distance estimates);
+    /// the rest of the band becomes an exact marched distance. Sparse grids only. On an
+    /// error (including a second band that [`Settings::memory_limit`] does not admit) the
+    /// simulation is unchanged.
+    pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
+        self.rep = self.reinitialized(order)?;
+        Ok(())
+    }
+
+    /// The current band reinitialised (see [`Simulation::reinitialize`]), as a new
+    /// representation: the current one is not touched.
+    fn reinitialized(&self, order: crate::fmm::Order) -> Result<Rep, EvolveError> {
+        let opts = crate::fmm::FmmOptions { order, ..Default::default() };
+        let pool = &self.settings.pool;
+        let budget = self.budget();
+        // The new band is built next to the current one: the marched band and the grid
+        // built from it, about twice the current grid's bytes.
+        let current = self.rep_bytes();
+        let needed = current + 2 * self.rep.get().bytes() as u64;
+        budget.admit(needed, current, "the reinitialised band")?;
+        let mut rep = match &self.rep {
+            Rep::Tiles(t) => {
+                let grid = in_pool(pool, || crate::fmm::reinitialize(&t.grid, &opts))?;
+                Rep::Tiles(in_pool(pool, || TilesRep::new(grid, t.lanes)))
+            }
+            Rep::DtGrid(d) => {
+                let grid = crate::build::dtgrid_from(&crate::fmm::reinitialize(&d.grid, &opts)?);
+                Rep::DtGrid(Box::new(DtRep::new(grid)))
+            }
+            Rep::Dense(_) => {
+                return Err(EvolveError::InvalidParameter(
+                    "reinitialisation by fast marching runs on the sparse grids".into(),
+                ))
+            }
+        };
+        let r = rep.get_mut();
+        in_pool(pool, || r.finish_step(&budget))?;
+        Ok(rep)
+    }
+
+    /// The tile grid, when running on tiles.
+    pub fn tiles(&self) -> Option<&TileGrid> {
+        match &self.rep {
+            Rep::Tiles(t) => Some(&t.grid),
+            _ => None,
+        }
+    }
+
+    /// The DT-Grid, when running on a DT-Grid.
+    pub fn dtgrid(&self) -> Option<&DtGrid> {
+        match &self.rep {
+            Rep::DtGrid(t) => Some(&t.grid),
+            _ => None,
+        }
+    }
+
+    /// Value at any voxel.
+    pub fn value(&self, c: Coord) -> f32 {
+        self.rep.get().value(c)
+    }
+
+    /// The current values as a dense field over `origin .. origin + dims`.
+    pub fn to_dense(&self, origin: Coord, dims: [usize; 3]) -> Result<DenseField, GridError> {
+        DenseField::from_fn(origin, dims, |c| self.value(c))
+    }
+
+    /// Band voxels (|φ| < γ).
+    pub fn band_voxels(&self) -> usize {
+        let g = self.spec().gamma();
+        self.rep.get().flat().iter().filter(|v| v.abs() < g).count()
+    }
+
+    /// Voxels a stage computes: stored voxels (tile padding included).
+    pub fn stored_voxels(&self) -> usize {
+        self.rep.get().flat().len()
+    }
+
+    /// Inclusive bounding box of the band voxels (`None` when there are none).
+    pub fn band_bounding_box(&self) -> Option<(Coord, Coord)> {
+        let mut b: Option<(Coord, Coord)> = None;
+        self.for_each_band_voxel(|c, _| {
+            b = Some(match b {
+                None => (c, c),
+                Some((lo, hi)) => (
+                    Coord::new(lo.x.min(c.x), lo.y.min(c.y), lo.z.min(c.z)),
+                    Coord::new(hi.x.max(c.x), hi.y.max(c.y), hi.z.max(c.z)),
+                ),
+            })
+        });
+        b
+    }
+
+    /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
+    pub fn for_each_band_voxel(&self, mut f: impl FnMut(Coord, f32)) {
+        self.rep.get().for_each_band_voxel(&mut f)
+    }
+
+    /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
+    /// band contents give equal checksums, whatever the representation.
+    pub fn checksum(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bytes: [u8; 4]| {
+            for b in bytes {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        self.for_each_band_voxel(|c, v| {
+            eat(c.x.to_le_bytes());
+            eat(c.y.to_le_bytes());
+            eat(c.z.to_le_bytes());
+            eat(v.to_bits().to_le_bytes());
+        });
+        h
+    }
+
+    /// Band voxels, storage, volume and area of the current state. Fails when the area's
+    /// sums cannot be computed (a kernel refused its block).
+    pub fn measure(&self) -> Result<Measures, EvolveError> {
+        let rep = self.rep.get();
+        let spec = self.spec();
+        let h = spec.voxel_size;
+        let g = spec.gamma();
+        let width = self.settings.delta_width * h;
+        let mut flat_inside = ExactSum::default();
+        let mut band = 0usize;
+        for &v in rep.flat() {
+            flat_inside.add((0.5 - v / h).clamp(0.0, 1.0));
+            band += (v.abs() < g) as usize;
+        }
+        let unstored = rep.unstored_inside();
+        let (_, den) = in_pool(&self.settings.pool, || rep.kappa_bar_sums(width))?;
+        let h3 = (h as f64).powi(3);
+        Ok(Measures {
+            band_voxels: band,
+            stored: rep.units(),
+            volume: h3 * (flat_inside.value() + unstored as f64),
+            // The sums hold δ|∇φ|·h (see `KappaBarTerm`): area = h³ Σ δ|∇φ| = h² Σ den.
+            area: h3 / h as f64 * den.value(),
+            bytes: rep.bytes(),
+            work_bytes: rep.work_bytes() + self.inputs.bytes(),
+        })
+    }
+
+    /// The largest stable Δt for the current state (CFL number 1), given the largest |F|
+    /// and |u|₁ over the band voxels: the rates of eq. (3) and of advection add up
+    /// (see [`levelset_kernels::rk`]).
+    fn stability_limit(&self, max_f: f32, max_u: f32) -> f32 {
+        let h = self.spec().voxel_size;
+        let rate = cfl_rate_eq3(max_f, self.flow.curvature, self.flow.rescale, h)
+            + cfl_rate_advection(max_u, h);
+        if rate > 0.0 {
+            1.0 / rate
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    /// One time step; see [`Simulation::step_until`].
+    pub fn step(&mut self) -> Result<StepReport, EvolveError> {
+        self.step_until(f64::INFINITY)
+    }
+
+    /// Steps until `time` is reached (the last step lands on it exactly), the interface
+    /// collapses, or `max_steps` steps were taken; calls `each` after every step. On an
+    /// error the failed step is undone: the simulation holds the state after the last
+    /// step that succeeded.
+    pub fn run_until(
+        &mut self,
+        time: f64,
+        max_steps: u64,
+        mut each: impl FnMut(&Simulation, &StepReport),
+    ) -> Result<(), EvolveError> {
+        let mut n = 0;
+        while self.time < time && n < max_steps && !self.collapsed {
+            let r = self.step_until(time)?;
+            each(self, &r);
+            n += 1;
+        }
+        Ok(())
+    }
+
+    /// One step that does not pass time `until`: when the step the CFL condition allows
+    /// would reach or pass it, Δt is shortened and the simulation lands on `until`
+    /// exactly.
+    ///
+    /// A step is atomic (see [the type docs](Simulation)): it fails without changing
+    /// anything when the interface has collapsed, the flow gives a non-finite speed in
+    /// any stage, a fixed Δt violates the CFL limit, the band would leave the coordinate
+    /// range ([`GridError::OutOfRange`]) or outgrow the memory budget
+    /// ([`Settings::memory_limit`], [`GridError::OutOfMemory`]), the dense reference's
+    /// box is too small, or the periodic reinitialisation after it fails
+    /// ([`EvolveError::ReinitFailed`]).
+    ///
+    /// # Collapse
+    /// After the step the simulation has collapsed when no interface is left as seen from
+    /// the band: no inside band voxel (−γ < φ < 0) has an inside face neighbour (φ < 0),
+    /// and either nothing is inside any more or what is left did not grow in the step (the
+    /// band's inside measure Σ clamp(½ − φ/h, 0, 1) over |φ| < γ, an exact sum, did not
+    /// increase). What such a state holds inside are sub-voxel blobs: each crosses the
+    /// interface within one voxel along every axis, so no central difference sees its
+    /// curvature (at a blob centred on a voxel the central gradient vanishes and the
+    /// curvature term of eq. (3) is exactly 0, while the smoothed sign of the rescaling
+    /// term only lets φ decay towards 0⁻); under mean curvature flow a sphere of radius h
+    /// vanishes in h²/(2ε) anyway. The test uses only band values and their face
+    /// neighbours, which every representation stores with the same bits, so all
+    /// representations collapse in the same step.
+    pub fn step_until(&mut self, until: f64) -> Result<StepReport, EvolveError> {
+        if self.collapsed {
+            return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
+        }
+        if until.is_nan() || until <= self.time {
+            return Err(EvolveError::InvalidParameter(format!(
+                "cannot step to t = {until} from t = {}",
+                self.time
+            )));
+        }
+        // The buffers' memory, stage 1's inputs and Δt: nothing changes yet (but scratch).
+        let rep = self.rep.get();
+        let budget = self.budget();
+        let needed = rep.step_bytes(budget.keeps_phi_n)
+            + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
+        budget.admit(needed, self.rep_bytes(), "the step's buffers")?;
+        let kappa_bar =
+            self.inputs.prepare(rep, &self.flow, &self.settings, self.time, true, self.steps)?;
+        let (dt, lands) = self.time_step(until)?;
+        // The step proper: on an error everything is put back.
+        match self.advance(dt) {
+            Ok(collapsed) => {
+                self.rep.get_mut().commit_step();
+                self.time = if lands { until } else { self.time + dt as f64 };
+                self.steps += 1;
+                self.collapsed = collapsed;
+                Ok(StepReport { step: self.steps, time: self.time, dt, kappa_bar, collapsed })
+            }
+            Err(e) => {
+                self.rep.get_mut().undo_step();
+                Err(e)
+            }
+        }
+    }
+
+    /// Δt of the step starting now (stage 1's inputs prepared) and whether it is
+    /// shortened to land on `until`.
+    fn time_step(&self, until: f64) -> Result<(f32, bool), EvolveError> {
+        let g = self.spec().gamma();
+        let advects = self.flow.velocity.is_some();
+        let (max_f, max_u) = self.inputs.band_maxima(self.rep.get().flat(), g, advects);
+        let limit = self.stability_limit(max_f, max_u);
+        let mut dt = match self.settings.time_step {
+            TimeStep::Cfl(cfl) => cfl * limit,
+            TimeStep::Fixed(d) if d > limit => {
+                return Err(EvolveError::CflViolated { dt: d, limit, step: self.steps })
+            }
+            TimeStep::Fixed(d) => d,
+        };
+        let mut lands = false;
+        let rest = (until - self.time) as f32;
+        if dt >= rest {
+            dt = rest;
+            lands = true;
+        }
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(EvolveError::InvalidParameter(format!(
+                "no finite time step (Δt = {dt}): the flow moves nothing"
+            )));
+        }
+        Ok((dt, lands))
+    }
+
+    /// The part of a step that changes the representation: the stages, the band
+    /// maintenance, the collapse test and a due reinitialisation (which replaces the
+    /// representation). Returns whether the interface collapsed. On an error the caller
+    /// undoes the step.
+    fn advance(&mut self, dt: f32) -> Result<bool, EvolveError> {
+        self.run_stages(dt)?;
+        let budget = self.budget();
+        let rep = self.rep.get_mut();
+        in_pool(&self.settings.pool, || rep.finish_step(&budget))?;
+        let collapsed = self.detect_collapse();
+        let step = self.steps + 1;
+        if let Some(r) = self.settings.reinit {
+            if !collapsed && step.is_multiple_of(r.every) {
+                let rep = self
+                    .reinitialized(r.order)
+                    .map_err(|e| EvolveError::ReinitFailed { step, reason: e.to_string() })?;
+                self.rep = rep;
+            }
+        }
+        Ok(collapsed)
+    }
+
+    /// The Runge–Kutta stages of a step of `dt` (stage 1's inputs already prepared).
+    fn run_stages(&mut self, dt: f32) -> Result<(), EvolveError> {
+        let stages: &[(u8, f64)] = match self.settings.integrator {
+            Integrator::Euler => &[(1, 0.0)],
+            Integrator::Rk3 => &[(1, 0.0), (2, 1.0), (3, 0.5)],
+        };
+        let spec = self.spec();
+        for (si, &(stage, c)) in stages.iter().enumerate() {
+            if stage > 1 {
+                let t = self.time + c * dt as f64;
+                let rep = self.rep.get();
+                self.inputs.prepare(rep, &self.flow, &self.settings, t, false, self.steps)?;
+            }
+            let p = self.inputs.params(stage, dt, &spec, &self.flow);
+            let last = si + 1 == stages.len();
+            let scheme = self.settings.scheme;
+            let rep = self.rep.get_mut();
+            in_pool(&self.settings.pool, || rep.stage(&p, scheme, last))?;
+        }
+        Ok(())
+    }
+
+    /// Whether no interface is left after the step in progress (see
+    /// [`Simulation::step_until`], "Collapse").
+    fn detect_collapse(&self) -> bool {
+        let rep = self.rep.get();
+        let spec = rep.spec();
+        let (g, h) = (spec.gamma(), spec.voxel_size);
+        let inside = |c: Coord| rep.value(c) < 0.0;
+        let resolved = rep.any_voxel(&mut |c, v| {
+            v < 0.0 && v > -g && FACES.iter().any(|&d| c.checked_add(d).is_some_and(inside))
+        });
+        if resolved {
+            return false;
+        }
+        if rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0) {
+            return true;
+        }
+        let inside_measure = |values: &[f32]| {
+            let mut s = ExactSum::default();
+            for &v in values.iter().filter(|v| v.abs() < g) {
+                s.add((0.5 - v / h).clamp(0.0, 1.0));
+            }
+            s
+        };
+        inside_measure(rep.flat()).value() <= inside_measure(rep.step_start()).value()
+    }
+}
