@@ -14,13 +14,14 @@
 //! | ray-traced image | [`crate::render::render`] |
 //! | triangle mesh | [`crate::mesh::isosurface`] |
 //! | reinitialisation by fast marching | [`crate::fmm::reinitialize`] |
-//! | arrival times | [`crate::fmm::arrival_times`] |
 //! | dense field, `.npy` | [`crate::build::to_dense`], [`crate::build::export_npy`] |
 //! | band voxels, volume, area | [`crate::measure::measure`] |
 //! | conversion | [`crate::build::tiles_from`], [`crate::build::dtgrid_from`] |
 //!
 //! Progress and cancellation are a field of the options ([`crate::progress::Progress`]),
-//! not a second family of functions.
+//! not a second family of functions. Inputs that are not a level set have their own
+//! functions: dense arrays ([`crate::fmm::distance_dense`], [`crate::mesh::isosurface_dense`])
+//! and seed voxels ([`crate::fmm::arrival_times`]).
 //!
 //! ```
 //! use sparse_levelset::{build, grid::GridSpec, levelset::LevelSet, shapes::Shape, Coord};

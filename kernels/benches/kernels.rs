@@ -4,7 +4,7 @@
 //! Cases, best to worst access pattern, each id carrying its voxel count so times convert
 //! to voxel updates per second (criterion prints elements/s = voxel updates/s):
 //!
-//! * `dense/<kernel>/<lanes>`: a 32³ block (the `levelset bench --kernels` fixture),
+//! * `dense/<kernel>/<lanes>`: a 32³ block (the `levelset-speedup --kernels` fixture),
 //!   lanes = consecutive x voxels, contiguous unaligned loads — the best case;
 //! * `tile/<kernel>/<lanes>`: one padded 4³ tile (what the Sorted Tile List sweeps);
 //!   `f32x8`/`f32x16` assemble their lanes from 2/4 tile rows per stencil point;

@@ -1,4 +1,4 @@
-//! Prints the pure-kernel throughput table and the JSON of `levelset bench --kernels`.
+//! Prints the pure-kernel throughput table and the JSON of `levelset-speedup --kernels`.
 //!
 //! ```sh
 //! cargo run --release -p levelset-kernels --example kernel_bench [-- nx ny nz seconds]

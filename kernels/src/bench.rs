@@ -67,7 +67,8 @@ pub struct KernelResult {
     pub voxel_updates_per_s: f64,
 }
 
-/// The `kernels` section of `levelset bench`. JSON:
+/// The kernel section of the speed-up report (`levelset-speedup`; alone with
+/// `levelset-speedup --kernels`, whose `--json FILE` writes this). JSON:
 /// `{"kernels": [KernelResult, ..], "target_features": ["avx2", ..]}`.
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]

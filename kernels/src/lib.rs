@@ -65,7 +65,9 @@
 //! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], their [`Sum`],
 //!   [`Euler`], [`Rk3`], the band mask [`BandMasked`] with [`BoxMinAbs`]) and the sweeps
 //!   that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
-//! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind `levelset bench --kernels`.
+//! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind
+//!   `levelset-speedup --kernels` (and the kernel section of the speed-up report,
+//!   `cargo run --release`).
 //!
 //! # Vector units and the `simd` feature
 //!

@@ -370,7 +370,7 @@ impl<L: Lane, const R: usize> Window<L> for DenseWindow<'_, L, R> {
         debug_assert!(p + L::LANES <= self.data.len());
         // SAFETY: by the invariants the `LANES` voxels from the centre are interior and
         // |offset| ≤ R per component, so they stay inside the padded block.
-        // Measured (`levelset bench --kernels`): a checked `L::load(&data[p..])` here costs
+        // Measured (`levelset-speedup --kernels`): a checked `L::load(&data[p..])` here costs
         // 25–35 % of the kernel throughput (f32x16 upwind 652 vs 866 Mvox/s).
         unsafe { L::load_ptr(self.data.as_ptr().add(p)) }
     }

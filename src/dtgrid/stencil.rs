@@ -405,7 +405,8 @@ impl<'a> StencilIter<'a> {
                     if h.iv < h.last {
                         h.iv += 1;
                         // An unchecked load here measured within noise of this one
-                        // (`levelset bench`, DT-Grid smooth7/star19), so it stays safe.
+                        // (`levelset-speedup --storage`, DT-Grid smooth7/star19), so it
+                        // stays safe.
                         *v = top.values[h.iv as usize];
                     } else if h.wait > 0 {
                         h.wait -= 1;

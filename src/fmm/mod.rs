@@ -11,9 +11,10 @@
 //!   order per direction where the voxel two steps away is not frozen or not smaller.
 //!   Only frozen values enter an update (Sec. 3). The quadratic is solved robustly (see
 //!   `solve_terms`): a direction is dropped when the discriminant is negative.
-//! * **Sparse storage**: the march reads its input through the grids' own access paths
-//!   (tile-local and random access on the tile grid, the stencil iterator and random
-//!   access on the DT-Grid) and writes into a hash of 4³ blocks that holds only the
+//! * **Sparse storage**: the march reads any [`LevelSet`] through the one read
+//!   interface — its band voxels in [`Coord`] order and the six neighbours of each
+//!   through one cached [`crate::levelset::Accessor`] — and a dense field by index
+//!   arithmetic, and writes into a hash of 4³ blocks that holds only the
 //!   voxels it touches (the band and one layer of trial voxels): nothing spans the
 //!   bounding box. Distances march in voxel units and are scaled by the voxel size at
 //!   the end.

@@ -74,7 +74,6 @@ pub struct TriangleMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-/// Errors of meshing and mesh output.
 /// Options of [`isosurface`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MeshOptions {
@@ -84,6 +83,7 @@ pub struct MeshOptions {
     pub progress: crate::progress::Progress,
 }
 
+/// Errors of meshing and mesh output.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     /// A parameter outside its documented domain.

@@ -31,7 +31,8 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
     let format = MeshFormat::from_path(&a.output, a.ascii).map_err(|e| e.to_string())?;
     let spec = a.source.spec()?;
     check_output(&a.output)?;
-    // Vertices are written as f32 positions.
+    // Positions far from the origin are written as f64 (see `sparse_levelset::mesh`), so
+    // no position limit applies.
     let expect = Expect { iso: a.iso, ..Expect::new(spec) };
     let bar = progress::spinner(a.quiet);
     let start = std::time::Instant::now();
