@@ -43,6 +43,11 @@ pub mod sample;
 pub mod shapes;
 pub mod tiles;
 
+/// The README's code is compiled and run as a test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+mod readme {}
+
 pub use coord::Coord;
 pub use grid::{GridError, GridSpec, MemoryReport};
 pub use levelset::{Accessor, LevelSet};

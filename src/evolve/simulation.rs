@@ -100,7 +100,8 @@ impl Simulation {
     }
 
     /// A simulation starting from a dense field (φ < 0 inside, world units, values
-    /// clamped to ±γ), on representation `kind`. Non-finite values are an error.
+    /// clamped to ±γ), on representation `kind`. ±∞ is a far-away distance (clamped like
+    /// any value beyond ±γ, the rule of [`crate::input`]); NaN is an error.
     pub fn from_dense(
         kind: GridKind,
         field: &DenseField,
@@ -108,12 +109,9 @@ impl Simulation {
         flow: Flow,
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
-        if let Some(i) = field.data().iter().position(|v| !v.is_finite()) {
-            let c = field.coord_of(i).unwrap_or_default();
-            return Err(EvolveError::InvalidParameter(format!(
-                "the initial field is not finite at voxel {c} (value {})",
-                field.data()[i]
-            )));
+        if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
+            let coord = field.coord_of(i).unwrap_or_default();
+            return Err(EvolveError::Grid(crate::GridError::NaN { coord }));
         }
         match kind {
             GridKind::Dense => {

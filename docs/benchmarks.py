@@ -1,0 +1,266 @@
+#!/usr/bin/env python3
+"""Writes docs/benchmarks.md from the JSON the project's commands print.
+
+    python3 docs/benchmarks.py collect   # runs the commands below, saves docs/data/*.json (~6 min)
+    python3 docs/benchmarks.py write     # docs/data/*.json -> docs/benchmarks.md
+
+Every table in docs/benchmarks.md comes from one of these files; each section names the
+command that wrote it. `collect` stamps docs/data/meta.json with the date, CPU and the
+vector width the build used. Python 3 standard library only.
+"""
+
+import datetime
+import json
+import pathlib
+import subprocess
+import sys
+
+DOCS = pathlib.Path(__file__).resolve().parent
+ROOT = DOCS.parent
+DATA = DOCS / "data"
+
+LEVELSET = ["cargo", "run", "--release", "--locked", "-q", "--bin", "levelset", "--"]
+SPEEDUP = ["cargo", "run", "--release", "--locked", "-q", "--"]
+
+# (file, command): what `collect` runs. The speed-up report runs twice: the machines are
+# shared, so both runs are quoted.
+RUNS = [
+    ("speedup-1.json", SPEEDUP + ["--json", "docs/data/speedup-1.json"]),
+    ("speedup-2.json", SPEEDUP + ["--json", "docs/data/speedup-2.json"]),
+    ("storage.json", SPEEDUP + ["--storage", "--json", "docs/data/storage.json"]),
+    ("info-sphere.json", LEVELSET + ["info", "--shape", "sphere", "--radius", "100", "--json"]),
+    ("run-spiral", LEVELSET + ["run", "spiral", "--quiet", "--out", "docs/data/run-spiral"]),
+    ("run-enright", LEVELSET + ["run", "enright", "--quiet", "--out", "docs/data/run-enright"]),
+    ("run-expand", LEVELSET + ["run", "expand", "--quiet", "--out", "docs/data/run-expand"]),
+    ("run-mcf", LEVELSET + ["run", "sphere", "--size", "64", "--radius", "20", "--time", "100",
+                            "--quiet", "--out", "docs/data/run-mcf"]),
+]
+
+
+def shown(cmd):
+    """The command as a user types it."""
+    if cmd[:6] == LEVELSET[:6]:
+        return "levelset " + " ".join(cmd[len(LEVELSET):])
+    return "cargo run --release -- " + " ".join(cmd[len(SPEEDUP):])
+
+
+def collect():
+    DATA.mkdir(exist_ok=True)
+    only = sys.argv[2:]
+    for name, cmd in RUNS:
+        if only and name not in only:
+            continue
+        print("running:", shown(cmd), file=sys.stderr)
+        out = subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True).stdout
+        if name == "info-sphere.json":
+            (DATA / name).write_text(out)
+    first = json.loads((DATA / "speedup-1.json").read_text())
+    meta = {
+        "date": datetime.date.today().isoformat(),
+        "cpu": first["cpu"],
+        "target_features": first["target_features"],
+        "threads": first["threads"],
+        "commands": {name: shown(cmd) for name, cmd in RUNS},
+    }
+    (DATA / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
+
+
+def load(name):
+    return json.loads((DATA / name).read_text())
+
+
+def vector_width(features):
+    if "avx512f" in features:
+        return "AVX-512 (f32x16 in one register)"
+    if "avx2" in features:
+        return "AVX2 (f32x16 as two registers)"
+    return "SSE (f32x16 as four registers)"
+
+
+def pair(a, b, fmt):
+    return f"{fmt(a)} / {fmt(b)}"
+
+
+def speedup_section(meta):
+    runs = [load("speedup-1.json"), load("speedup-2.json")]
+    out = [
+        "## The speed-up over the DT-Grid",
+        "",
+        f"`{meta['commands']['speedup-1.json']}`, run twice (first / second). The same flows,"
+        " kernels and band rule on every representation; stepping time only; every run of a"
+        " scenario ends with the same band (checksum below, max |φ_tiles − φ_dtgrid| = 0)."
+        " \"Engine / kernel-only\" is tiles SIMD on one thread against the kernels' in-cache"
+        " throughput of the same arithmetic (a dense 32³ block).",
+        "",
+        "| scenario | DT-Grid s | tiles scalar | tiles SIMD, 1 thread | tiles SIMD, 2 threads"
+        " | 2 threads / 1 | bytes tiles / DT-Grid | engine / kernel-only | checksum |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for i, sc in enumerate(runs[0]["scenarios"]):
+        both = [r["scenarios"][i] for r in runs]
+
+        def run(s, label):
+            grid, lanes, threads = label
+            for r in s["runs"]:
+                if r["grid"] == grid and (lanes is None or r["lanes"] == lanes) and (
+                    threads is None or r["threads"] == threads
+                ):
+                    return r
+            raise KeyError(label)
+
+        dt = [run(s, ("dtgrid", None, None)) for s in both]
+        scal = [run(s, ("tiles", "scalar", 1)) for s in both]
+        simd1 = [run(s, ("tiles", "simd", 1)) for s in both]
+        top = [max(s["runs"], key=lambda r: r["threads"]) for s in both]
+        x = lambda v: f"{v:.2f}×"
+        out.append(
+            f"| {sc['name']} {sc['size']}³, {sc['kernel']}, {sc['steps']} steps"
+            f" | {pair(dt[0]['seconds'], dt[1]['seconds'], lambda v: f'{v:.2f}')}"
+            f" | {pair(scal[0]['speedup_vs_dtgrid'], scal[1]['speedup_vs_dtgrid'], x)}"
+            f" | {pair(simd1[0]['speedup_vs_dtgrid'], simd1[1]['speedup_vs_dtgrid'], x)}"
+            f" | {pair(top[0]['speedup_vs_dtgrid'], top[1]['speedup_vs_dtgrid'], x)}"
+            f" | {pair(simd1[0]['seconds'] / top[0]['seconds'], simd1[1]['seconds'] / top[1]['seconds'], lambda v: f'{v:.2f}')}"
+            f" | {top[0]['bytes_vs_dtgrid']:.2f}"
+            f" | {pair(both[0]['engine_fraction_of_kernel'], both[1]['engine_fraction_of_kernel'], lambda v: f'{100 * v:.0f} %')}"
+            f" | `{dt[0]['checksum']}` |"
+        )
+    out += [
+        "",
+        "Operators on the sphere benchmark's initial band (the same runs; best of 3):",
+        "",
+        "| operator | grid | band voxels | seconds | band Mvoxel/s | result |",
+        "|---|---|---|---|---|---|",
+    ]
+    for i, t in enumerate(runs[0]["tools"]):
+        u = runs[1]["tools"][i]
+        out.append(
+            f"| {t['name']} | {t['grid']} | {t['band_voxels']:,}"
+            f" | {pair(t['seconds'], u['seconds'], lambda v: f'{v:.3f}')}"
+            f" | {pair(t['band_voxels_per_s'] / 1e6, u['band_voxels_per_s'] / 1e6, lambda v: f'{v:.2f}')}"
+            f" | {t['output']} |"
+        )
+    return out
+
+
+def storage_section(meta):
+    s = load("storage.json")
+    out = [
+        "## The storage benchmark and the kernels",
+        "",
+        f"`{meta['commands']['storage.json']}`: the same scalar arithmetic on both grids, runs"
+        " alternating between the grids, best of several.",
+        "",
+        "| shape | operation | DT-Grid s | tiles s | tiles / DT-Grid speed-up |",
+        "|---|---|---|---|---|",
+    ]
+    for shape in s["scenarios"]:
+        first = True
+        for op in shape["ops"]:
+            name = f"{shape['name']} ({shape['band_voxels']:,} band voxels)" if first else ""
+            first = False
+            out.append(
+                f"| {name} | {op['op']} | {op['dtgrid_seconds']:.4f} | {op['tiles_seconds']:.4f}"
+                f" | {op['speedup_vs_dtgrid']:.2f}× |"
+            )
+    kernels = {}
+    for r in s["kernels"]:
+        kernels.setdefault(r["kernel"], []).append(r)
+    if kernels:
+        lanes = [r["lanes"] for r in next(iter(kernels.values()))]
+        out += [
+            "",
+            "Kernels alone on a dense in-cache 32³ block, one thread, Mvoxel-updates/s (speed-up"
+            " over f32):",
+            "",
+            "| kernel | " + " | ".join(lanes) + " |",
+            "|---|" + "---|" * len(lanes),
+        ]
+        for name, rows in kernels.items():
+            base = rows[0]["voxel_updates_per_s"]
+            cells = [
+                f"{r['voxel_updates_per_s'] / 1e6:.1f} ({r['voxel_updates_per_s'] / base:.1f}×)"
+                for r in rows
+            ]
+            out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return out
+
+
+def info_section(meta):
+    d = load("info-sphere.json")
+    out = [
+        "## Memory",
+        "",
+        f"`{meta['commands']['info-sphere.json']}`:",
+        "",
+        "| grid | band voxels | stored voxels | tiles | values B | indices B | flags B | total B"
+        " | bytes / band voxel |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for g in d["grids"]:
+        b = g["bytes"]
+        total = b["values"] + b["indices"] + b["flags"] + b.get("slack", 0)
+        out.append(
+            f"| {g['grid']} | {g['band_voxels']:,} | {g['stored_voxels']:,} | {g['tiles'] or '–'}"
+            f" | {b['values']:,} | {b['indices']:,} | {b['flags']:,} | {total:,}"
+            f" | {g['bytes_per_band_voxel']:.2f} |"
+        )
+    out += ["", f"Tiles / DT-Grid bytes: {d['tiles_over_dtgrid_bytes']:.2f}."]
+    return out
+
+
+def evolution_section(meta):
+    out = [
+        "## Evolution",
+        "",
+        "Tile engine, SIMD lanes, both cores; the numbers are from each run's"
+        " `summary.json` (`--out DIR`).",
+        "",
+        "| command | steps | result |",
+        "|---|---|---|",
+    ]
+    for name in ["run-spiral", "run-enright", "run-expand", "run-mcf"]:
+        s = load(f"{name}/summary.json")
+        recs = s["records"]
+        v0, v1 = recs[0]["volume"], recs[-1]["volume"]
+        result = f"V/V0 = {v1 / v0:.6f}"
+        if s.get("volume_ratio_half_period") is not None:
+            result = (
+                f"V(T/2)/V(0) = {s['volume_ratio_half_period']:.6f},"
+                f" V(T)/V(0) = {s['volume_ratio_period']:.6f}"
+            )
+        if name == "run-mcf":
+            r = (3 * v1 / (4 * 3.141592653589793)) ** (1 / 3)
+            result += f", radius from the volume {r:.2f} (exact √(20² − 2·100) = 14.14)"
+        if name == "run-expand":
+            r = (3 * v1 / (4 * 3.141592653589793)) ** (1 / 3)
+            result += f", radius from the volume {r:.2f}, bytes {recs[0]['bytes']:,} → {recs[-1]['bytes']:,}"
+        out.append(f"| `{meta['commands'][name]}` | {s['steps_taken']} | {result} |")
+    return out
+
+
+def write():
+    meta = load("meta.json")
+    parts = [
+        "# Measured figures",
+        "",
+        "Written by `python3 docs/benchmarks.py write` from the JSON files in `docs/data/`,"
+        " which `python3 docs/benchmarks.py collect` made by running the commands named in"
+        f" each section on {meta['date']}: CPU {meta['cpu']}, {meta['threads']} cores,"
+        f" vector width {vector_width(meta['target_features'])}, release build with"
+        " `-C target-cpu=native`. The machine is shared: ratios within one run are what"
+        " to compare, and the speed-up report is quoted from two runs.",
+        "",
+    ]
+    for section in [speedup_section, info_section, storage_section, evolution_section]:
+        try:
+            parts += section(meta) + [""]
+        except (FileNotFoundError, KeyError) as e:
+            print(f"skipped {section.__name__}: missing {e}", file=sys.stderr)
+    accuracy = DATA / "accuracy.md"
+    if accuracy.exists():
+        parts += [accuracy.read_text().rstrip(), ""]
+    (DOCS / "benchmarks.md").write_text("\n".join(parts))
+
+
+if __name__ == "__main__":
+    {"collect": collect, "write": write}[sys.argv[1] if len(sys.argv) > 1 else "write"]()
