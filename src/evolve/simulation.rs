@@ -39,16 +39,6 @@ pub struct Simulation {
     inputs: Inputs,
 }
 
-/// The face-neighbour offsets.
-const FACES: [Coord; 6] = [
-    Coord::new(-1, 0, 0),
-    Coord::new(1, 0, 0),
-    Coord::new(0, -1, 0),
-    Coord::new(0, 1, 0),
-    Coord::new(0, 0, -1),
-    Coord::new(0, 0, 1),
-];
-
 impl Simulation {
     /// A simulation of the band of an analytic shape on representation `kind` (the dense
     /// reference gets the band's bounding box with a margin of [`DENSE_MARGIN`] voxels).
@@ -537,7 +527,9 @@ impl Simulation {
         let (g, h) = (spec.gamma(), spec.voxel_size);
         let inside = |c: Coord| rep.value(c) < 0.0;
         let resolved = rep.any_voxel(&mut |c, v| {
-            v < 0.0 && v > -g && FACES.iter().any(|&d| c.checked_add(d).is_some_and(inside))
+            v < 0.0
+                && v > -g
+                && crate::coord::FACE_OFFSETS.iter().any(|&d| c.checked_add(d).is_some_and(inside))
         });
         if resolved {
             return false;

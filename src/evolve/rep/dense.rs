@@ -158,12 +158,7 @@ impl Representation for DenseRep {
         // `out` takes the previous values (the double buffer; no copy is lost).
         self.field.data_mut().swap_with_slice(&mut self.out);
         if stage == 1 {
-            self.undo = if last {
-                Undo::Out
-            } else {
-                std::mem::swap(&mut self.phi_n, &mut self.out);
-                Undo::PhiN
-            };
+            self.undo = Undo::after_stage1(last, &mut self.phi_n, &mut self.out);
         }
         Ok(())
     }

@@ -181,12 +181,7 @@ impl Representation for DtRep {
         self.out = out;
         r?;
         if stage == 1 {
-            self.undo = if last {
-                Undo::Out
-            } else {
-                std::mem::swap(&mut self.phi_n, &mut self.out);
-                Undo::PhiN
-            };
+            self.undo = Undo::after_stage1(last, &mut self.phi_n, &mut self.out);
         }
         Ok(())
     }
@@ -272,12 +267,7 @@ impl Representation for DtRep {
     }
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.grid.gamma();
-        for (c, v) in self.grid.iter() {
-            if v.abs() < g {
-                f(c, v);
-            }
-        }
+        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f)
     }
 
     fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool {

@@ -217,3 +217,17 @@ pub(crate) enum Undo {
     /// TVD-RK3: the φⁿ buffer holds it.
     PhiN,
 }
+
+impl Undo {
+    /// Where φⁿ is kept after a stage-1 sweep that swapped its result in and left the
+    /// previous values in `out`: there for a one-stage step; moved into `phi_n` (which
+    /// the later stages read) for TVD-RK3.
+    pub(crate) fn after_stage1<T>(last: bool, phi_n: &mut Vec<T>, out: &mut Vec<T>) -> Undo {
+        if last {
+            Undo::Out
+        } else {
+            std::mem::swap(phi_n, out);
+            Undo::PhiN
+        }
+    }
+}

@@ -354,12 +354,7 @@ impl Representation for TilesRep {
     }
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.grid.gamma();
-        self.grid.for_each_voxel_sorted(|c, v| {
-            if v.abs() < g {
-                f(c, v)
-            }
-        });
+        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f)
     }
 
     fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool {
