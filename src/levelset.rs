@@ -127,16 +127,6 @@ pub trait Accessor {
     fn value(&mut self, voxel: Coord) -> f32;
 }
 
-/// An accessor without a cache: every lookup is a [`LevelSet::value`].
-pub struct Uncached<'a, G: ?Sized>(pub &'a G);
-
-impl<G: LevelSet + ?Sized> Accessor for Uncached<'_, G> {
-    #[inline]
-    fn value(&mut self, voxel: Coord) -> f32 {
-        self.0.value(voxel)
-    }
-}
-
 /// The tile accessor: a direct-mapped table over the low two bits of each tile
 /// coordinate, so the 2×2×2 tiles around any cell, or the 3×3×3 around a tile, take
 /// distinct slots. A slot holds the tile's list position, or the ±γ of an absent tile.
@@ -212,10 +202,10 @@ impl LevelSet for DtGrid {
     fn value(&self, voxel: Coord) -> f32 {
         DtGrid::value(self, voxel)
     }
-    /// The DT-Grid's random access (Sec. 3.4) needs no cache to be exact; its cost is a
-    /// binary search per level.
+    /// Random access (Sec. 3.4) with the p-columns of recent lookups cached, so that a
+    /// stencil's lookups search only their column ([`crate::dtgrid::DtAccessor`]).
     fn accessor(&self) -> impl Accessor + '_ {
-        Uncached(self)
+        crate::dtgrid::DtAccessor::new(self)
     }
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
         let g = self.gamma();
@@ -236,12 +226,13 @@ impl LevelSet for DtGrid {
     }
 }
 
-/// The accessor of a simulation's state: the tile accessor on tiles, random access on
-/// the other representations. (One lives on the stack per ray or row: its size does not
+/// The accessor of a simulation's state: the tile or DT-Grid accessor, random access on
+/// the dense reference. (One lives on the stack per ray or row: its size does not
 /// matter, an indirection per lookup would.)
 #[allow(clippy::large_enum_variant)]
 enum SimulationAccessor<'a> {
     Tiles(TileAccessor<'a>),
+    DtGrid(crate::dtgrid::DtAccessor<'a>),
     Other(&'a crate::evolve::Simulation),
 }
 
@@ -250,6 +241,7 @@ impl Accessor for SimulationAccessor<'_> {
     fn value(&mut self, voxel: Coord) -> f32 {
         match self {
             SimulationAccessor::Tiles(a) => a.value(voxel),
+            SimulationAccessor::DtGrid(a) => a.value(voxel),
             SimulationAccessor::Other(s) => s.value(voxel),
         }
     }
@@ -264,9 +256,10 @@ impl LevelSet for crate::evolve::Simulation {
         crate::evolve::Simulation::value(self, voxel)
     }
     fn accessor(&self) -> impl Accessor + '_ {
-        match self.tiles() {
-            Some(t) => SimulationAccessor::Tiles(TileAccessor::new(t)),
-            None => SimulationAccessor::Other(self),
+        match (self.tiles(), self.dtgrid()) {
+            (Some(t), _) => SimulationAccessor::Tiles(TileAccessor::new(t)),
+            (_, Some(d)) => SimulationAccessor::DtGrid(crate::dtgrid::DtAccessor::new(d)),
+            _ => SimulationAccessor::Other(self),
         }
     }
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
@@ -291,5 +284,12 @@ impl LevelSet for crate::evolve::Simulation {
     }
     fn as_tiles(&self) -> Option<&TileGrid> {
         self.tiles()
+    }
+}
+
+impl Accessor for crate::dtgrid::DtAccessor<'_> {
+    #[inline]
+    fn value(&mut self, voxel: Coord) -> f32 {
+        crate::dtgrid::DtAccessor::value(self, voxel)
     }
 }

@@ -156,6 +156,23 @@ impl DtGrid {
         }
     }
 
+    /// The p-column (z, y) as its level-2 point index, `None` when no point of it is
+    /// stored (then every voxel of it is outside).
+    #[inline]
+    pub(crate) fn column(&self, y: i32, z: i32) -> Option<u32> {
+        let (iv1, _) = self.find_z(z as i64)?;
+        self.find_y(iv1, y as i64).map(|(iv2, _)| iv2)
+    }
+
+    /// φ at x in the p-column `iv2` of [`DtGrid::column`]: the stored value or `±γ`.
+    #[inline]
+    pub(crate) fn value_in_column(&self, iv2: u32, x: i32) -> f32 {
+        match self.find_x(iv2, x as i64) {
+            Ok((iv, _)) => self.l3.value[iv as usize],
+            Err(inside) => self.spec.background(inside),
+        }
+    }
+
     /// The [`Locator`] of a stored point, `None` when `c` is not stored. Same cost as
     /// [`DtGrid::find`].
     pub fn locate(&self, c: Coord) -> Option<Locator> {
@@ -249,6 +266,40 @@ impl DtGrid {
                 let (iv3, ic3) = self.find_x(iv2, c.x as i64)?;
                 Ok(Locator { iv1, ic1, iv2, ic2, iv3, ic3, coord: Coord::new(c.x, c.y, t as i32) })
             }
+        }
+    }
+}
+
+/// Random access with a cache of p-columns (the levels 1 and 2 of a lookup): a
+/// direct-mapped table over the low two bits of y and z, so the columns of a 3×3 cross or
+/// a 2×2 cell never evict each other. A lookup in a cached column is the level-3 search
+/// alone, over the few components of one column. The same values as [`DtGrid::value`].
+pub struct DtAccessor<'a> {
+    grid: &'a DtGrid,
+    keys: [(i32, i32); 16],
+    columns: [Option<u32>; 16],
+    filled: u16,
+}
+
+impl<'a> DtAccessor<'a> {
+    /// An empty cache over `grid`.
+    pub fn new(grid: &'a DtGrid) -> Self {
+        DtAccessor { grid, keys: [(0, 0); 16], columns: [None; 16], filled: 0 }
+    }
+
+    /// φ at `c`.
+    #[inline]
+    pub fn value(&mut self, c: Coord) -> f32 {
+        let i = ((c.y & 3) | (c.z & 3) << 2) as usize;
+        if self.filled & (1 << i) == 0 || self.keys[i] != (c.y, c.z) {
+            self.keys[i] = (c.y, c.z);
+            self.filled |= 1 << i;
+            self.columns[i] = self.grid.column(c.y, c.z);
+        }
+        match self.columns[i] {
+            Some(iv2) => self.grid.value_in_column(iv2, c.x),
+            // An absent p-column is outside.
+            None => self.grid.spec.background(false),
         }
     }
 }

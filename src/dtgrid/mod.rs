@@ -79,7 +79,7 @@ mod stencil;
 #[cfg(test)]
 mod tests;
 
-pub use access::{Axis, Locator};
+pub use access::{Axis, DtAccessor, Locator};
 pub use iter::Iter;
 pub use stencil::{Stencil, StencilIter};
 
