@@ -402,9 +402,22 @@ fn bad_input_is_an_error() {
     let mut nan = f.clone();
     nan.set(Coord::new(1, 2, 3), f32::NAN).unwrap();
     assert!(matches!(fmm::distance_dense(&nan, 1.0, &o), Err(FmmError::NonFinite { .. })));
+    // ±∞ is a far-away distance, as everywhere else: far from the interface it changes
+    // nothing, bit for bit; next to it the crossing lies at the finite neighbour.
     let mut inf = f.clone();
-    inf.set(Coord::new(7, 7, 7), f32::INFINITY).unwrap();
-    assert!(matches!(fmm::distance_dense(&inf, 1.0, &o), Err(FmmError::NonFinite { .. })));
+    for c in [Coord::new(7, 7, 7), Coord::new(0, 3, 1)] {
+        inf.set(c, if c.x > 3 { f32::INFINITY } else { f32::NEG_INFINITY }).unwrap();
+    }
+    assert_eq!(
+        fmm::distance_dense(&inf, 1.0, &o).unwrap(),
+        fmm::distance_dense(&f, 1.0, &o).unwrap()
+    );
+    let mut edge = f.clone();
+    edge.set(Coord::new(4, 2, 2), f32::INFINITY).unwrap();
+    let d = fmm::distance_dense(&edge, 1.0, &o).unwrap();
+    assert_eq!(d.get(Coord::new(3, 2, 2)), Some(-0.0));
+    assert_eq!(d.get(Coord::new(4, 2, 2)), Some(1.0));
+    assert!(d.data().iter().all(|v| v.is_finite()));
     let flat = DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 2.0).unwrap();
     assert_eq!(fmm::distance_dense(&flat, 1.0, &o), Err(FmmError::NoInterface));
     assert!(fmm::distance_dense(&f, 0.0, &o).is_err());

@@ -90,8 +90,8 @@ pub struct FmmOptions {
 /// Errors of the fast-marching functions.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FmmError {
-    /// A NaN or infinite input value.
-    #[error("value at voxel {coord} is not finite ({value}); the input must be finite")]
+    /// A NaN input value (±∞ is a far-away distance), or a non-finite seed distance.
+    #[error("value at voxel {coord} is {value}: a level set needs a number there")]
     NonFinite { coord: Coord, value: f32 },
     /// The input has no voxel with a 6-neighbour of the other sign: nothing to measure
     /// distances from.
@@ -204,15 +204,18 @@ pub fn reinitialize<G: LevelSet + ?Sized>(
 /// the same sparse march as the grids (memory proportional to the band, plus the
 /// output array).
 ///
-/// Errors: NaN or ±∞ in the input, no zero crossing, a voxel size or half-width that is
-/// not finite and positive (half-width > 1).
+/// ±∞ is a far-away distance (the rule of [`crate::input`]): its sign counts, and a
+/// crossing next to it lies at its finite neighbour.
+///
+/// Errors: NaN in the input, no zero crossing, a voxel size or half-width that is not
+/// finite and positive (half-width > 1).
 pub fn distance_dense(
     field: &DenseField,
     voxel_size: f32,
     opts: &FmmOptions,
 ) -> Result<DenseField, FmmError> {
     let spec = GridSpec::new(voxel_size, [0.0; 3], opts.half_width.unwrap_or(3.0))?;
-    if let Some((i, v)) = field.data().iter().enumerate().find(|(_, v)| !v.is_finite()) {
+    if let Some((i, v)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
         let coord = field.coord_of(i).expect("index in range");
         return Err(FmmError::NonFinite { coord, value: *v });
     }

@@ -122,7 +122,10 @@ pub(crate) fn interface_distance(v: f32, star: &Star, clamp: f32) -> Option<f64>
     let mut theta = f64::INFINITY;
     for n in star.iter().flatten() {
         if (*n < 0.0) != vi {
-            theta = theta.min(v / (v - *n as f64));
+            // ±∞ is a far-away distance: the interpolant's crossing between it and a finite
+            // neighbour lies at the neighbour (θ = 1 from an infinite voxel, 0 towards one).
+            let t = if v.is_infinite() { 1.0 } else { v / (v - *n as f64) };
+            theta = theta.min(t);
         }
     }
     if theta == f64::INFINITY {
@@ -160,7 +163,7 @@ pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
         if err.is_some() {
             return;
         }
-        if !v.is_finite() {
+        if v.is_nan() {
             err = Some(FmmError::NonFinite { coord: c, value: v });
             return;
         }
