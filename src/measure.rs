@@ -90,7 +90,9 @@ pub fn measure<G: LevelSet + ?Sized>(
     }
     let h = spec.voxel_size;
     let (inv_h, width) = (1.0 / h, w * h);
-    let ticker = opts.progress.start(grid.band_voxels() as u64);
+    // The total costs a pass over the band: counted only for a listener.
+    let total = if opts.progress.is_active() { grid.band_voxels() as u64 } else { 0 };
+    let ticker = opts.progress.start(total);
     let mut acc = grid.accessor();
     let mut inside_terms = ExactSum::default();
     let mut area_terms = ExactSum::default();

@@ -43,6 +43,11 @@ impl Progress {
         Progress(None)
     }
 
+    /// Whether a callback listens (an operation may skip counting its work otherwise).
+    pub fn is_active(&self) -> bool {
+        self.0.is_some()
+    }
+
     /// Starts counting an operation of `total` units.
     pub fn start(&self, total: u64) -> Ticker<'_> {
         Ticker { progress: self, total, done: AtomicU64::new(0), cancelled: AtomicBool::new(false) }

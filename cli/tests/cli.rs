@@ -935,6 +935,11 @@ fn memory_is_checked_before_any_large_allocation() {
 
 #[test]
 fn output_paths_are_checked_before_the_work_starts() {
+    // A short sphere run writing into `out`.
+    let small_run = |out: &dyn AsRef<std::path::Path>| {
+        let out = out.as_ref().to_str().unwrap();
+        levelset(&["run", "sphere", "--size", "32", "--steps", "3", "--quiet", "--out", out])
+    };
     // --json into a missing directory: used to run the whole report and fail on writing.
     let missing = tmp("no-such-dir/x.json");
     let o = speedup(&["--kernels", "--quick", "--json", missing.to_str().unwrap()]);
@@ -946,17 +951,7 @@ fn output_paths_are_checked_before_the_work_starts() {
     // used to evolve, then fail.
     let dir = tmp("out-blocked");
     std::fs::create_dir_all(dir.join("summary.json")).unwrap();
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--size",
-        "32",
-        "--steps",
-        "3",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
+    let o = small_run(&dir);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("summary.json"), "{}", stderr(&o));
     assert!(stdout(&o).is_empty(), "no work was done: {}", stdout(&o));
@@ -964,17 +959,7 @@ fn output_paths_are_checked_before_the_work_starts() {
     // --out below a regular file: nothing is created.
     let file = tmp("a-regular-file");
     std::fs::write(&file, b"x").unwrap();
-    let o = levelset(&[
-        "run",
-        "sphere",
-        "--size",
-        "32",
-        "--steps",
-        "3",
-        "--quiet",
-        "--out",
-        file.join("sub").to_str().unwrap(),
-    ]);
+    let o = small_run(&file.join("sub"));
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("cannot write"), "{}", stderr(&o));
 

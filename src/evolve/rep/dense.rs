@@ -169,19 +169,14 @@ impl Representation for DenseRep {
     }
 
     fn step_start(&self) -> &[f32] {
-        match self.undo {
-            Undo::Nothing => &[],
-            Undo::Out => &self.out,
-            Undo::PhiN => &self.phi_n,
-        }
+        self.undo.held(&self.phi_n, &self.out)
     }
 
     fn undo_step(&mut self) {
-        let values = match self.undo {
-            Undo::Nothing => return,
-            Undo::Out => &self.out,
-            Undo::PhiN => &self.phi_n,
-        };
+        if self.undo == Undo::Nothing {
+            return;
+        }
+        let values = self.undo.held(&self.phi_n, &self.out);
         self.field.data_mut().copy_from_slice(values);
         self.undo = Undo::Nothing;
     }

@@ -213,11 +213,7 @@ impl Representation for DtRep {
     }
 
     fn step_start(&self) -> &[f32] {
-        match self.undo {
-            Undo::Nothing => &[],
-            Undo::Out => &self.out,
-            Undo::PhiN => &self.phi_n,
-        }
+        self.undo.held(&self.phi_n, &self.out)
     }
 
     fn undo_step(&mut self) {

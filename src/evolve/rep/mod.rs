@@ -219,6 +219,16 @@ pub(crate) enum Undo {
 }
 
 impl Undo {
+    /// φⁿ of the step in progress: the buffer this names (`out` or `phi_n`), empty when
+    /// no step is in progress.
+    pub(crate) fn held<'a, T>(self, phi_n: &'a [T], out: &'a [T]) -> &'a [T] {
+        match self {
+            Undo::Nothing => &[],
+            Undo::Out => out,
+            Undo::PhiN => phi_n,
+        }
+    }
+
     /// Where φⁿ is kept after a stage-1 sweep that swapped its result in and left the
     /// previous values in `out`: there for a one-stage step; moved into `phi_n` (which
     /// the later stages read) for TVD-RK3.

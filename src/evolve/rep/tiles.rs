@@ -271,11 +271,7 @@ impl Representation for TilesRep {
     }
 
     fn step_start(&self) -> &[f32] {
-        match self.undo {
-            Undo::Nothing => &[],
-            Undo::Out => tile_flat(&self.buf.out),
-            Undo::PhiN => tile_flat(&self.buf.phi_n),
-        }
+        tile_flat(self.undo.held(&self.buf.phi_n, &self.buf.out))
     }
 
     fn undo_step(&mut self) {
