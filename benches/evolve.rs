@@ -17,13 +17,13 @@ fn steps(c: &mut Criterion) {
             "sphere_r60_mcf_upwind_euler",
             Shape::Sphere { center: [0.0; 3], radius: 60.0 },
             Flow::mean_curvature(1.0),
-            Settings::default(),
+            Settings::paper_upwind1(),
         ),
         (
             "spiral_r50_vcmcf_weno5_rk3",
             Shape::spiral_default([0.0; 3], 50.0, 40.0),
             Flow::volume_conserving(1.0),
-            Settings::weno5_rk3(),
+            Settings::paper_weno5_rk3(),
         ),
     ];
     for (name, shape, flow, settings) in cases {

@@ -2,8 +2,8 @@
 //! SIMD lanes, 1 and 2 threads), DT-Grid and the dense reference compute the same numbers.
 
 use sparse_levelset::evolve::{
-    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Settings, Simulation,
-    SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
+    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Renormalization, Settings,
+    Simulation, SpatialScheme, Speed, StaticSdf, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;
@@ -68,26 +68,42 @@ fn all_agree(
     sims.swap_remove(0)
 }
 
-fn settings(scheme: SpatialScheme, integrator: Integrator) -> Settings {
-    Settings { scheme, integrator, ..Settings::default() }
+/// The routes every flow is checked on: the papers' first-order scheme with the coupled
+/// rescaling term; HJ-WENO5 + TVD-RK3 with two HJ-WENO5 renormalisation sweeps after
+/// every second step; first-order upwind + Euler with the default sweeps.
+fn configs() -> [Settings; 3] {
+    let weno_sweeps = Sweeps { every: 2, sweeps: 2, scheme: SpatialScheme::Weno5, cfl: 0.9 };
+    [
+        Settings::paper_upwind1(),
+        Settings { renormalization: Renormalization::Sweeps(weno_sweeps), ..Settings::default() },
+        Settings::upwind1_euler(),
+    ]
 }
-
-const SCHEMES: [(SpatialScheme, Integrator); 2] =
-    [(SpatialScheme::Upwind1, Integrator::Euler), (SpatialScheme::Weno5, Integrator::Rk3)];
 
 #[test]
 fn mean_curvature_flow_agrees_everywhere() {
     let shape = Shape::Torus { center: [1.3, -2.2, 0.4], major_radius: 14.0, minor_radius: 5.5 };
-    for (s, i) in SCHEMES {
-        all_agree(&shape, GridSpec::default(), Flow::mean_curvature(1.0), settings(s, i), 100);
+    for settings in configs() {
+        all_agree(&shape, GridSpec::default(), Flow::mean_curvature(1.0), settings.clone(), 100);
     }
 }
 
 #[test]
 fn volume_conserving_flow_agrees_everywhere() {
     let shape = Shape::Box { center: [-0.3, 0.7, 1.1], half_extents: [11.0, 7.0, 5.0] };
-    for (s, i) in SCHEMES {
-        all_agree(&shape, GridSpec::default(), Flow::volume_conserving(1.0), settings(s, i), 100);
+    for settings in configs() {
+        all_agree(&shape, GridSpec::default(), Flow::volume_conserving(1.0), settings.clone(), 100);
+    }
+}
+
+#[test]
+fn enright_agrees_everywhere() {
+    // Enright's field: sampled per tile on tiles, per run on the DT-Grid, scaled in time.
+    let enright = Velocity::Field(Arc::new(EnrightVelocity { period: 1.0 }));
+    let spec = GridSpec::new(1.0 / 40.0, [0.0; 3], 3.0).unwrap();
+    let shape = Shape::Sphere { center: [0.35; 3], radius: 0.15 };
+    for settings in configs() {
+        all_agree(&shape, spec, Flow::advection(enright.clone()), settings, 30);
     }
 }
 
@@ -98,21 +114,16 @@ fn normal_speed_and_advection_agree_everywhere() {
     let speed = Speed::from_fn(|p, t| (0.5 + 0.3 * (p[0] * 0.4).sin() + 0.1 * t.cos()) as f32);
     let vel =
         Velocity::from_fn(|p, t| [0.8, (0.3 * p[2]).cos() as f32 * 0.5, -0.4 + 0.1 * t as f32]);
-    for (s, i) in SCHEMES {
+    for settings in configs() {
         all_agree(
             &shape,
             spec,
             Flow::normal_speed(speed.clone()).with_curvature(0.2),
-            settings(s, i),
+            settings.clone(),
             100,
         );
-        all_agree(&shape, spec, Flow::advection(vel.clone()), settings(s, i), 100);
+        all_agree(&shape, spec, Flow::advection(vel.clone()), settings.clone(), 100);
     }
-    // Enright's field: sampled per tile on tiles, per run on the DT-Grid, scaled in time.
-    let enright = Velocity::Field(Arc::new(EnrightVelocity { period: 1.0 }));
-    let spec = GridSpec::new(1.0 / 40.0, [0.0; 3], 3.0).unwrap();
-    let shape = Shape::Sphere { center: [0.35; 3], radius: 0.15 };
-    all_agree(&shape, spec, Flow::advection(enright), Settings::weno5_rk3(), 60);
 }
 
 #[test]
@@ -122,16 +133,17 @@ fn morph_agrees_everywhere() {
     let spec = GridSpec::default();
     let t: Arc<dyn sparse_levelset::evolve::ScalarFn> =
         Arc::new(StaticSdf { sdf: move |p| target.sdf(p), clamp: spec.gamma() });
-    for (s, i) in SCHEMES {
-        all_agree(&shape, spec, Flow::morph(t.clone()), settings(s, i), 100);
+    for settings in configs() {
+        all_agree(&shape, spec, Flow::morph(t.clone()), settings.clone(), 100);
     }
 }
 
 /// Tile paper Sec. 5.1: a sphere under mean curvature flow shrinks as r² = r₀² − 2εt and
 /// vanishes at T = r₀²/(2ε); tiles and DT-Grid take the same number of steps.
 ///
-/// Checked with HJ-WENO5 + TVD-RK3 with the rescaling term, and with first-order upwind +
-/// Euler without it. (First-order upwind *with* the rescaling term, the paper's Sec. 4.7
+/// Checked with HJ-WENO5 + TVD-RK3 with the coupled rescaling term, with first-order
+/// upwind + Euler without any renormalisation, and with the default renormalisation
+/// sweeps outside the step (within 0.5 %). (First-order upwind *with* the rescaling term, the paper's Sec. 4.7
 /// discretisation, drifts inward: r = 13.36 instead of 14.14 at T/2 for r₀ = 20, because
 /// its one-sided gradient norm is off by O(h/r) on a curved surface and the rescaling
 /// term turns that into motion.)
@@ -141,9 +153,13 @@ fn sphere_collapse_under_mean_curvature() {
     let eps = 1.0f32;
     let shape = Shape::Sphere { center: [0.25, -0.5, 0.125], radius: r0 };
     let collapse_t = r0 * r0 / (2.0 * eps as f64);
-    for (flow, settings) in [
-        (Flow::mean_curvature(eps), Settings::weno5_rk3()),
-        (Flow::mean_curvature(eps).with_rescale(0.0), Settings::default()),
+    let no_renorm = Settings { renormalization: Renormalization::Off, ..Settings::paper_upwind1() };
+    let split = Settings::upwind1_euler();
+    for (flow, settings, tol) in [
+        (Flow::mean_curvature(eps), Settings::paper_weno5_rk3(), 0.01),
+        (Flow::mean_curvature(eps), no_renorm, 0.01),
+        // The default route: renormalisation sweeps outside the step (issue: 0.5 %).
+        (Flow::mean_curvature(eps), split, 0.005),
     ] {
         let mut steps = Vec::new();
         for kind in [GridKind::Tiles(Lanes::Simd), GridKind::DtGrid] {
@@ -159,7 +175,7 @@ fn sphere_collapse_under_mean_curvature() {
             assert!((sim.time() - collapse_t / 2.0).abs() < 1e-9);
             let r = radius_from_volume(sim.measure().unwrap().volume);
             let exact = (r0 * r0 - 2.0 * eps as f64 * sim.time()).sqrt();
-            assert!((r - exact).abs() <= 0.01 * exact, "{kind:?}: r = {r}, exact {exact}");
+            assert!((r - exact).abs() <= tol * exact, "{kind:?}: r = {r}, exact {exact}");
             sim.run_until(f64::INFINITY, 100_000, |_, _| {}).unwrap();
             assert!(sim.collapsed());
             let err = (sim.time() - collapse_t).abs() / collapse_t;
@@ -184,7 +200,7 @@ fn expanding_sphere_goes_out_of_the_box() {
             &shape,
             GridSpec::default(),
             Flow::normal_speed(Speed::Constant(speed)),
-            Settings::weno5_rk3(),
+            Settings::paper_weno5_rk3(),
         )
         .unwrap();
         let m0 = sim.measure().unwrap();
@@ -214,7 +230,7 @@ fn threads_do_not_change_results() {
             &shape,
             GridSpec::default(),
             Flow::volume_conserving(1.0),
-            Settings { pool: Some(pool), ..Settings::weno5_rk3() },
+            Settings { pool: Some(pool), ..Settings::paper_weno5_rk3() },
         )
         .unwrap();
         for _ in 0..30 {
@@ -239,7 +255,7 @@ fn enright_finer_grid_loses_less_volume() {
             &shape,
             spec,
             Flow::advection(Velocity::Field(Arc::new(EnrightVelocity { period }))),
-            Settings::weno5_rk3(),
+            Settings::paper_weno5_rk3(),
         )
         .unwrap();
         let v0 = sim.measure().unwrap().volume;
@@ -265,7 +281,7 @@ fn static_speed_fields_match_constants_in_every_stage() {
                 &shape,
                 GridSpec::default(),
                 flow,
-                Settings::weno5_rk3(),
+                Settings::paper_weno5_rk3(),
             )
             .unwrap();
             for _ in 0..20 {
@@ -285,21 +301,21 @@ fn bad_input_is_an_error_not_a_panic() {
         Simulation::from_shape(GridKind::Tiles(Lanes::Simd), &shape, spec, flow, settings)
     };
     assert!(matches!(
-        mk(Flow::mean_curvature(-1.0), Settings::default()),
+        mk(Flow::mean_curvature(-1.0), Settings::paper_upwind1()),
         Err(EvolveError::InvalidParameter(_))
     ));
     assert!(matches!(
-        mk(Flow::mean_curvature(f32::NAN), Settings::default()),
+        mk(Flow::mean_curvature(f32::NAN), Settings::paper_upwind1()),
         Err(EvolveError::InvalidParameter(_))
     ));
     assert!(matches!(
-        mk(Flow::normal_speed(Speed::Constant(f32::INFINITY)), Settings::default()),
+        mk(Flow::normal_speed(Speed::Constant(f32::INFINITY)), Settings::paper_upwind1()),
         Err(EvolveError::InvalidParameter(_))
     ));
-    let cfl = Settings { time_step: TimeStep::Cfl(1.5), ..Settings::default() };
+    let cfl = Settings { time_step: TimeStep::Cfl(1.5), ..Settings::paper_upwind1() };
     assert!(matches!(mk(Flow::mean_curvature(1.0), cfl), Err(EvolveError::InvalidParameter(_))));
     // A fixed step beyond the stability limit is rejected before anything changes.
-    let fixed = Settings { time_step: TimeStep::Fixed(10.0), ..Settings::default() };
+    let fixed = Settings { time_step: TimeStep::Fixed(10.0), ..Settings::paper_upwind1() };
     let mut sim = mk(Flow::mean_curvature(1.0), fixed).unwrap();
     let before = sim.checksum();
     assert!(matches!(sim.step(), Err(EvolveError::CflViolated { .. })));
@@ -307,13 +323,13 @@ fn bad_input_is_an_error_not_a_panic() {
     // A speed field that turns NaN.
     let mut sim = mk(
         Flow::normal_speed(Speed::from_fn(|p, _| if p[0] > 3.0 { f32::NAN } else { 1.0 })),
-        Settings::default(),
+        Settings::paper_upwind1(),
     )
     .unwrap();
     assert!(matches!(sim.step(), Err(EvolveError::NonFiniteField { .. })));
     // ... or turns infinite away from the interface, or NaN only in a later RK stage.
     let far_inf = Speed::from_fn(|p, _| if p[0] > 6.5 { f32::INFINITY } else { 1.0 });
-    let mut sim = mk(Flow::normal_speed(far_inf), Settings::default()).unwrap();
+    let mut sim = mk(Flow::normal_speed(far_inf), Settings::paper_upwind1()).unwrap();
     assert!(matches!(sim.step(), Err(EvolveError::NonFiniteField { .. })));
     // A failing stage 2 undoes the step: the band is as it was.
     let later_nan = Speed::from_fn(|_, t| if t > 0.0 { f32::NAN } else { 1.0 });
@@ -323,7 +339,7 @@ fn bad_input_is_an_error_not_a_panic() {
             &shape,
             spec,
             Flow::normal_speed(later_nan.clone()),
-            Settings::weno5_rk3(),
+            Settings::paper_weno5_rk3(),
         )
         .unwrap();
         let before = sim.checksum();
@@ -342,7 +358,7 @@ fn bad_input_is_an_error_not_a_panic() {
                 &field,
                 spec,
                 Flow::mean_curvature(1.0),
-                Settings::default()
+                Settings::paper_upwind1()
             ),
             Err(EvolveError::EmptyLevelSet)
         ));
@@ -355,7 +371,7 @@ fn bad_input_is_an_error_not_a_panic() {
             &bad,
             spec,
             Flow::mean_curvature(1.0),
-            Settings::default()
+            Settings::paper_upwind1()
         ),
         Err(EvolveError::Grid(sparse_levelset::GridError::NaN { coord })) if coord == Coord::new(5, 0, 0)
     ));
@@ -371,7 +387,8 @@ fn reinitialisation_in_the_loop_agrees_on_sparse_grids() {
     let shape = Shape::Torus { center: [0.3, -0.6, 0.2], major_radius: 12.0, minor_radius: 5.0 };
     let spec = GridSpec::default();
     for order in [Order::First, Order::Second] {
-        let s = Settings { reinit: Some(Reinit { order, every: 7 }), ..Settings::weno5_rk3() };
+        let s =
+            Settings { reinit: Some(Reinit { order, every: 7 }), ..Settings::paper_weno5_rk3() };
         let mut sims: Vec<Simulation> = KINDS[..3]
             .iter()
             .map(|&k| {
@@ -400,12 +417,16 @@ fn reinitialisation_in_the_loop_agrees_on_sparse_grids() {
         let after = sim.measure().unwrap().volume;
         assert!((after - before).abs() <= 0.005 * before, "{order:?}: {before} -> {after}");
     }
-    let s =
-        Settings { reinit: Some(Reinit { order: Order::First, every: 1 }), ..Settings::default() };
+    let s = Settings {
+        reinit: Some(Reinit { order: Order::First, every: 1 }),
+        ..Settings::paper_upwind1()
+    };
     let dense = Simulation::from_shape(GridKind::Dense, &shape, spec, Flow::mean_curvature(1.0), s);
     assert!(matches!(dense, Err(EvolveError::InvalidParameter(_))));
-    let zero =
-        Settings { reinit: Some(Reinit { order: Order::First, every: 0 }), ..Settings::default() };
+    let zero = Settings {
+        reinit: Some(Reinit { order: Order::First, every: 0 }),
+        ..Settings::paper_upwind1()
+    };
     let r = Simulation::from_shape(KINDS[1], &shape, spec, Flow::mean_curvature(1.0), zero);
     assert!(matches!(r, Err(EvolveError::InvalidParameter(_))));
 }

@@ -118,7 +118,7 @@ fn a_later_rk_stage_failing_undoes_the_step() {
     let dt = 0.05f32;
     let d = dt as f64;
     let shape = Shape::Sphere { center: [0.3, -0.2, 0.1], radius: 6.0 };
-    let settings = Settings { time_step: TimeStep::Fixed(dt), ..Settings::weno5_rk3() };
+    let settings = Settings { time_step: TimeStep::Fixed(dt), ..Settings::paper_weno5_rk3() };
     // Step 4 starts at t = 3Δt: stage 2 at 4Δt fails; stage 3 at 3.5Δt fails.
     for (stage, bad) in [(2, 3.9 * d..4.1 * d), (3, 3.4 * d..3.6 * d)] {
         for kind in kinds_all() {
@@ -143,9 +143,14 @@ fn growth_past_the_coordinate_range_undoes_the_step() {
     let mut failed_at = Vec::new();
     for kind in SPARSE {
         let flow = Flow::normal_speed(Speed::Constant(1.0));
-        let mut sim =
-            Simulation::from_shape(kind, &shape, GridSpec::default(), flow, Settings::default())
-                .unwrap();
+        let mut sim = Simulation::from_shape(
+            kind,
+            &shape,
+            GridSpec::default(),
+            flow,
+            Settings::paper_upwind1(),
+        )
+        .unwrap();
         let e = run_to_failure(&mut sim, 3, 200);
         assert!(matches!(e, EvolveError::Grid(GridError::OutOfRange { .. })), "{kind:?}: {e}");
         failed_at.push((sim.steps(), sim.checksum()));
@@ -164,7 +169,7 @@ fn a_dense_box_too_small_undoes_the_step() {
         ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - r) as f32
     })
     .unwrap();
-    for settings in [Settings::default(), Settings::weno5_rk3()] {
+    for settings in [Settings::paper_upwind1(), Settings::paper_weno5_rk3()] {
         let flow = Flow::normal_speed(Speed::Constant(1.0));
         let mut sim =
             Simulation::from_dense(GridKind::Dense, &field, spec, flow, settings).unwrap();
@@ -189,7 +194,7 @@ fn a_failed_reinitialisation_undoes_its_step() {
     let spec = GridSpec::default();
     // A growing sphere: the stored set changes in every step.
     let flow = Flow::normal_speed(Speed::Constant(1.0));
-    for settings in [Settings::default(), Settings::weno5_rk3()] {
+    for settings in [Settings::paper_upwind1(), Settings::paper_weno5_rk3()] {
         for kind in SPARSE {
             // The footprint of the steps without a limit...
             let mut probe =
@@ -236,7 +241,7 @@ fn a_failed_reinitialisation_undoes_its_step() {
 fn outgrowing_the_memory_limit_keeps_the_last_state() {
     let shape = Shape::Sphere { center: [0.3, 0.6, -0.2], radius: 6.0 };
     let spec = GridSpec::default();
-    for settings in [Settings::default(), Settings::weno5_rk3()] {
+    for settings in [Settings::paper_upwind1(), Settings::paper_weno5_rk3()] {
         for kind in SPARSE {
             let flow = Flow::normal_speed(Speed::Constant(1.0));
             let mut free =
@@ -262,7 +267,7 @@ fn outgrowing_the_memory_limit_keeps_the_last_state() {
         }
     }
     // The dense box never grows; its step buffers are admitted before the first step.
-    let dense = Settings { memory_limit: Some(1024), ..Settings::default() };
+    let dense = Settings { memory_limit: Some(1024), ..Settings::paper_upwind1() };
     let flow = Flow::normal_speed(Speed::Constant(1.0));
     let mut sim = Simulation::from_shape(GridKind::Dense, &shape, spec, flow, dense).unwrap();
     let e = run_to_failure(&mut sim, 0, 1);
@@ -276,7 +281,7 @@ fn errors_before_the_first_stage_change_nothing() {
     let shape = Shape::Sphere { center: [0.1, 0.2, 0.3], radius: 5.0 };
     let spec = GridSpec::default();
     for kind in kinds_all() {
-        let fixed = Settings { time_step: TimeStep::Fixed(10.0), ..Settings::default() };
+        let fixed = Settings { time_step: TimeStep::Fixed(10.0), ..Settings::paper_upwind1() };
         let mut sim =
             Simulation::from_shape(kind, &shape, spec, Flow::mean_curvature(1.0), fixed).unwrap();
         let e = run_to_failure(&mut sim, 0, 1);
@@ -284,13 +289,13 @@ fn errors_before_the_first_stage_change_nothing() {
 
         let flow = Flow::normal_speed(speed_nan_in(0.3..f64::INFINITY));
         let mut sim =
-            Simulation::from_shape(kind, &shape, spec, flow, Settings::default()).unwrap();
+            Simulation::from_shape(kind, &shape, spec, flow, Settings::paper_upwind1()).unwrap();
         let e = run_to_failure(&mut sim, 1, 100);
         assert!(matches!(e, EvolveError::NonFiniteField { .. }), "{kind:?}: {e}");
 
         let flow = Flow::mean_curvature(1.0);
         let mut sim =
-            Simulation::from_shape(kind, &shape, spec, flow, Settings::default()).unwrap();
+            Simulation::from_shape(kind, &shape, spec, flow, Settings::paper_upwind1()).unwrap();
         sim.run_until(f64::INFINITY, 10_000, |_, _| {}).unwrap();
         assert!(sim.collapsed(), "{kind:?}");
         let e = run_to_failure(&mut sim, 1, 1);
@@ -302,7 +307,7 @@ fn errors_before_the_first_stage_change_nothing() {
 #[test]
 fn run_until_keeps_the_last_good_step() {
     let dt = 0.05f32;
-    let settings = Settings { time_step: TimeStep::Fixed(dt), ..Settings::weno5_rk3() };
+    let settings = Settings { time_step: TimeStep::Fixed(dt), ..Settings::paper_weno5_rk3() };
     let shape = Shape::Sphere { center: [0.0; 3], radius: 6.0 };
     for kind in kinds_all() {
         let flow = Flow::normal_speed(speed_nan_in(0.39..0.41));

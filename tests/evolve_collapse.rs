@@ -70,12 +70,12 @@ fn check_scheme(settings: Settings, rho: f64, name: &str) {
 
 #[test]
 fn tiny_spheres_collapse_on_time_with_weno5_rk3() {
-    check_scheme(Settings::weno5_rk3(), 0.02, "weno5+rk3");
+    check_scheme(Settings::paper_weno5_rk3(), 0.02, "weno5+rk3");
 }
 
 #[test]
 fn tiny_spheres_collapse_on_time_with_the_default_scheme() {
-    check_scheme(Settings::default(), 0.10, "upwind1+euler");
+    check_scheme(Settings::paper_upwind1(), 0.10, "upwind1+euler");
 }
 
 /// A growing seed smaller than a voxel (one inside voxel, F > 0) is not a collapse: its
@@ -90,7 +90,9 @@ fn a_growing_sub_voxel_seed_does_not_collapse() {
     for center in [[16.0; 3], [16.3, 15.8, 16.1]] {
         let shape = Shape::Sphere { center, radius: r0 };
         for kind in [GridKind::Tiles(Lanes::Simd), GridKind::DtGrid] {
-            for (settings, weno) in [(Settings::default(), false), (Settings::weno5_rk3(), true)] {
+            for (settings, weno) in
+                [(Settings::paper_upwind1(), false), (Settings::paper_weno5_rk3(), true)]
+            {
                 let flow = Flow::normal_speed(Speed::Constant(1.0));
                 let mut sim =
                     Simulation::from_shape(kind, &shape, GridSpec::default(), flow, settings)

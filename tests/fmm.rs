@@ -498,10 +498,10 @@ fn reinitialised_grids_feed_the_evolution_engine() {
         GridKind::Tiles(Lanes::Simd),
         t,
         flow.clone(),
-        Settings::default(),
+        Settings::paper_upwind1(),
     )
     .unwrap();
-    let mut b = Simulation::from_dtgrid(d, flow, Settings::default()).unwrap();
+    let mut b = Simulation::from_dtgrid(d, flow, Settings::paper_upwind1()).unwrap();
     for _ in 0..5 {
         a.step().unwrap();
         b.step().unwrap();

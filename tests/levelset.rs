@@ -24,8 +24,9 @@ fn storages() -> (TileGrid, DtGrid, Simulation) {
     let tiles = tiles_from_shape(&torus, spec).unwrap();
     let dt = dtgrid_from(&tiles);
     // A simulation at rest: its state is the same band, on the DT-Grid engine.
-    let sim = Simulation::from_dtgrid(dt.clone(), Flow::mean_curvature(0.0), Settings::default())
-        .unwrap();
+    let sim =
+        Simulation::from_dtgrid(dt.clone(), Flow::mean_curvature(0.0), Settings::paper_upwind1())
+            .unwrap();
     (tiles, dt, sim)
 }
 
@@ -150,7 +151,7 @@ fn measures_match_the_analytic_shape_and_the_evolution() {
             kind,
             tiles.clone(),
             Flow::mean_curvature(0.0),
-            Settings::default(),
+            Settings::paper_upwind1(),
         )
         .unwrap();
         let e = sim.measure().unwrap();

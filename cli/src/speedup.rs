@@ -256,7 +256,7 @@ pub fn run_speedup(
         let mut kernel = "";
         for (grid, threads) in runs_plan {
             progress(&format!("{} {size}³: {} {threads} thread(s)", kind.name(), grid_label(grid)));
-            let mut o = ScenarioOptions::new(kind);
+            let mut o = ScenarioOptions::paper(kind);
             o.size = Some(size);
             o.steps = Some(steps);
             o.grid = grid;

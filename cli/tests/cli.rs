@@ -316,7 +316,7 @@ fn run_writes_the_summary_the_issue_asks_for() {
         "grid",
         "lanes",
         "threads",
-        "rescale",
+        "renormalization",
         "size",
         "cfl",
     ] {

@@ -122,3 +122,31 @@ pub fn upwind_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
     }
     (plus.sqrt(), minus.sqrt())
 }
+
+/// The Godunov upwind gradient norms `(G⁺, G⁻)` for a positive and a negative sign, from
+/// one-sided derivatives `dm[a]` (backward) and `dp[a]` (forward):
+///
+/// * G⁺ = ( Σₐ max(max(dmₐ, 0)², min(dpₐ, 0)²) )^½,
+/// * G⁻ = ( Σₐ max(min(dmₐ, 0)², max(dpₐ, 0)²) )^½,
+///
+/// Godunov's flux for H(∇φ) = s|∇φ| (Rouy & Tourin 1992; Osher & Fedkiw ch. 7; the scheme
+/// of Russo & Smereka 2000 away from the interface). Unlike [`upwind_norms`], which adds
+/// both one-sided squares of an axis, it takes the larger: at a local extremum of φ along
+/// an axis (a kink of the distance function, where both one-sided derivatives point
+/// away) only one side counts, so the eikonal's steady state is a distance there too.
+/// NaN derivatives count as 0 (see [`Lane::max`]).
+#[inline(always)]
+pub fn godunov_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
+    let z = L::splat(0.0);
+    let mut plus = z;
+    let mut minus = z;
+    for a in 0..3 {
+        let mp = dm[a].max(z);
+        let pm = dp[a].min(z);
+        let pp = dp[a].max(z);
+        let mm = dm[a].min(z);
+        plus = plus + (mp * mp).max(pm * pm);
+        minus = minus + (mm * mm).max(pp * pp);
+    }
+    (plus.sqrt(), minus.sqrt())
+}

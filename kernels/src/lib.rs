@@ -65,6 +65,9 @@
 //! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], their [`Sum`],
 //!   [`Euler`], [`Rk3`], the band mask [`BandMasked`] with [`BoxMinAbs`]) and the sweeps
 //!   that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
+//! * Renormalisation ([`renorm`]): [`InterfaceAnchor`] and [`RenormRate`], the
+//!   Russo–Smereka sweeps of φ_τ = sgn(φ⁰)(1 − |∇φ|) with Godunov upwinding
+//!   ([`diff::godunov_norms`]).
 //! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind
 //!   `levelset-speedup --kernels` (and the kernel section of the speed-up report,
 //!   `cargo run --release`).
@@ -114,6 +117,7 @@ pub mod diff;
 pub mod error;
 pub mod kernel;
 pub mod lane;
+pub mod renorm;
 pub mod rk;
 pub mod speed;
 pub mod weno;
@@ -127,6 +131,7 @@ pub use kernel::{
     Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
+pub use renorm::{InterfaceAnchor, RenormRate};
 pub use window::{
     box27_index, box_far39_index, star19_index, BoxFarWindow, BoxStarWindow, BoxWindow,
     DenseWindow, StarWindow, TileWindow, Window, BOX27_OFFSETS, BOX_FAR39_OFFSETS, STAR19_OFFSETS,

@@ -95,6 +95,14 @@ pub fn cfl_rate_advection(max_abs_sum: f32, h: f32) -> f32 {
     max_abs_sum.abs() / h
 }
 
+/// The pseudo-time step of a renormalisation sweep (φ_τ = sgn(φ⁰)(1 − |∇φ|), forward
+/// Euler, Godunov upwinding): the Hamiltonian's partial derivatives are sgn·nₐ with
+/// Σ|nₐ| ≤ √3, so Δτ = cfl · h/√3. The subcell fix of Russo & Smereka relaxes φ at the
+/// rate 1/h, stable (and monotone) for Δτ ≤ h, so this is the binding limit.
+pub fn cfl_dt_renorm(h: f32, cfl: f32) -> f32 {
+    cfl * h / 3f32.sqrt()
+}
+
 fn limit(numerator: f32, rate: f32) -> f32 {
     if rate > 0.0 {
         numerator / rate

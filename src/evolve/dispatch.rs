@@ -17,7 +17,8 @@
 use super::rep::dtgrid::PointWindow;
 use super::{EvolveError, SpatialScheme};
 use levelset_kernels::{
-    AdvectionRate, Eq3Rate, Rk3, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
+    AdvectionRate, Eq3Rate, Euler, InterfaceAnchor, RenormRate, Rk3, ScaledVelocity, Scheme, Sum,
+    Upwind1, VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -31,7 +32,8 @@ pub(crate) struct StageParams<'a> {
     pub h: f32,
     /// ε, the curvature weight.
     pub eps: f32,
-    /// Weight of the rescaling term of eq. (3).
+    /// Weight of the coupled rescaling term of eq. (3) ([`super::Renormalization::Coupled`];
+    /// 0 otherwise).
     pub rescale: f32,
     /// F, the same everywhere (then `speed` is unused)...
     pub uniform_speed: Option<f32>,
@@ -143,4 +145,51 @@ where
             phi_n: phi_n(r),
         }),
     }
+}
+
+/// One pseudo-time sweep of the renormalisation ([`super::Renormalization::Sweeps`]).
+#[derive(Clone, Copy)]
+pub(crate) struct RenormParams {
+    pub scheme: SpatialScheme,
+    /// Δτ.
+    pub dtau: f32,
+    pub gamma: f32,
+    pub h: f32,
+    /// Sweeps of one renormalisation.
+    pub sweeps: u32,
+}
+
+/// The anchor pass of a renormalisation: [`InterfaceAnchor`] over φ⁰ (reach 1).
+pub(crate) fn dispatch_anchor<V: Sweep>(h: f32, sweep: V) -> Result<(), EvolveError> {
+    sweep.run::<_, _, 1>(move |_| InterfaceAnchor { voxel_size: h })
+}
+
+/// One forward-Euler sweep in pseudo time of the renormalisation rate, with the scheme's
+/// reach. `anchor` holds the Russo–Smereka anchors of φ⁰ per voxel (flat order): the
+/// distance estimate at voxels next to the interface, ±∞ elsewhere ([`InterfaceAnchor`]).
+pub(crate) fn dispatch_renorm<V: Sweep>(
+    p: &RenormParams,
+    anchor: &[f32],
+    sweep: V,
+) -> Result<(), EvolveError> {
+    match p.scheme {
+        SpatialScheme::Upwind1 => renorm::<Upwind1, 1, V>(p, anchor, sweep),
+        SpatialScheme::Weno5 => renorm::<Weno5, 3, V>(p, anchor, sweep),
+    }
+}
+
+fn renorm<'a, S: Scheme, const R: usize, V: Sweep>(
+    p: &RenormParams,
+    anchor: &'a [f32],
+    sweep: V,
+) -> Result<(), EvolveError>
+where
+    Halo<R>: PointWindow,
+{
+    let (h, dt, gamma) = (p.h, p.dtau, p.gamma);
+    sweep.run::<_, _, R>(move |r: Range<usize>| Euler {
+        rate: RenormRate::<S, &'a [f32]>::new(h, &anchor[r]),
+        dt,
+        gamma,
+    })
 }

@@ -184,9 +184,10 @@ impl Inputs {
         }
     }
 
-    /// max |F| and max (|u|+|v|+|w|) over the band voxels of `flat` (the set every
-    /// representation holds, so every representation takes the same Δt).
-    pub fn band_maxima(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32) {
+    /// max |F|, max (|u|+|v|+|w|) and the same of the unscaled samples (u(x, 0) of a
+    /// time-separable field; equal otherwise) over the band voxels of `flat` (the set
+    /// every representation holds, so every representation takes the same Δt).
+    pub fn band_maxima(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
         let mut max_f = 0.0f32;
         match self.uniform_speed {
             // Every step starts with band voxels (or the interface has collapsed).
@@ -200,16 +201,18 @@ impl Inputs {
             }
         }
         let mut max_u = 0.0f32;
+        let mut max_u0 = 0.0f32;
         if advects {
             let [a, b, c] = &self.velocity;
             let s = self.velocity_scale;
             for (i, &v) in flat.iter().enumerate() {
                 if v.abs() < g {
                     max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
+                    max_u0 = max_u0.max(a[i].abs() + b[i].abs() + c[i].abs());
                 }
             }
         }
-        (max_f, max_u)
+        (max_f, max_u, max_u0)
     }
 
     /// The inputs of stage `stage` with step `dt` (φⁿ is set by the representation).
@@ -220,7 +223,7 @@ impl Inputs {
             gamma: spec.gamma(),
             h: spec.voxel_size,
             eps: flow.curvature,
-            rescale: flow.rescale,
+            rescale: 0.0,
             uniform_speed: self.uniform_speed,
             speed: &self.speed,
             velocity: flow

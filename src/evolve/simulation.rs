@@ -1,12 +1,13 @@
 //! [`Simulation`]: one level set evolving under a [`Flow`] on one representation, one
 //! atomic step at a time.
 
+use super::dispatch::{RenormParams, StageParams};
 use super::exact::ExactSum;
 use super::inputs::Inputs;
 use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
 use super::{
-    in_pool, EvolveError, Flow, GridKind, Integrator, Measures, Settings, StepReport, TimeStep,
-    DENSE_MARGIN,
+    in_pool, EvolveError, Flow, GridKind, Integrator, Measures, Renormalization, Settings,
+    StepReport, Sweeps, TimeStep, Velocity, DENSE_MARGIN,
 };
 use crate::coord::Coord;
 use crate::dense::DenseField;
@@ -14,7 +15,7 @@ use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
 use crate::shapes::Shape;
 use crate::tiles::TileGrid;
-use levelset_kernels::rk::{cfl_rate_advection, cfl_rate_eq3};
+use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3};
 
 /// A level set evolving under a [`Flow`] on one representation.
 ///
@@ -190,10 +191,73 @@ impl Simulation {
 
     /// The memory budget of [`Settings::memory_limit`].
     fn budget(&self) -> MemoryBudget {
+        let renorm = matches!(self.settings.renormalization, Renormalization::Sweeps(_));
         MemoryBudget {
             limit: self.settings.memory_limit,
-            keeps_phi_n: self.settings.integrator == Integrator::Rk3,
+            keeps_phi_n: self.settings.integrator == Integrator::Rk3 || renorm,
+            renorm,
             held: self.inputs.bytes() as u64,
+        }
+    }
+
+    /// The sweeps of the renormalisation due after step `step` (1-based), if any.
+    fn renorm_due(&self, step: u64) -> Option<Sweeps> {
+        match self.settings.renormalization {
+            Renormalization::Sweeps(s) if step.is_multiple_of(s.every) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The parameters of a renormalisation by `s`.
+    fn renorm_params(&self, s: &Sweeps) -> RenormParams {
+        let spec = self.spec();
+        RenormParams {
+            scheme: s.scheme,
+            dtau: cfl_dt_renorm(spec.voxel_size, s.cfl),
+            gamma: spec.gamma(),
+            h: spec.voxel_size,
+            sweeps: s.sweeps,
+        }
+    }
+
+    /// Renormalises the band now: `sweeps.sweeps` pseudo-time sweeps of
+    /// φ_τ = sgn(φ⁰)(1 − |∇φ|) with Godunov upwinding (first order or HJ-WENO5) and the
+    /// subcell fix of Russo & Smereka (J. Comput. Phys. 163 (2000)) at the voxels next
+    /// to the interface (φ⁰ is the band before the first sweep), forward Euler with
+    /// Δτ = cfl · h/√3, over the voxels within one voxel of the band (the band rule),
+    /// then the band maintenance. The zero crossings stay where they are (to the
+    /// accuracy of the subcell fix's distance estimate); the band moves towards
+    /// |∇φ| = 1 by about `sweeps` · Δτ of distance from the interface, so a band far
+    /// from a distance needs several calls (each may widen the band by one voxel).
+    /// `sweeps.every` is ignored. Atomic: on an error nothing changes.
+    pub fn renormalize(&mut self, sweeps: &Sweeps) -> Result<(), EvolveError> {
+        super::Renormalization::Sweeps(Sweeps { every: 1, ..*sweeps }).validate()?;
+        if self.collapsed {
+            return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
+        }
+        let budget = MemoryBudget { keeps_phi_n: true, renorm: true, ..self.budget() };
+        let rep = self.rep.get();
+        budget.admit(
+            rep.step_bytes(true, true),
+            self.rep_bytes(),
+            "the renormalisation's buffers",
+        )?;
+        let p = self.renorm_params(sweeps);
+        let pool = self.settings.pool.clone();
+        let rep = self.rep.get_mut();
+        let r = in_pool(&pool, || {
+            rep.renormalize(&p, true)?;
+            rep.finish_step(&budget)
+        });
+        match r {
+            Ok(()) => {
+                rep.commit_step();
+                Ok(())
+            }
+            Err(e) => {
+                rep.undo_step();
+                Err(e)
+            }
         }
     }
 
@@ -354,8 +418,8 @@ impl Simulation {
     /// (see [`levelset_kernels::rk`]).
     fn stability_limit(&self, max_f: f32, max_u: f32) -> f32 {
         let h = self.spec().voxel_size;
-        let rate = cfl_rate_eq3(max_f, self.flow.curvature, self.flow.rescale, h)
-            + cfl_rate_advection(max_u, h);
+        let w = self.settings.renormalization.coupled_weight();
+        let rate = cfl_rate_eq3(max_f, self.flow.curvature, w, h) + cfl_rate_advection(max_u, h);
         if rate > 0.0 {
             1.0 / rate
         } else {
@@ -425,7 +489,7 @@ impl Simulation {
         // The buffers' memory, stage 1's inputs and Δt: nothing changes yet (but scratch).
         let rep = self.rep.get();
         let budget = self.budget();
-        let needed = rep.step_bytes(budget.keeps_phi_n)
+        let needed = rep.step_bytes(budget.keeps_phi_n, budget.renorm)
             + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
         budget.admit(needed, self.rep_bytes(), "the step's buffers")?;
         let kappa_bar =
@@ -452,8 +516,36 @@ impl Simulation {
     fn time_step(&self, until: f64) -> Result<(f32, bool), EvolveError> {
         let g = self.spec().gamma();
         let advects = self.flow.velocity.is_some();
-        let (max_f, max_u) = self.inputs.band_maxima(self.rep.get().flat(), g, advects);
-        let limit = self.stability_limit(max_f, max_u);
+        let (max_f, max_u, max_u0) = self.inputs.band_maxima(self.rep.get().flat(), g, advects);
+        let mut limit = self.stability_limit(max_f, max_u);
+        let rest = (until - self.time) as f32;
+        // A time-separable velocity s(t) u(x, 0) is read at the later stages' times too
+        // (t + Δt and t + Δt/2 in TVD-RK3): the limit holds there as well. (Where s
+        // vanishes — Enright's field at T/2 — the current velocity alone would allow any
+        // step.) The limit only shrinks, so the iteration ends at a step that holds at
+        // its own stage times when |s| grows monotonically over it.
+        if let (Some(Velocity::Field(f)), Integrator::Rk3) =
+            (&self.flow.velocity, self.settings.integrator)
+        {
+            let cfl = match self.settings.time_step {
+                TimeStep::Cfl(c) => c,
+                TimeStep::Fixed(_) => 1.0,
+            };
+            if f.time_scale(self.time).is_some() {
+                for _ in 0..8 {
+                    let dt = (cfl * limit).min(rest) as f64;
+                    let later = [self.time + dt, self.time + 0.5 * dt]
+                        .map(|t| f.time_scale(t).unwrap_or(0.0).abs() * max_u0)
+                        .into_iter()
+                        .fold(max_u, f32::max);
+                    let l = self.stability_limit(max_f, later);
+                    if l >= limit {
+                        break;
+                    }
+                    limit = l;
+                }
+            }
+        }
         let mut dt = match self.settings.time_step {
             TimeStep::Cfl(cfl) => cfl * limit,
             TimeStep::Fixed(d) if d > limit => {
@@ -462,7 +554,6 @@ impl Simulation {
             TimeStep::Fixed(d) => d,
         };
         let mut lands = false;
-        let rest = (until - self.time) as f32;
         if dt >= rest {
             dt = rest;
             lands = true;
@@ -481,6 +572,11 @@ impl Simulation {
     /// undoes the step.
     fn advance(&mut self, dt: f32) -> Result<bool, EvolveError> {
         self.run_stages(dt)?;
+        if let Some(s) = self.renorm_due(self.steps + 1) {
+            let p = self.renorm_params(&s);
+            let rep = self.rep.get_mut();
+            in_pool(&self.settings.pool, || rep.renormalize(&p, false))?;
+        }
         let budget = self.budget();
         let rep = self.rep.get_mut();
         in_pool(&self.settings.pool, || rep.finish_step(&budget))?;
@@ -510,7 +606,10 @@ impl Simulation {
                 let rep = self.rep.get();
                 self.inputs.prepare(rep, &self.flow, &self.settings, t, false, self.steps)?;
             }
-            let p = self.inputs.params(stage, dt, &spec, &self.flow);
+            let p = StageParams {
+                rescale: self.settings.renormalization.coupled_weight(),
+                ..self.inputs.params(stage, dt, &spec, &self.flow)
+            };
             let last = si + 1 == stages.len();
             let scheme = self.settings.scheme;
             let rep = self.rep.get_mut();

@@ -4,7 +4,9 @@
 use super::{growth_bytes, vec_bytes, KappaBarTerm, MemoryBudget, Representation, Undo};
 use crate::coord::Coord;
 use crate::dense::DenseField;
-use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
+use crate::evolve::dispatch::{
+    dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
+};
 use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
@@ -27,6 +29,8 @@ pub(crate) struct DenseRep {
     phi_n: Vec<f32>,
     out: Vec<f32>,
     box_min: Vec<f32>,
+    /// The renormalisation's anchors of φ⁰.
+    anchor: Vec<f32>,
     padded: Vec<f32>,
     undo: Undo,
 }
@@ -39,6 +43,7 @@ impl DenseRep {
             phi_n: Vec::new(),
             out: Vec::new(),
             box_min: Vec::new(),
+            anchor: Vec::new(),
             padded: Vec::new(),
             undo: Undo::Nothing,
         };
@@ -163,6 +168,25 @@ impl Representation for DenseRep {
         Ok(())
     }
 
+    fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
+        self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+        // The sweep writes `out`; the anchors take it (a swap).
+        dispatch_anchor(p.h, DenseSweep { rep: self, compute_mask: fresh })?;
+        std::mem::swap(&mut self.anchor, &mut self.out);
+        for _ in 0..p.sweeps {
+            self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+            let anchor = std::mem::take(&mut self.anchor);
+            let r = dispatch_renorm(p, &anchor, DenseSweep { rep: self, compute_mask: false });
+            self.anchor = anchor;
+            r?;
+            self.field.data_mut().swap_with_slice(&mut self.out);
+            if self.undo == Undo::Nothing {
+                self.undo = Undo::Out;
+            }
+        }
+        Ok(())
+    }
+
     fn finish_step(&mut self, _budget: &MemoryBudget) -> Result<(), EvolveError> {
         // The box never grows: nothing to admit.
         self.check_margin()
@@ -238,10 +262,11 @@ impl Representation for DenseRep {
         vec_bytes(&self.phi_n)
             + vec_bytes(&self.out)
             + vec_bytes(&self.box_min)
+            + vec_bytes(&self.anchor)
             + vec_bytes(&self.padded)
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
         // The double buffer, the band mask, φⁿ and the padded copy (3-voxel halo, the
         // reach of HJ-WENO5).
         let n = self.field.data().len();
@@ -251,5 +276,6 @@ impl Representation for DenseRep {
             + growth_bytes(&self.box_min, n)
             + growth_bytes(&self.padded, padded)
             + if keeps_phi_n { growth_bytes(&self.phi_n, n) } else { 0 }
+            + if renorm { growth_bytes(&self.anchor, n) } else { 0 }
     }
 }

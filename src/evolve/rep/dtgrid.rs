@@ -7,7 +7,9 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
-use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
+use crate::evolve::dispatch::{
+    dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
+};
 use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
@@ -53,6 +55,8 @@ pub(crate) struct DtRep {
     pub grid: DtGrid,
     phi_n: Vec<f32>,
     out: Vec<f32>,
+    /// The renormalisation's anchors of φ⁰.
+    anchor: Vec<f32>,
     kept: DtGrid,
     next: DtGrid,
     box27: Stencil,
@@ -69,9 +73,10 @@ fn stencil_of(offsets: &[[i32; 3]]) -> Stencil {
 impl DtRep {
     /// Bytes the value buffers (double buffer, and φⁿ with `keeps_phi_n`) have to allocate
     /// to serve `points` points.
-    fn buffer_growth(&self, points: usize, keeps_phi_n: bool) -> u64 {
+    fn buffer_growth(&self, points: usize, keeps_phi_n: bool, renorm: bool) -> u64 {
         growth_bytes(&self.out, points)
             + if keeps_phi_n { growth_bytes(&self.phi_n, points) } else { 0 }
+            + if renorm { growth_bytes(&self.anchor, points) } else { 0 }
     }
 
     pub fn new(grid: DtGrid) -> Self {
@@ -80,6 +85,7 @@ impl DtRep {
             grid,
             phi_n: Vec::new(),
             out: Vec::new(),
+            anchor: Vec::new(),
             kept: DtGrid::new(spec),
             next: DtGrid::new(spec),
             box27: stencil_of(&BOX27_OFFSETS),
@@ -186,6 +192,27 @@ impl Representation for DtRep {
         Ok(())
     }
 
+    fn renormalize(&mut self, p: &RenormParams, _fresh: bool) -> Result<(), EvolveError> {
+        // The grid stores exactly the band mask (of φⁿ within a step, of φ⁰ at rest).
+        self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+        let mut anchor = std::mem::take(&mut self.anchor);
+        let r = dispatch_anchor(p.h, DtSweep { rep: self, out: &mut anchor });
+        self.anchor = anchor;
+        r?;
+        for _ in 0..p.sweeps {
+            self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+            let mut out = std::mem::take(&mut self.out);
+            let r = dispatch_renorm(p, &self.anchor, DtSweep { rep: self, out: &mut out });
+            let r = r.and_then(|()| Ok(self.grid.swap_values(&mut out)?));
+            self.out = out;
+            r?;
+            if self.undo == Undo::Nothing {
+                self.undo = Undo::Out;
+            }
+        }
+        Ok(())
+    }
+
     fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError> {
         let current = (self.bytes() + self.work_bytes()) as u64;
         // Sec. 3.6.2: keep the band (|φ| < γ), dilate it by one voxel; new points read ±γ.
@@ -286,11 +313,13 @@ impl Representation for DtRep {
         self.grid.memory().slack
             + vec_bytes(&self.phi_n)
             + vec_bytes(&self.out)
+            + vec_bytes(&self.anchor)
             + self.kept.memory().total()
             + self.next.memory().total()
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
-        (self.bytes() + self.work_bytes()) as u64 + self.buffer_growth(self.grid.len(), keeps_phi_n)
+    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
+        (self.bytes() + self.work_bytes()) as u64
+            + self.buffer_growth(self.grid.len(), keeps_phi_n, renorm)
     }
 }

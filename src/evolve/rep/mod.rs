@@ -23,7 +23,7 @@ pub(crate) use dense::DenseRep;
 pub(crate) use dtgrid::DtRep;
 pub(crate) use tiles::TilesRep;
 
-use super::dispatch::StageParams;
+use super::dispatch::{RenormParams, StageParams};
 use super::exact::ExactSum;
 use super::field::{ScalarFn, VectorFn};
 use super::{EvolveError, SpatialScheme};
@@ -50,6 +50,15 @@ pub(crate) trait Representation: Send + Sync {
         scheme: SpatialScheme,
         last: bool,
     ) -> Result<(), EvolveError>;
+    /// Renormalisation ([`super::Renormalization::Sweeps`]): the Russo–Smereka anchors of
+    /// the current values φ⁰, then `p.sweeps` forward-Euler sweeps in pseudo time, each
+    /// swapped into the values. The voxels computed are those of the band mask of the
+    /// step in progress (after its stages, before its band maintenance: the stored set
+    /// every representation holds is still that of φⁿ) or, with `fresh`, the mask of
+    /// φ⁰ (at rest, where the band maintenance has stored it; the pass then begins an
+    /// undoable change like a step's first stage). The stored set does not change. On an
+    /// error the caller undoes the step.
+    fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError>;
     /// Band maintenance after a step or a reinitialisation: tile management, DT-Grid
     /// rebuild, dense bounds. New storage is admitted by `budget` before it is allocated
     /// (the DT-Grid: before its rebuilt grid replaces the current one). On an error the
@@ -82,9 +91,10 @@ pub(crate) trait Representation: Send + Sync {
     fn work_bytes(&self) -> usize;
     /// Bytes of the representation and its buffers (as [`Representation::bytes`] +
     /// [`Representation::work_bytes`]) once a step's buffers hold the current band
-    /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3): what its first stage may
+    /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3 or a renormalisation;
+    /// `renorm`: with the anchors of a renormalisation): what its first stage may
     /// allocate.
-    fn step_bytes(&self, keeps_phi_n: bool) -> u64;
+    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64;
 }
 
 /// The representation a simulation runs on.
@@ -121,8 +131,11 @@ pub(crate) struct MemoryBudget {
     /// The most bytes the simulation may take; `None`: what the machine can give
     /// ([`crate::memory::limit`]) bounds each growth instead.
     pub limit: Option<u64>,
-    /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3), for the estimates.
+    /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3, or a renormalisation in the
+    /// step), for the estimates.
     pub keeps_phi_n: bool,
+    /// Whether steps renormalise (an anchor buffer), for the estimates.
+    pub renorm: bool,
     /// Bytes the simulation holds besides the representation (the per-voxel inputs),
     /// counted against the limit.
     pub held: u64,
@@ -226,6 +239,18 @@ impl Undo {
             Undo::Nothing => &[],
             Undo::Out => out,
             Undo::PhiN => phi_n,
+        }
+    }
+
+    /// Frees `out` for further sweeps within a step: φⁿ held there moves to `phi_n` (a
+    /// swap). Returns whether it moved (the caller moves companion buffers alike).
+    pub(crate) fn vacate_out<T>(&mut self, phi_n: &mut Vec<T>, out: &mut Vec<T>) -> bool {
+        if *self == Undo::Out {
+            std::mem::swap(phi_n, out);
+            *self = Undo::PhiN;
+            true
+        } else {
+            false
         }
     }
 

@@ -6,7 +6,9 @@ use super::{
     growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
 };
 use crate::coord::Coord;
-use crate::evolve::dispatch::{dispatch, Halo, StageParams, Sweep};
+use crate::evolve::dispatch::{
+    dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
+};
 use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme};
@@ -59,18 +61,37 @@ struct Buffers {
     activity: Vec<u32>,
     /// The band mask (min |φⁿ| over each voxel's box), 64 per tile.
     box_min: Vec<f32>,
+    /// The renormalisation's anchors of φ⁰, 64 per tile.
+    anchor: Vec<Tile>,
 }
 
 impl Buffers {
     /// Bytes they have to allocate to serve `tiles` tiles (φⁿ only with `keeps_phi_n`).
-    fn growth(&self, tiles: usize, keeps_phi_n: bool) -> u64 {
+    fn growth(&self, tiles: usize, keeps_phi_n: bool, renorm: bool) -> u64 {
         let mut b = growth_bytes(&self.out, tiles)
             + growth_bytes(&self.box_min, 64 * tiles)
             + growth_bytes(&self.activity, tiles);
         if keeps_phi_n {
             b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
         }
+        if renorm {
+            b += growth_bytes(&self.anchor, tiles);
+        }
         b
+    }
+
+    /// Sizes the sweep buffers for `tiles` tiles.
+    fn resize(&mut self, tiles: usize) {
+        resize_exact(&mut self.out, tiles, Tile::splat(0.0));
+        resize_exact(&mut self.box_min, 64 * tiles, 0.0);
+        resize_exact(&mut self.activity, tiles, 0);
+    }
+
+    /// Frees `out` (and its flags) for further sweeps of the step in progress.
+    fn vacate_out(&mut self, undo: &mut Undo) {
+        if undo.vacate_out(&mut self.phi_n, &mut self.out) {
+            std::mem::swap(&mut self.phi_n_activity, &mut self.activity);
+        }
     }
 
     /// Bytes held, used or not.
@@ -80,6 +101,7 @@ impl Buffers {
             + vec_bytes(&self.out)
             + vec_bytes(&self.box_min)
             + vec_bytes(&self.activity)
+            + vec_bytes(&self.anchor)
     }
 }
 
@@ -216,9 +238,7 @@ impl Representation for TilesRep {
         last: bool,
     ) -> Result<(), EvolveError> {
         let n = self.grid.len();
-        resize_exact(&mut self.buf.out, n, Tile::splat(0.0));
-        resize_exact(&mut self.buf.box_min, 64 * n, 0.0);
-        resize_exact(&mut self.buf.activity, n, 0);
+        self.buf.resize(n);
         let p = StageParams {
             phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.buf.phi_n) },
             ..*p
@@ -245,6 +265,46 @@ impl Representation for TilesRep {
                 std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
                 Undo::PhiN
             };
+        }
+        Ok(())
+    }
+
+    fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
+        let n = self.grid.len();
+        self.buf.vacate_out(&mut self.undo);
+        self.buf.resize(n);
+        resize_exact(&mut self.buf.anchor, n, Tile::splat(0.0));
+        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
+        let Buffers { anchor, box_min, activity, .. } = &mut self.buf;
+        // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
+        let sweep = TileSweep {
+            grid: &self.grid,
+            table: &self.table,
+            lanes: self.lanes,
+            out: anchor,
+            box_min,
+            compute_mask: fresh,
+            activity,
+        };
+        dispatch_anchor(p.h, sweep)?;
+        for _ in 0..p.sweeps {
+            self.buf.vacate_out(&mut self.undo);
+            self.buf.resize(n);
+            let Buffers { out, box_min, activity, anchor, .. } = &mut self.buf;
+            let sweep = TileSweep {
+                grid: &self.grid,
+                table: &self.table,
+                lanes: self.lanes,
+                out,
+                box_min,
+                compute_mask: false,
+                activity,
+            };
+            dispatch_renorm(p, tile_flat(anchor), sweep)?;
+            self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+            if self.undo == Undo::Nothing {
+                self.undo = Undo::Out;
+            }
         }
         Ok(())
     }
@@ -381,10 +441,10 @@ impl Representation for TilesRep {
             + self.prev.as_ref().map_or(0, |p| p.memory().total())
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool) -> u64 {
+    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
         let tiles = self.grid.len();
         (self.bytes() + self.work_bytes()) as u64
-            + self.buf.growth(tiles, keeps_phi_n)
+            + self.buf.growth(tiles, keeps_phi_n, renorm)
             + self.table.growth_bytes(tiles) as u64
     }
 }

@@ -3,9 +3,11 @@
 
 use clap::{Args, ValueEnum};
 use levelset_cli::output::{check_output, check_output_dir, write_json};
-use levelset_cli::scenario::{Scenario, ScenarioKind, ScenarioOptions};
+use levelset_cli::scenario::{Defaults, Scenario, ScenarioKind, ScenarioOptions};
 use levelset_cli::{outln, progress};
-use sparse_levelset::evolve::{GridKind, Integrator, Lanes, SpatialScheme};
+use sparse_levelset::evolve::{
+    GridKind, Integrator, Lanes, Renormalization, SpatialScheme, Sweeps,
+};
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -46,6 +48,16 @@ pub enum SchemeArg {
 pub enum IntegratorArg {
     Euler,
     Rk3,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum RenormArg {
+    /// Russo–Smereka pseudo-time sweeps after the physical step.
+    Sweeps,
+    /// The rescaling term of eq. (3) inside the PDE (the papers' route).
+    Coupled,
+    /// None.
+    Off,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -103,18 +115,40 @@ pub struct RunArgs {
     /// Band half-width γ in voxels.
     #[arg(allow_hyphen_values = true, long, default_value_t = 3.0)]
     pub half_width: f32,
-    /// Weight of the rescaling term of eq. (3) [default: 1].
+    /// How φ is kept a signed distance: `sweeps` (Russo–Smereka renormalisation after
+    /// the step), `coupled` (the rescaling term of the tile paper's eq. (3) inside the
+    /// PDE, the papers' route) or `off`.
+    #[arg(long, value_enum, default_value_t = RenormArg::Sweeps)]
+    pub renormalize: RenormArg,
+    /// Weight w of the coupled rescaling term (with --renormalize coupled) [default: 1].
     #[arg(allow_hyphen_values = true, long)]
     pub rescale: Option<f32>,
-    /// Spatial scheme [default: upwind1 for sphere and morph, weno5 otherwise].
+    /// Renormalisation sweeps each time (with --renormalize sweeps) [default: 2 for sphere
+    /// and morph, 1 otherwise].
+    #[arg(allow_hyphen_values = true, long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub renorm_sweeps: Option<u32>,
+    /// Renormalise after every K steps (with --renormalize sweeps) [default: 1].
+    #[arg(allow_hyphen_values = true, long, value_name = "K",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub renorm_every: Option<u64>,
+    /// Derivatives of the renormalisation sweeps (with --renormalize sweeps)
+    /// [default: weno5].
+    #[arg(long, value_enum)]
+    pub renorm_scheme: Option<SchemeArg>,
+    /// CFL number in (0, 1] of the renormalisation's pseudo-time step Δτ = C·h/√3 (with
+    /// --renormalize sweeps) [default: 0.9].
+    #[arg(allow_hyphen_values = true, long, value_name = "C")]
+    pub renorm_cfl: Option<f32>,
+    /// Spatial scheme of the physical step [default: upwind1 for sphere and morph, weno5
+    /// otherwise].
     #[arg(long, value_enum)]
     pub scheme: Option<SchemeArg>,
     /// Time integrator [default: euler for sphere and morph, rk3 otherwise].
     #[arg(long, value_enum)]
     pub integrator: Option<IntegratorArg>,
-    /// CFL number in (0, 1].
-    #[arg(allow_hyphen_values = true, long, default_value_t = 0.5)]
-    pub cfl: f32,
+    /// CFL number in (0, 1] of the physical terms' stability limit [default: 0.9].
+    #[arg(allow_hyphen_values = true, long)]
+    pub cfl: Option<f32>,
     /// Keep a record every K steps.
     #[arg(allow_hyphen_values = true, long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..))]
     pub record_every: u64,
@@ -252,12 +286,13 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     o.period = a.period;
     o.depth = a.depth;
     o.half_width = a.half_width;
-    o.rescale = a.rescale;
-    o.volume_conserving = Some(a.volume_conserving);
-    o.scheme = a.scheme.map(|s| match s {
+    let scheme = |s: SchemeArg| match s {
         SchemeArg::Upwind1 => SpatialScheme::Upwind1,
         SchemeArg::Weno5 => SpatialScheme::Weno5,
-    });
+    };
+    o.renormalization = renormalization(a, kind, scheme)?;
+    o.volume_conserving = Some(a.volume_conserving);
+    o.scheme = a.scheme.map(scheme);
     o.integrator = a.integrator.map(|i| match i {
         IntegratorArg::Euler => Integrator::Euler,
         IntegratorArg::Rk3 => Integrator::Rk3,
@@ -326,6 +361,46 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
 /// Writes the final band as a dense field with a margin of 4 voxels
 /// ([`sparse_levelset::build::export_npy`]), through a DT-Grid of the band voxels so that
 /// every representation writes the same file.
+/// The renormalisation the flags ask for (`None`: the scenario's default); a flag of
+/// another mode is an error.
+fn renormalization(
+    a: &RunArgs,
+    kind: ScenarioKind,
+    scheme: impl Fn(SchemeArg) -> SpatialScheme,
+) -> Result<Option<Renormalization>, String> {
+    let sweep_flags = a.renorm_sweeps.is_some()
+        || a.renorm_every.is_some()
+        || a.renorm_scheme.is_some()
+        || a.renorm_cfl.is_some();
+    if a.rescale.is_some() && a.renormalize != RenormArg::Coupled {
+        return Err("--rescale is the weight of the coupled term: use it with --renormalize \
+                    coupled"
+            .into());
+    }
+    if sweep_flags && a.renormalize != RenormArg::Sweeps {
+        return Err("--renorm-sweeps, --renorm-every, --renorm-scheme and --renorm-cfl set \
+                    the sweeps of --renormalize sweeps"
+            .into());
+    }
+    Ok(Some(match a.renormalize {
+        RenormArg::Off => Renormalization::Off,
+        RenormArg::Coupled => Renormalization::Coupled { weight: a.rescale.unwrap_or(1.0) },
+        RenormArg::Sweeps if !sweep_flags => return Ok(None),
+        RenormArg::Sweeps => {
+            let d = match Defaults::of(kind).renormalization {
+                Renormalization::Sweeps(d) => d,
+                _ => Sweeps::default(),
+            };
+            Renormalization::Sweeps(Sweeps {
+                every: a.renorm_every.unwrap_or(d.every),
+                sweeps: a.renorm_sweeps.unwrap_or(d.sweeps),
+                scheme: a.renorm_scheme.map_or(d.scheme, scheme),
+                cfl: a.renorm_cfl.unwrap_or(d.cfl),
+            })
+        }
+    }))
+}
+
 fn export_final(
     sim: &sparse_levelset::evolve::Simulation,
     path: &std::path::Path,
