@@ -28,6 +28,9 @@ RUNS = [
     ("speedup-1.json", SPEEDUP + ["--json", "docs/data/speedup-1.json"]),
     ("speedup-2.json", SPEEDUP + ["--json", "docs/data/speedup-2.json"]),
     ("storage.json", SPEEDUP + ["--storage", "--json", "docs/data/storage.json"]),
+    # The time-to-solution section alone with Enright's test at 256³ (not in the default run).
+    ("solution-256.json", SPEEDUP + ["--solution", "--solution-enright-size", "256",
+                                     "--json", "docs/data/solution-256.json"]),
     ("info-sphere.json", LEVELSET + ["info", "--shape", "sphere", "--radius", "100", "--json"]),
     ("run-spiral", LEVELSET + ["run", "spiral", "--quiet", "--out", "docs/data/run-spiral"]),
     ("run-enright", LEVELSET + ["run", "enright", "--quiet", "--out", "docs/data/run-enright"]),
@@ -142,6 +145,96 @@ def speedup_section(meta):
     return out
 
 
+# The fields of the report's `params` when the time-to-solution section was written; a
+# field added since shows up in the settings column by itself.
+PARAMS_KNOWN = {
+    "scenario", "size", "grid", "lanes", "threads", "scheme", "integrator", "cfl", "voxel_size",
+    "half_width", "radius", "epsilon", "speed", "period", "depth", "volume_conserving",
+    "rescale", "steps", "time", "record_every", "reinit", "init", "shape", "target",
+}
+
+
+def num(v):
+    """A number with up to six significant digits."""
+    return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+
+def solution_settings(p):
+    """The method and the end a run used, from its `params`."""
+    parts = [f"{p['scheme']} + {p['integrator']}, CFL {num(p['cfl'])}"]
+    if p.get("steps") is not None:
+        parts.append(f"{p['steps']} steps")
+    if p.get("time") is not None:
+        parts.append(f"to t = {num(p['time'])}")
+    if p.get("volume_conserving"):
+        parts.append("volume-conserving")
+    if p.get("reinit") is not None:
+        parts.append(f"reinit {p['reinit']}")
+    parts += [f"{k} {num(v)}" for k, v in p.items() if k not in PARAMS_KNOWN and v is not None]
+    return ", ".join(parts)
+
+
+def solution_error(r):
+    if r["error_kind"] == "voxels":
+        return f"{r['error']:.4g} voxels"
+    kind = r["error_kind"].replace("-", "−").replace("|", "\\|")  # a cell of a Markdown table
+    return f"{kind} = {r['error']:.4g}"
+
+
+def solution_section(meta):
+    runs = []
+    for name in ["speedup-1.json", "speedup-2.json"]:
+        if (DATA / name).exists():
+            runs.append(load(name))
+    out = ["## Time to solution", ""]
+    runs = [r for r in runs if "time_to_solution" in r]
+    if not runs:
+        return out + [
+            "The data files (`docs/data/speedup-*.json`) do not hold this section yet;"
+            " `python3 docs/benchmarks.py collect` writes it."
+        ]
+    extra = load("solution-256.json") if (DATA / "solution-256.json").exists() else None
+    out += [
+        f"The last section of `{meta['commands']['speedup-1.json']}`"
+        + (f" ({len(runs)} runs: first / second)" if len(runs) > 1 else "")
+        + ": each scenario run to its end with its default settings (tiles, SIMD lanes),"
+        " seconds of stepping against the error of the answer. Spheres under mean curvature"
+        " flow: the radius from the enclosed volume, r = (3V/4π)^(1/3), against √(r₀² − 2εt)"
+        " at the final time, error in voxels; Enright's test: V(T)/V(0), exact 1; the"
+        " volume-conserving spiral: V/V(0) at the end, exact 1.",
+        "",
+        "| case | settings | threads | steps | seconds | final t | measured | exact | error"
+        " | relative error | checksum |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    key = lambda r: (r["case"], r["size"], r["threads"])
+    rows = [(r, [{key(x): x for x in run["time_to_solution"]}.get(key(r)) for run in runs], False)
+            for r in runs[0]["time_to_solution"]]
+    if extra is not None:
+        seen = {(r["case"], r["size"]) for r in runs[0]["time_to_solution"]}
+        rows += [(r, [r], True) for r in extra.get("time_to_solution", [])
+                 if (r["case"], r["size"]) not in seen]
+    for r, same, separate in rows:
+        same = [x for x in same if x is not None]
+        p = r["params"]
+        case = f"{r['case']} {r['size']}³"
+        if r["error_kind"] == "voxels":
+            case += f", r₀ = {num(p['radius'])}"
+        if separate:
+            cmd = meta["commands"].get("solution-256.json", "levelset-speedup --solution")
+            case += f" (`{cmd}`)"
+        sums = sorted({x["checksum"] for x in same})
+        seconds = " / ".join(f"{x['seconds']:.{2 if x['seconds'] >= 1 else 3}f}" for x in same)
+        out.append(
+            f"| {case} | {solution_settings(p)} | {r['threads']} | {r['steps']}"
+            f" | {seconds}"
+            f" | {num(r['final_time'])}{' (collapsed)' if r['collapsed'] else ''}"
+            f" | {r['measured']:.6f} | {r['exact']:.6f} | {solution_error(r)}"
+            f" | {r['relative_error']:.3g} | {', '.join(f'`{c}`' for c in sums)} |"
+        )
+    return out
+
+
 def storage_section(meta):
     s = load("storage.json")
     out = [
@@ -251,7 +344,9 @@ def write():
         " to compare, and the speed-up report is quoted from two runs.",
         "",
     ]
-    for section in [speedup_section, info_section, storage_section, evolution_section]:
+    sections = [speedup_section, solution_section, info_section, storage_section,
+                evolution_section]
+    for section in sections:
         try:
             parts += section(meta) + [""]
         except (FileNotFoundError, KeyError) as e:

@@ -21,5 +21,6 @@ pub mod output;
 pub mod pin;
 pub mod progress;
 pub mod scenario;
+pub mod solution;
 pub mod speedup;
 pub mod storage;

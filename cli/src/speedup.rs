@@ -7,8 +7,13 @@
 //! Every run of a scenario ends with the same band, bit for bit (see [`sparse_levelset::evolve`]):
 //! the report shows the checksums and the largest difference of the final φ between the
 //! DT-Grid and each tile run.
+//!
+//! Its last section, time to solution ([`crate::solution`]), runs each scenario to its
+//! physical end with its own settings and reports the seconds beside the error against
+//! the analytic answer.
 
 use crate::scenario::{Scenario, ScenarioKind, ScenarioOptions};
+use crate::solution::SolutionRun;
 use serde::Serialize;
 use sparse_levelset::evolve::{GridKind, Lanes, Simulation};
 use sparse_levelset::Coord;
@@ -93,6 +98,25 @@ pub struct SpeedupReport {
     /// The operators around the evolution (fast marching, isosurfacing) on the sphere
     /// benchmark's initial band.
     pub tools: Vec<ToolBench>,
+    /// Each scenario run to its end with its own settings: seconds and error
+    /// ([`crate::solution::run_time_to_solution`]).
+    pub time_to_solution: Vec<SolutionRun>,
+}
+
+impl SpeedupReport {
+    /// The report's heading (machine, build, threads) without any section.
+    pub fn new(cfg: &SpeedupConfig) -> SpeedupReport {
+        SpeedupReport {
+            cpu: crate::storage::cpu_name(),
+            target_features: levelset_kernels::target_features(),
+            profile: crate::storage::build_profile(),
+            threads: cfg.threads,
+            pinned: cfg.pin,
+            scenarios: Vec::new(),
+            tools: Vec::new(),
+            time_to_solution: Vec::new(),
+        }
+    }
 }
 
 /// One operator's throughput.
@@ -234,7 +258,9 @@ fn max_abs_diff(a: &[(Coord, f32)], sa: &Simulation, b: &[(Coord, f32)], sb: &Si
     m
 }
 
-/// Runs the report; `progress(message)` before every run.
+/// Runs the report's speed-up sections (the scenarios and the operators; the time to
+/// solution is [`crate::solution::run_time_to_solution`]); `progress(message)` before
+/// every run.
 pub fn run_speedup(
     cfg: &SpeedupConfig,
     kernels: &[levelset_kernels::bench::KernelResult],
@@ -315,15 +341,8 @@ pub fn run_speedup(
             runs,
         });
     }
-    Ok(SpeedupReport {
-        cpu: crate::storage::cpu_name(),
-        target_features: levelset_kernels::target_features(),
-        profile: crate::storage::build_profile(),
-        threads: cfg.threads,
-        pinned: cfg.pin,
-        scenarios,
-        tools: run_tools(cfg, progress)?,
-    })
+    let tools = run_tools(cfg, progress)?;
+    Ok(SpeedupReport { scenarios, tools, ..SpeedupReport::new(cfg) })
 }
 
 fn grid_label(g: GridKind) -> &'static str {
@@ -411,11 +430,14 @@ impl SpeedupReport {
                 );
             }
         }
-        s.push_str(
-            "\nMvox/s: stored voxels (DT-Grid points, tiles x 64) x RK stages per second of \
-             stepping; band Mvox/s: voxels with |phi| < gamma x stages per second (the same work \
-             for every run).\n",
-        );
+        if !self.scenarios.is_empty() {
+            s.push_str(
+                "\nMvox/s: stored voxels (DT-Grid points, tiles x 64) x RK stages per second of \
+                 stepping; band Mvox/s: voxels with |phi| < gamma x stages per second (the same \
+                 work for every run).\n",
+            );
+        }
+        s.push_str(&crate::solution::to_text(&self.time_to_solution));
         s
     }
 }

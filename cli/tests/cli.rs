@@ -1010,3 +1010,108 @@ fn cargo_run_runs_the_speedup_report() {
         assert!(stdout(&o).contains(flag), "{flag}: {}", stdout(&o));
     }
 }
+
+#[test]
+fn speedup_reports_the_time_to_solution() {
+    let s = tmp("solution.json");
+    let args = ["--solution", "--solution-scale", "0.125", "--solution-enright-size", "24"];
+    let o = speedup(&[&args[..], &["--threads", "2", "--json", s.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("Time to solution"), "{}", stdout(&o));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&s).unwrap()).unwrap();
+    // The section alone: no speed-up scenarios, no operators.
+    assert_eq!(v["scenarios"].as_array().unwrap().len(), 0);
+    assert_eq!(v["tools"].as_array().unwrap().len(), 0);
+    let runs = v["time_to_solution"].as_array().unwrap();
+    let rows: Vec<(&str, &str, u64, u64)> = runs
+        .iter()
+        .map(|r| {
+            (
+                r["case"].as_str().unwrap(),
+                r["scenario"].as_str().unwrap(),
+                r["size"].as_u64().unwrap(),
+                r["threads"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            ("sphere", "sphere", 32, 1),
+            ("sphere", "sphere", 32, 2),
+            ("sphere-small", "sphere", 8, 1),
+            ("sphere-small", "sphere", 8, 2),
+            ("enright", "enright", 24, 1),
+            ("enright", "enright", 24, 2),
+            ("spiral", "spiral", 16, 1),
+            ("spiral", "spiral", 16, 2),
+        ]
+    );
+    let f = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    for pair in runs.chunks(2) {
+        // One band on every thread count.
+        assert_eq!(pair[0]["checksum"], pair[1]["checksum"], "{}", pair[0]["case"]);
+        assert_eq!(pair[0]["steps"], pair[1]["steps"]);
+    }
+    for r in runs {
+        let p = &r["params"];
+        assert_eq!(p["threads"], r["threads"]);
+        assert_eq!(p["lanes"], "simd");
+        for k in ["scheme", "integrator"] {
+            assert!(p[k].is_string(), "{k}: {p}");
+        }
+        assert!(f(p, "cfl") > 0.0);
+        assert!(
+            r["steps"].as_u64().unwrap() > 0 && f(r, "seconds") > 0.0 && f(r, "final_time") > 0.0
+        );
+        assert_eq!(r["checksum"].as_str().unwrap().len(), 16);
+        let (measured, exact, error) = (f(r, "measured"), f(r, "exact"), f(r, "error"));
+        let want = match r["case"].as_str().unwrap() {
+            "sphere" | "sphere-small" => {
+                // √(r₀² − 2εt) at the final time, the error in voxels.
+                let (r0, eps) = (f(p, "radius"), f(p, "epsilon"));
+                close(
+                    "exact radius",
+                    exact,
+                    (r0 * r0 - 2.0 * eps * f(r, "final_time")).sqrt(),
+                    1e-12,
+                );
+                assert_eq!(r["error_kind"], "voxels");
+                (measured - exact).abs() / f(p, "voxel_size")
+            }
+            "enright" => {
+                assert_eq!(exact, 1.0);
+                1.0 - measured
+            }
+            _ => {
+                assert_eq!(exact, 1.0);
+                (measured - 1.0).abs()
+            }
+        };
+        assert!((error - want).abs() <= 1e-12, "{r}");
+        close("relative error", f(r, "relative_error"), (measured - exact).abs() / exact, 1e-12);
+    }
+    // The small sphere runs to half its collapse time, r₀²/4.
+    let small = &runs[2];
+    let r0 = f(&small["params"], "radius");
+    close("small sphere's end", f(small, "final_time"), r0 * r0 / 4.0, 1e-12);
+
+    for bad in [
+        &["--solution-scale", "0"][..],
+        &["--solution-scale", "-1"],
+        &["--solution-scale", "2"],
+        &["--solution-scale", "x"],
+        &["--solution-enright-size", "4"],
+        &["--solution-enright-size", "-8"],
+        &["--solution", "--storage"],
+        &["--solution", "--kernels"],
+    ] {
+        let o = speedup(bad);
+        assert!(!o.status.success(), "{bad:?}");
+        assert!(stderr(&o).contains("error"), "{bad:?}: {}", stderr(&o));
+    }
+    let help = stdout(&speedup(&["--help"]));
+    for flag in ["--solution", "--solution-enright-size", "--solution-scale"] {
+        assert!(help.contains(flag), "{flag}: {help}");
+    }
+}

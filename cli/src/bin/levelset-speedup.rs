@@ -1,7 +1,8 @@
 //! `levelset-speedup`: the speed-up report, what `cargo run --release` runs at the
 //! repository's root — the papers' scenarios on the DT-Grid and on tiles (scalar, SIMD on
-//! one thread, SIMD on every thread) with the kernel-only throughput; `--storage`: the
-//! storage benchmark; `--kernels`: the kernels alone.
+//! one thread, SIMD on every thread) with the kernel-only throughput, then the time to
+//! solution (each scenario run to its end, seconds and error); `--solution`: that section
+//! alone; `--storage`: the storage benchmark; `--kernels`: the kernels alone.
 
 use clap::Parser;
 use levelset_cli::output::{check_output, write_json};
@@ -14,7 +15,10 @@ use std::process::ExitCode;
 
 /// The speed-up of the Sorted Tile List over the DT-Grid: the papers' scenarios on both
 /// (DT-Grid, tiles scalar, tiles SIMD on one thread and on every thread), with the
-/// kernel-only throughput. `--storage`: the storage benchmark; `--kernels`: kernels only.
+/// kernel-only throughput, and the time to solution: each scenario run to its end with its
+/// own settings on 1 and on every thread, seconds and the error against the analytic
+/// answer. `--solution`: that section only; `--storage`: the storage benchmark;
+/// `--kernels`: kernels only.
 #[derive(Parser)]
 #[command(name = "levelset-speedup", version)]
 struct BenchArgs {
@@ -43,9 +47,31 @@ struct BenchArgs {
     /// block for scalar f32 and every SIMD width.
     #[arg(long)]
     kernels: bool,
+    /// Only the time-to-solution section: each scenario (sphere 256³ and a small sphere,
+    /// Enright, spiral) run to its end with its default settings, on 1 thread and on
+    /// `--threads`: seconds of stepping and the error against the analytic answer.
+    #[arg(long, conflicts_with_all = ["kernels", "storage"])]
+    solution: bool,
+    /// Time to solution: Enright's test at this size [default: the scenario's, 128].
+    #[arg(long, value_name = "N", allow_hyphen_values = true,
+          conflicts_with_all = ["kernels", "storage"],
+          value_parser = clap::value_parser!(u32).range(8..=65536))]
+    solution_enright_size: Option<u32>,
+    /// Time to solution: every default size times this, in (0, 1] (a quick look, not a
+    /// measurement) [default: 1, or 0.25 with --quick].
+    #[arg(long, value_name = "F", allow_hyphen_values = true,
+          conflicts_with_all = ["kernels", "storage"], value_parser = scale)]
+    solution_scale: Option<f64>,
     /// Also write the results as JSON to this file (checked before the work starts).
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+}
+
+fn scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 1.0 => Ok(v),
+        _ => Err(format!("{s} is not in (0, 1]")),
+    }
 }
 
 fn main() -> ExitCode {
@@ -135,18 +161,43 @@ fn storage(a: &BenchArgs) -> Result<(), String> {
 }
 
 fn speedup(a: &BenchArgs) -> Result<(), String> {
-    use levelset_cli::speedup::{run_speedup, SpeedupConfig};
+    use levelset_cli::solution::{run_time_to_solution, SolutionConfig};
+    use levelset_cli::speedup::{run_speedup, SpeedupConfig, SpeedupReport};
     let mut cfg = SpeedupConfig { pin: a.pin, full: a.full, quick: a.quick, ..Default::default() };
     if let Some(t) = a.threads {
         cfg.threads = t as usize;
     }
-    let bar = progress::spinner(false);
-    bar.set_message("kernels");
-    let kernels = kernel_bench(a.quick)?;
-    let report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+    let (mut report, kernels) = if a.solution {
+        (SpeedupReport::new(&cfg), None)
+    } else {
+        let bar = progress::spinner(false);
+        bar.set_message("kernels");
+        let kernels = kernel_bench(a.quick)?;
+        let report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+        bar.finish_and_clear();
+        (report, Some(kernels))
+    };
+    let sol = SolutionConfig {
+        threads: vec![1, cfg.threads],
+        pin: cfg.pin,
+        enright_size: a.solution_enright_size,
+        scale: a.solution_scale.unwrap_or(if a.quick { 0.25 } else { 1.0 }),
+    };
+    let bar =
+        progress::bar(false, 1000, "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}");
+    let mut shown = String::new();
+    report.time_to_solution = run_time_to_solution(&sol, |what, done| {
+        if what != shown {
+            shown = what.to_string();
+            bar.set_message(shown.clone());
+        }
+        bar.set_position((done * 1000.0) as u64);
+    })?;
     bar.finish_and_clear();
     out!("{}", report.to_text());
-    out!("{}", kernels_text(&kernels));
+    if let Some(kernels) = &kernels {
+        out!("{}", kernels_text(kernels));
+    }
     if let Some(path) = &a.json {
         write_json(path, &report)?;
     }
