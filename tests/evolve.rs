@@ -2,8 +2,8 @@
 //! SIMD lanes, 1 and 2 threads), DT-Grid and the dense reference compute the same numbers.
 
 use sparse_levelset::evolve::{
-    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Renormalization, Settings,
-    Simulation, SpatialScheme, Speed, StaticSdf, Sweeps, TimeStep, Velocity,
+    EnrightVelocity, EvolveError, Flow, GridKind, Lanes, Renormalization, Settings, Simulation,
+    SpatialScheme, Speed, StaticSdf, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;

@@ -96,7 +96,8 @@ fn gradient_deviation(sim: &Simulation, within: f64) -> (f64, f64, usize) {
     let mut n = 0;
     sim.for_each_band_voxel(|c, _| {
         let at = |dx, dy, dz| sim.value(Coord::new(c.x + dx, c.y + dy, c.z + dz)) as f64;
-        let pairs = [(at(1, 0, 0), at(-1, 0, 0)), (at(0, 1, 0), at(0, -1, 0)), (at(0, 0, 1), at(0, 0, -1))];
+        let pairs =
+            [(at(1, 0, 0), at(-1, 0, 0)), (at(0, 1, 0), at(0, -1, 0)), (at(0, 0, 1), at(0, 0, -1))];
         if at(0, 0, 0).abs() >= within
             || pairs.iter().any(|(a, b)| a.abs() >= g as f64 || b.abs() >= g as f64)
         {
@@ -254,4 +255,3 @@ fn a_renormalization_that_does_not_fit_changes_nothing() {
         assert_ne!(sim.checksum(), sum);
     }
 }
-

@@ -1,4 +1,5 @@
-//! First differences and the upwind gradient norms ∇⁺ and ∇⁻ (tile paper Sec. 4.7).
+//! First differences, the upwind gradient norms ∇⁺ and ∇⁻ (tile paper Sec. 4.7) and the
+//! Godunov norms G⁺ and G⁻ of the renormalisation sweeps ([`godunov_norms`]).
 //!
 //! All differences are divided differences: `inv_h` is `1 / voxel size`, so for a
 //! signed-distance φ in world units the results are dimensionless (|∇φ| ≈ 1).
@@ -123,18 +124,31 @@ pub fn upwind_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
     (plus.sqrt(), minus.sqrt())
 }
 
-/// The Godunov upwind gradient norms `(G⁺, G⁻)` for a positive and a negative sign, from
-/// one-sided derivatives `dm[a]` (backward) and `dp[a]` (forward):
+/// The Godunov upwind gradient norms `(G⁺, G⁻)` for a positive and a negative sign (or
+/// speed), from one-sided derivatives `dm[a]` (backward, left-biased) and `dp[a]` (forward,
+/// right-biased) per axis, as for [`upwind_norms`]:
 ///
-/// * G⁺ = ( Σₐ max(max(dmₐ, 0)², min(dpₐ, 0)²) )^½,
-/// * G⁻ = ( Σₐ max(min(dmₐ, 0)², max(dpₐ, 0)²) )^½,
+/// * G⁺ = ( Σₐ max( max(dmₐ, 0)², min(dpₐ, 0)² ) )^½,
+/// * G⁻ = ( Σₐ max( min(dmₐ, 0)², max(dpₐ, 0)² ) )^½.
 ///
-/// Godunov's flux for H(∇φ) = s|∇φ| (Rouy & Tourin 1992; Osher & Fedkiw ch. 7; the scheme
-/// of Russo & Smereka 2000 away from the interface). Unlike [`upwind_norms`], which adds
-/// both one-sided squares of an axis, it takes the larger: at a local extremum of φ along
-/// an axis (a kink of the distance function, where both one-sided derivatives point
-/// away) only one side counts, so the eikonal's steady state is a distance there too.
-/// NaN derivatives count as 0 (see [`Lane::max`]).
+/// This is Godunov's numerical Hamiltonian for H(∇φ) = |∇φ| (Rouy & Tourin, "A viscosity
+/// solutions approach to shape-from-shading", SIAM J. Numer. Anal. 29 (1992) 867–884;
+/// Osher & Fedkiw, *Level Set Methods and Dynamic Implicit Surfaces*, ch. 6–7, the
+/// Godunov scheme for motion in the normal direction and for reinitialisation; the
+/// discretisation of |∇φ| in Russo & Smereka, J. Comput. Phys. 163 (2000) 51–67), the
+/// flux of the renormalisation sweeps of [`crate::renorm`]. G⁺ is the norm where the sign
+/// (of φ⁰, or of the speed) is positive and information flows outward from the interface,
+/// G⁻ where it is negative.
+///
+/// **Difference from [`upwind_norms`]:** per axis it takes the *larger* of the two upwind
+/// squares, where [`upwind_norms`] *sums* them. They agree unless both one-sided terms of
+/// an axis are non-zero: for G⁺ that is dmₐ > 0 > dpₐ, a local maximum of φ along the
+/// axis; for G⁻ it is dmₐ < 0 < dpₐ, a local minimum. There the sum overestimates the
+/// gradient (by √2 on a symmetric kink); the Godunov max is the entropy-consistent flux.
+///
+/// NaN derivatives count as 0 (see [`Lane::max`]: NaN in the first operand yields `rhs`),
+/// as in [`upwind_norms`]. Summation order x, y, z with separate roundings (no fused
+/// multiply-add), the same in every lane type.
 #[inline(always)]
 pub fn godunov_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
     let z = L::splat(0.0);

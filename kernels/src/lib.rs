@@ -62,12 +62,13 @@
 //!   tiles and dense blocks, point windows for the DT-Grid.
 //! * Stencil functions: [`diff`] (D⁻, D⁺, D⁰, ∇⁺/∇⁻), [`curvature`] (eq. (4)), [`weno`]
 //!   (HJ-WENO5), [`speed`] (eq. (3), advection, eq. (6)–(7)), [`rk`] (TVD-RK3, CFL).
+//! * Renormalisation ([`renorm`]): [`InterfaceAnchor`] (Russo–Smereka distance estimates
+//!   next to the interface, once from φ⁰) and [`RenormRate`] (pseudo-time rate of
+//!   φ_τ = S(φ⁰)(1 − |∇φ|) with Godunov norms [`diff::godunov_norms`] and the subcell
+//!   fix), stepped with [`Euler`] at [`rk::cfl_dt_renorm`].
 //! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], their [`Sum`],
 //!   [`Euler`], [`Rk3`], the band mask [`BandMasked`] with [`BoxMinAbs`]) and the sweeps
 //!   that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
-//! * Renormalisation ([`renorm`]): [`InterfaceAnchor`] and [`RenormRate`], the
-//!   Russo–Smereka sweeps of φ_τ = sgn(φ⁰)(1 − |∇φ|) with Godunov upwinding
-//!   ([`diff::godunov_norms`]).
 //! * [`bench`](mod@bench): the pure-kernel throughput benchmark behind
 //!   `levelset-speedup --kernels` (and the kernel section of the speed-up report,
 //!   `cargo run --release`).

@@ -10,11 +10,11 @@
 //! [`crate::rk::cfl_dt_renorm`] wraps it ([`crate::Euler`]).
 
 use crate::diff::godunov_norms;
+use crate::diff::{Axis, X, Y, Z};
 use crate::error::KernelError;
 use crate::kernel::{ScalarField, Scheme, VoxelKernel};
 use crate::lane::Lane;
 use crate::window::Window;
-use crate::diff::{Axis, X, Y, Z};
 use core::marker::PhantomData;
 
 /// Added to each axis' difference bound so that a flat neighbourhood gives D = 0·φ⁰/tiny

@@ -70,6 +70,17 @@ pub fn cfl_dt_normal(max_abs_speed: f32, h: f32, cfl: f32) -> f32 {
     limit(cfl * h, 3f32.sqrt() * max_abs_speed.abs())
 }
 
+/// The pseudo-time step Δτ = cfl · h / √3 of the renormalisation sweeps
+/// φ_τ = S(φ⁰)(1 − |∇φ|) ([`crate::renorm::RenormRate`]). The Godunov scheme for
+/// H = |∇φ| is monotone for Δτ Σₐ |∂H/∂pₐ| / h ≤ 1, and ∂H/∂pₐ = nₐ with Σₐ |nₐ| ≤ √3
+/// (Osher & Fedkiw ch. 6–7; the same bound as [`cfl_dt_normal`] with |F| = 1, whose bits
+/// this returns). The Russo–Smereka subcell term at interface voxels, φ_τ = (D − φ)/h,
+/// relaxes φ towards the anchor D and is stable (no overshoot) for Δτ ≤ h; as
+/// h/√3 < h, the Godunov limit is the binding one.
+pub fn cfl_dt_renorm(h: f32, cfl: f32) -> f32 {
+    limit(cfl * h, 3f32.sqrt())
+}
+
 /// The parabolic limit of the curvature term εκ|∇φ| of eq. (3) with κ = ½∇·n (so the
 /// diffusion coefficient is b = ε/2): Δt · 2b (1/h² + 1/h² + 1/h²) ≤ cfl, i.e.
 /// Δt ≤ cfl · h² / (3|ε|) (the explicit parabolic limit for φ_t = bκ|∇φ| with κ = ∇·n in
@@ -93,14 +104,6 @@ pub fn cfl_rate_eq3(max_abs_speed: f32, eps: f32, rescale_weight: f32, h: f32) -
 /// The rate of [`cfl_dt_advection`]: max(|u|+|v|+|w|) / h.
 pub fn cfl_rate_advection(max_abs_sum: f32, h: f32) -> f32 {
     max_abs_sum.abs() / h
-}
-
-/// The pseudo-time step of a renormalisation sweep (φ_τ = sgn(φ⁰)(1 − |∇φ|), forward
-/// Euler, Godunov upwinding): the Hamiltonian's partial derivatives are sgn·nₐ with
-/// Σ|nₐ| ≤ √3, so Δτ = cfl · h/√3. The subcell fix of Russo & Smereka relaxes φ at the
-/// rate 1/h, stable (and monotone) for Δτ ≤ h, so this is the binding limit.
-pub fn cfl_dt_renorm(h: f32, cfl: f32) -> f32 {
-    cfl * h / 3f32.sqrt()
 }
 
 fn limit(numerator: f32, rate: f32) -> f32 {
