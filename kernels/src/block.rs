@@ -52,7 +52,7 @@ impl<K: VoxelKernel, const R: usize> Fits<K, R> {
 ///
 /// Kernels read the 3×3×3 box and the axis offsets up to `R` and nothing else (no kernel
 /// reads a diagonal offset beyond the box: curvature needs box reach 1, HJ-WENO5 only the
-/// ±2, ±3 axis points), so a [`TileWindow`] serves exactly those ([`Window::BOX_REACH`] is
+/// ±2, ±3 axis points), so a [`TileWindow`] serves exactly those ([`crate::Window::BOX_REACH`] is
 /// 1 for every `R`) and only the rows they touch need to hold values: the padded rows
 /// with `y, z` in `-1..5` (all 12 values) and the centre 4 values of the rows with `y` in
 /// `-R..4+R`, `z` in `0..4` or `z` in `-R..4+R`, `y` in `0..4` (the star). The root
