@@ -37,6 +37,11 @@ impl<K: VoxelKernel, const R: usize> Fits<K, R> {
         K::AXIS_REACH <= R as i32 && K::BOX_REACH <= R as i32,
         "the block's halo is smaller than the kernel's stencil"
     );
+    /// A tile block serves the 3×3×3 box and the axes to `R` ([`TileWindow`]).
+    const TILE_OK: () = assert!(
+        K::AXIS_REACH <= R as i32 && K::BOX_REACH <= 1,
+        "the tile block serves the 3x3x3 box and axis offsets up to its halo"
+    );
 }
 
 /// A 4³ tile padded by an `R`-voxel halo along y and z and whole neighbour rows along x,
@@ -44,6 +49,15 @@ impl<K: VoxelKernel, const R: usize> Fits<K, R> {
 /// `-R..4+R`, `SX = 12`, `W = 4 + 2R` (the layout of the root crate's `PaddedBlock<R>`).
 /// `R = 1` serves first-order upwind and curvature (the 3×3×3 box with diagonals), `R = 3`
 /// HJ-WENO5 as well.
+///
+/// Kernels read the 3×3×3 box and the axis offsets up to `R` and nothing else (no kernel
+/// reads a diagonal offset beyond the box: curvature needs box reach 1, HJ-WENO5 only the
+/// ±2, ±3 axis points), so a [`TileWindow`] serves exactly those ([`crate::Window::BOX_REACH`] is
+/// 1 for every `R`) and only the rows they touch need to hold values: the padded rows
+/// with `y, z` in `-1..5` (all 12 values) and the centre 4 values of the rows with `y` in
+/// `-R..4+R`, `z` in `0..4` or `z` in `-R..4+R`, `y` in `0..4` (the star). The root
+/// crate's `PaddedBlock::gather_star_row` fills exactly those; other entries are never
+/// read.
 ///
 /// The x halo is a whole tile row on each side whatever `R`: a padded row is then the
 /// same x-row of three tiles (left neighbour, tile, right neighbour), three aligned copies
@@ -108,7 +122,7 @@ impl<'a, const R: usize> TileBlock<'a, R> {
         out: &mut [f32; 64],
     ) -> Result<(), KernelError> {
         #[allow(clippy::let_unit_value)]
-        let () = Fits::<K, R>::OK;
+        let () = Fits::<K, R>::TILE_OK;
         kernel.check(64)?;
         self.for_each::<L>(|first, w| kernel.eval(w, first).store(&mut out[first..]));
         Ok(())

@@ -284,6 +284,9 @@ point_window!(
 /// `f32x8` = two consecutive y-rows (4×2), `f32x16` = a whole 4×4 z-slice. Lane `k` of a
 /// group is the voxel with tile-local index `first + k`.
 ///
+/// It serves the 3×3×3 box and the axis offsets up to `R` (`BOX_REACH = 1` for every
+/// `R`): the rows of the padded block a star gather fills (see [`crate::TileBlock`]).
+///
 /// # Invariants
 /// `data.len() == 12 (4 + 2R)²` (the [`crate::TileBlock`] layout) and `centre` is the
 /// padded index of the first voxel of a lane group of `L` (so every offset with max-norm
@@ -311,11 +314,11 @@ impl<'a, L: Lane, const R: usize> TileWindow<'a, L, R> {
 
 impl<L: Lane, const R: usize> Window<L> for TileWindow<'_, L, R> {
     const AXIS_REACH: i32 = R as i32;
-    const BOX_REACH: i32 = R as i32;
+    const BOX_REACH: i32 = 1;
     #[inline(always)]
     fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> L {
         let off = const {
-            assert!(serves(R as i32, R as i32, DX, DY, DZ), "offset beyond the tile halo");
+            assert!(serves(R as i32, 1, DX, DY, DZ), "offset beyond the tile halo");
             DX as isize + DY as isize * Self::SX as isize + DZ as isize * Self::SXY as isize
         };
         let sx = Self::SX;

@@ -630,6 +630,54 @@ fn check_block<const R: usize>(grid: &TileGrid) {
     }
 }
 
+/// The star gather fills the box rows and the axis rows (what a `TileWindow` reads) with
+/// the grid's values, and the separable box minimum equals the 3×3×3 minimum of |φ|.
+fn check_star_block<const R: usize>(grid: &TileGrid) {
+    let mut block = PaddedBlock::<R>::new();
+    let mut table = NeighbourTable::default();
+    table.rebuild(grid.tile_coords());
+    let r = R as i32;
+    let g = grid.gamma();
+    for pos in 0..grid.len() {
+        block.gather_star_row(grid, pos, table.row(pos));
+        let base = voxel_of(grid.tile_coords()[pos], 0);
+        let read = |x: i32, y: i32, z: i32| grid.value(base.wrapping_add(Coord::new(x, y, z)));
+        for z in -r..4 + r {
+            for y in -r..4 + r {
+                for x in -r..4 + r {
+                    let inner = |v: i32| (0..4).contains(&v);
+                    let boxed = [x, y, z].iter().all(|v| (-1..5).contains(v));
+                    let axis = [inner(x) && inner(y), inner(x) && inner(z), inner(y) && inner(z)];
+                    if boxed || axis.iter().any(|&a| a) {
+                        assert_eq!(block.get(x, y, z), read(x, y, z), "tile {pos} at {x},{y},{z}");
+                    }
+                }
+            }
+        }
+        let mut m = [0.0f32; 64];
+        let any = block.box_min_abs(g, &mut m);
+        for (l, &v) in m.iter().enumerate() {
+            let (x, y, z) = ((l % 4) as i32, ((l / 4) % 4) as i32, (l / 16) as i32);
+            let mut want = f32::INFINITY;
+            for d in NEIGHBOURHOOD {
+                want = want.min(read(x + d.x, y + d.y, z + d.z).abs());
+            }
+            assert_eq!(v.to_bits(), want.to_bits(), "box minimum of tile {pos} voxel {l}");
+        }
+        assert_eq!(any, m.iter().any(|&v| v < g));
+    }
+}
+
+#[test]
+fn star_block_equals_random_access() {
+    for case in cases(18, 3) {
+        let grid = build(&case.shape, case.spec, case.lo, case.hi);
+        check_star_block::<1>(&grid);
+        check_star_block::<3>(&grid);
+        check_star_block::<4>(&grid);
+    }
+}
+
 #[test]
 fn padded_block_equals_random_access() {
     for case in cases(18, 3) {

@@ -16,7 +16,7 @@ use crate::grid::GridSpec;
 use crate::tiles::{
     compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
-use levelset_kernels::{BandMasked, BoxMinAbs, DefaultLane, Lane, TileBlock, VoxelKernel};
+use levelset_kernels::{BandMasked, DefaultLane, Lane, TileBlock, VoxelKernel};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -162,14 +162,28 @@ impl TileSweep<'_> {
                 let mut block = PaddedBlock::<R>::new();
                 for i in 0..out.len() {
                     let pos = start + i;
-                    block.gather_row(grid, pos, table.row(pos));
-                    let tb = TileBlock::<R>::new(block.data())?;
                     let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
                         .try_into()
                         .expect("64 mask values per tile");
-                    if compute_mask {
-                        tb.apply::<L, _>(&BoxMinAbs, m)?;
+                    let computes = if compute_mask {
+                        block.gather_star_row(grid, pos, table.row(pos));
+                        block.box_min_abs(gamma, m)
+                    } else {
+                        let computes = m.iter().any(|&v| v < gamma);
+                        if computes {
+                            block.gather_star_row(grid, pos, table.row(pos));
+                        }
+                        computes
+                    };
+                    if !computes {
+                        // No voxel of the tile is in the computational band: every one
+                        // keeps its value (what `BandMasked` selects), and so do the
+                        // tile's activity flags.
+                        out[i] = *grid.tile(pos);
+                        act[i] = grid.activity_flags(pos);
+                        continue;
                     }
+                    let tb = TileBlock::<R>::new(block.data())?;
                     let k =
                         BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
                     tb.apply::<L, _>(&k, &mut out[i].0)?;
@@ -375,7 +389,7 @@ impl Representation for TilesRep {
                     if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
                         continue;
                     }
-                    block.gather_row(grid, pos, table.row(pos));
+                    block.gather_star_row(grid, pos, table.row(pos));
                     let tb = TileBlock::<1>::new(block.data())?;
                     match lanes {
                         Lanes::Scalar => kappa_tile::<f32>(&tb, inv_h, width, &mut a, &mut b),
