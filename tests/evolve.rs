@@ -120,9 +120,9 @@ fn normal_speed_and_advection_agree_everywhere() {
             spec,
             Flow::normal_speed(speed.clone()).with_curvature(0.2),
             settings.clone(),
-            50,
+            25,
         );
-        all_agree(&shape, spec, Flow::advection(vel.clone()), settings.clone(), 50);
+        all_agree(&shape, spec, Flow::advection(vel.clone()), settings.clone(), 25);
     }
 }
 
