@@ -112,16 +112,21 @@ pub fn upwind_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
     let mut plus = z;
     let mut minus = z;
     for a in 0..3 {
-        let mp = dm[a].max(z);
-        let pm = dp[a].min(z);
-        let pp = dp[a].max(z);
-        let mm = dm[a].min(z);
+        let [mp, pm, pp, mm] = upwind_parts(dm[a], dp[a]);
         plus = mp.mul_add(mp, plus);
         plus = pm.mul_add(pm, plus);
         minus = pp.mul_add(pp, minus);
         minus = mm.mul_add(mm, minus);
     }
     (plus.sqrt(), minus.sqrt())
+}
+
+/// The one-sided derivatives of an axis split by sign: `[max(dm, 0), min(dp, 0),
+/// max(dp, 0), min(dm, 0)]` (the upwind parts for a positive, then a negative sign).
+#[inline(always)]
+fn upwind_parts<L: Lane>(dm: L, dp: L) -> [L; 4] {
+    let z = L::splat(0.0);
+    [dm.max(z), dp.min(z), dp.max(z), dm.min(z)]
 }
 
 /// The Godunov upwind gradient norms `(G⁺, G⁻)` for a positive and a negative sign (or
@@ -155,10 +160,7 @@ pub fn godunov_norms<L: Lane>(dm: [L; 3], dp: [L; 3]) -> (L, L) {
     let mut plus = z;
     let mut minus = z;
     for a in 0..3 {
-        let mp = dm[a].max(z);
-        let pm = dp[a].min(z);
-        let pp = dp[a].max(z);
-        let mm = dm[a].min(z);
+        let [mp, pm, pp, mm] = upwind_parts(dm[a], dp[a]);
         plus = plus + (mp * mp).max(pm * pm);
         minus = minus + (mm * mm).max(pp * pp);
     }

@@ -207,9 +207,15 @@ impl Inputs {
             let s = self.velocity_scale;
             for (i, &v) in flat.iter().enumerate() {
                 if v.abs() < g {
-                    max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
                     max_u0 = max_u0.max(a[i].abs() + b[i].abs() + c[i].abs());
+                    if s != 1.0 {
+                        max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
+                    }
                 }
+            }
+            // Unscaled samples (s = 1) are their own scaled maximum.
+            if s == 1.0 {
+                max_u = max_u0;
             }
         }
         (max_f, max_u, max_u0)
