@@ -147,9 +147,11 @@ fn a_steep_band_returns_to_a_distance() {
             .map(|(k, t)| after.get(k).map_or(f64::INFINITY, |a| (a - t).abs()))
             .fold(0.0f64, f64::max);
         // 3φ is clamped to ±γ one voxel from the interface, so the first anchors read
-        // clamped neighbours (Δφ⁰ too small there): the crossings move by up to about an
-        // eighth of a voxel (measured 0.129), unlike on a distance band (the test above).
-        assert!(moved < 0.15, "{scheme:?}: a zero crossing moved by {moved} voxel");
+        // clamped neighbours (the slope changes across the voxel, and the anchors take
+        // Russo & Smereka's bound there): the crossings move by a few hundredths of a
+        // voxel (measured 0.036 with HJ-WENO5, 0.052 first order), unlike on a distance
+        // band (the test above).
+        assert!(moved < 0.075, "{scheme:?}: a zero crossing moved by {moved} voxel");
     }
 }
 

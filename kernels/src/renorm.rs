@@ -27,26 +27,43 @@ fn inside<L: Lane>(v: L) -> L {
     L::splat(0.0).select_gt(v, L::splat(1.0), L::splat(0.0))
 }
 
-/// The undivided slope of φ⁰ along `A` for the distance estimate: the central difference
-/// |φ₊ − φ₋|/2 where φ⁰ is monotone along the axis (both one-sided differences of one
-/// sign: a second-order estimate of |∂ₐφ| h), Russo & Smereka's
-/// max(|φ₊ − φ₋|/2, |φ₊ − φ₀|, |φ₀ − φ₋|) where it is not (at an extremum along the axis,
-/// where the central difference vanishes); never below `TINY`.
+/// Where the slope of φ⁰ changes by this fraction or more across a voxel, the distance
+/// estimate takes Russo & Smereka's bound outright (see [`slope`]).
+const UNRESOLVED: f32 = 0.25;
+
+/// The undivided slope of φ⁰ along `A` for the distance estimate, never below `TINY`.
+///
+/// Russo & Smereka take the bound B = max(|φ₊ − φ₋|/2, |φ₊ − φ₀|, |φ₀ − φ₋|). B exceeds the
+/// slope of a smooth distance function by O(h/r) and so moves a resolved curved interface
+/// by O(h²/r) per renormalisation, which accumulates over a run. Where φ⁰ is resolved
+/// along the axis, the central difference C = |φ₊ − φ₋|/2 is a second-order estimate
+/// instead. With the one-sided differences d₊ = φ₊ − φ₀, d₋ = φ₀ − φ₋ and the relative
+/// change of slope q = |d₊ − d₋| / (|d₊| + |d₋|) (0 on a straight profile, 1 where one
+/// side is flat), the slope is C + w (B − C) with w = min(1, (q / 0.25)²) where φ⁰ is
+/// monotone along the axis (d₊ d₋ > 0) and w = 1 where it is not (at an extremum, where C
+/// vanishes). Resolved profiles (q ≈ h/r) get C up to O(q²); thin, under-resolved
+/// features (a sheet a voxel thick, where the advected profile is rounded) get B, which
+/// keeps them from inflating. The blend is continuous in φ⁰, so no voxel switches rule
+/// abruptly between sweeps.
 #[inline(always)]
 fn slope<L: Lane, W: Window<L>, A: Axis>(w: &W) -> L {
     let (m, c, p) = (A::at::<L, W, -1>(w), w.centre(), A::at::<L, W, 1>(w));
     let (dp, dm) = (p - c, c - m);
+    let (z, one) = (L::splat(0.0), L::splat(1.0));
     let central = (p - m).abs() * L::splat(0.5);
     let bound = central.max(dp.abs()).max(dm.abs());
+    let q = (dp - dm).abs() / (dp.abs() + dm.abs() + L::splat(TINY));
+    let q = q * L::splat(1.0 / UNRESOLVED);
     // dp·dm > 0: monotone along the axis.
-    let s = (dp * dm).select_gt(L::splat(0.0), central, bound);
-    s.max(L::splat(TINY))
+    let weight = (dp * dm).select_gt(z, (q * q).min(one), one);
+    weight.mul_add(bound - central, central).max(L::splat(TINY))
 }
 
 /// The anchor of each voxel, evaluated over φ⁰: at a voxel next to the interface —
 /// inside (φ⁰ < 0) while a face neighbour is not, or the other way round — Russo &
 /// Smereka's distance estimate D = h φ⁰ / Δφ⁰ with Δφ⁰ = (Σₐ sₐ²)^½ over the axis slopes
-/// sₐ = max(|φ₊ − φ₋|/2, |φ₊ − φ₀|, |φ₀ − φ₋|) (their Sec. 3, the three-dimensional form);
+/// sₐ (their Sec. 3, the three-dimensional form; sₐ blends their bound with the central
+/// difference where φ⁰ is resolved, see `slope`);
 /// elsewhere +∞ where φ⁰ ≥ 0 and −∞ where φ⁰ < 0. Reads the six face neighbours.
 ///
 /// φ = 0 counts as outside (the crate's convention φ < 0 inside), so a voxel with φ⁰ = 0
