@@ -83,8 +83,9 @@ fn configs() -> [Settings; 3] {
 #[test]
 fn mean_curvature_flow_agrees_everywhere() {
     let shape = Shape::Torus { center: [1.3, -2.2, 0.4], major_radius: 14.0, minor_radius: 5.5 };
+    // 90 steps: at CFL 1 the tube pinches off (the run reports a collapse) at step 97.
     for settings in configs() {
-        all_agree(&shape, GridSpec::default(), Flow::mean_curvature(1.0), settings.clone(), 100);
+        all_agree(&shape, GridSpec::default(), Flow::mean_curvature(1.0), settings.clone(), 90);
     }
 }
 

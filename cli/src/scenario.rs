@@ -21,8 +21,7 @@
 use serde::Serialize;
 use sparse_levelset::evolve::{
     EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Reinit,
-    Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, Sweeps, TimeStep,
-    Velocity,
+    Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::input::{self, Expect, InputError};
@@ -168,25 +167,25 @@ pub struct Defaults {
 
 impl Defaults {
     pub fn of(kind: ScenarioKind) -> Defaults {
-        match kind {
+        let s = match kind {
             // Mean curvature flow has no hyperbolic term: the scheme only matters for the
             // renormalisation, and forward Euler at the parabolic limit is as accurate as
             // TVD-RK3 at a third of the cost.
-            ScenarioKind::Sphere | ScenarioKind::Morph => {
-                let s = Settings::upwind1_euler();
-                Defaults {
-                    scheme: s.scheme,
-                    integrator: s.integrator,
-                    cfl: 0.9,
-                    renormalization: s.renormalization,
-                }
+            ScenarioKind::Sphere | ScenarioKind::Morph => Settings::upwind1_euler(),
+            ScenarioKind::Spiral | ScenarioKind::Enright | ScenarioKind::Expand => {
+                Settings::default()
             }
-            ScenarioKind::Spiral | ScenarioKind::Enright | ScenarioKind::Expand => Defaults {
-                scheme: SpatialScheme::Weno5,
-                integrator: Integrator::Rk3,
-                cfl: 0.9,
-                renormalization: Renormalization::Sweeps(Sweeps::default()),
-            },
+        };
+        // Both routes step at a CFL number (a fixed Δt would carry no CFL number to show).
+        let cfl = match s.time_step {
+            TimeStep::Cfl(c) => c,
+            TimeStep::Fixed(_) => 1.0,
+        };
+        Defaults {
+            scheme: s.scheme,
+            integrator: s.integrator,
+            cfl,
+            renormalization: s.renormalization,
         }
     }
 }

@@ -146,7 +146,7 @@ pub struct RunArgs {
     /// Time integrator [default: euler for sphere and morph, rk3 otherwise].
     #[arg(long, value_enum)]
     pub integrator: Option<IntegratorArg>,
-    /// CFL number in (0, 1] of the physical terms' stability limit [default: 0.9].
+    /// CFL number in (0, 1] of the physical terms' stability limit [default: 1].
     #[arg(allow_hyphen_values = true, long)]
     pub cfl: Option<f32>,
     /// Keep a record every K steps.
