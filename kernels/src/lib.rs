@@ -65,7 +65,8 @@
 //! * Renormalisation ([`renorm`]): [`InterfaceAnchor`] (Russo–Smereka distance estimates
 //!   next to the interface, once from φ⁰) and [`RenormRate`] (pseudo-time rate of
 //!   φ_τ = S(φ⁰)(1 − |∇φ|) with Godunov norms [`diff::godunov_norms`] and the subcell
-//!   fix), stepped with [`Euler`] at [`rk::cfl_dt_renorm`].
+//!   fix), stepped with [`Euler`] at [`rk::cfl_dt_renorm`]; [`AnchoredRenormRate`] is
+//!   the two in one pass (the first sweep over φ⁰).
 //! * Voxel kernels ([`VoxelKernel`]: [`Eq3Rate`], [`AdvectionRate`], their [`Sum`],
 //!   [`Euler`], [`Rk3`], the band mask [`BandMasked`] with [`BoxMinAbs`]) and the sweeps
 //!   that apply them ([`TileBlock::apply`], [`DenseBlock::apply`]).
@@ -132,7 +133,7 @@ pub use kernel::{
     Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
-pub use renorm::{InterfaceAnchor, RenormRate};
+pub use renorm::{AnchoredRenormRate, InterfaceAnchor, RenormRate};
 pub use window::{
     box27_index, box_far39_index, star19_index, BoxFarWindow, BoxStarWindow, BoxWindow,
     DenseWindow, StarWindow, TileWindow, Window, BOX27_OFFSETS, BOX_FAR39_OFFSETS, STAR19_OFFSETS,

@@ -6,7 +6,8 @@
 //! Two kernels: [`InterfaceAnchor`] runs once over φ⁰ (the values before the first sweep)
 //! and gives every voxel its *anchor* — Russo & Smereka's distance estimate D at the voxels
 //! next to the interface, ±∞ (the sign of φ⁰) elsewhere; [`RenormRate`] is the rate of
-//! one sweep, read with those anchors. Forward Euler in pseudo time with the step of
+//! one sweep, read with those anchors; [`AnchoredRenormRate`] is the first sweep's rate
+//! with the anchors evaluated in place (no anchor pass when one sweep is all). Forward Euler in pseudo time with the step of
 //! [`crate::rk::cfl_dt_renorm`] wraps it ([`crate::Euler`]).
 
 use crate::diff::godunov_norms;
@@ -140,18 +141,54 @@ impl<S: Scheme, A: ScalarField> VoxelKernel for RenormRate<S, A> {
 
     #[inline(always)]
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
-        let a = self.anchor.lanes::<L>(first);
-        let phi = w.centre();
-        let (z, one) = (L::splat(0.0), L::splat(1.0));
-        let h = L::splat(self.voxel_size);
-        let inv_h = one / h;
-        // sgn(a): +1, −1 or 0.
-        let s = a.select_gt(z, one, z.select_gt(a, -one, z));
-        let (dm, dp) = S::derivatives(w, inv_h);
-        let (gp, gm) = godunov_norms(dm, dp);
-        let g = s.select_gt(z, gp, gm);
-        let eikonal = s * (one - g);
-        let subcell = (a - s * phi.abs()) * inv_h;
-        L::splat(f32::INFINITY).select_gt(a.abs(), subcell, eikonal)
+        renorm_rate::<S, L, W>(self.anchor.lanes::<L>(first), w, self.voxel_size)
+    }
+}
+
+/// The rate of [`RenormRate`] at the lanes of `w` with anchors `a`.
+#[inline(always)]
+fn renorm_rate<S: Scheme, L: Lane, W: Window<L>>(a: L, w: &W, voxel_size: f32) -> L {
+    let phi = w.centre();
+    let (z, one) = (L::splat(0.0), L::splat(1.0));
+    let h = L::splat(voxel_size);
+    let inv_h = one / h;
+    // sgn(a): +1, −1 or 0.
+    let s = a.select_gt(z, one, z.select_gt(a, -one, z));
+    let (dm, dp) = S::derivatives(w, inv_h);
+    let (gp, gm) = godunov_norms(dm, dp);
+    let g = s.select_gt(z, gp, gm);
+    let eikonal = s * (one - g);
+    let subcell = (a - s * phi.abs()) * inv_h;
+    L::splat(f32::INFINITY).select_gt(a.abs(), subcell, eikonal)
+}
+
+/// The first renormalisation sweep's rate with the anchors evaluated in place: over φ⁰,
+/// [`InterfaceAnchor`] followed by [`RenormRate`] with its result, the same operations in
+/// the same order, so the same bits as the anchor pass and a sweep that reads its
+/// anchors back. The sweep's star window (±1 or ±3 along the axes) holds the six face
+/// neighbours the anchor reads, so a renormalisation of one sweep needs no anchor pass
+/// and no anchor buffer.
+#[derive(Clone, Copy, Debug)]
+pub struct AnchoredRenormRate<S> {
+    /// h, the voxel size.
+    pub voxel_size: f32,
+    scheme: PhantomData<S>,
+}
+
+impl<S: Scheme> AnchoredRenormRate<S> {
+    /// Voxel size h; the window holds φ⁰.
+    pub fn new(voxel_size: f32) -> Self {
+        AnchoredRenormRate { voxel_size, scheme: PhantomData }
+    }
+}
+
+impl<S: Scheme> VoxelKernel for AnchoredRenormRate<S> {
+    const AXIS_REACH: i32 = if S::AXIS_REACH > 1 { S::AXIS_REACH } else { 1 };
+    const BOX_REACH: i32 = 0;
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let a = InterfaceAnchor { voxel_size: self.voxel_size }.eval(w, first);
+        renorm_rate::<S, L, W>(a, w, self.voxel_size)
     }
 }

@@ -1,7 +1,8 @@
-//! The renormalisation kernels ([`InterfaceAnchor`], [`RenormRate`], `godunov_norms`,
-//! `cfl_dt_renorm`) in all three test layers: every lane type and every feed (dense block,
-//! tile, DT-Grid point windows) bit for bit; analytic fields (linear fields, planes,
-//! spheres); and whole sweeps that converge to |∇φ| = 1 without moving the interface.
+//! The renormalisation kernels ([`InterfaceAnchor`], [`RenormRate`],
+//! [`AnchoredRenormRate`], `godunov_norms`, `cfl_dt_renorm`) in all three test layers:
+//! every lane type and every feed (dense block, tile, DT-Grid point windows) bit for bit;
+//! analytic fields (linear fields, planes, spheres); and whole sweeps that converge to
+//! |∇φ| = 1 without moving the interface.
 //!
 //! Analytic values are computed in f64 and rounded to f32 once, as a grid stores them.
 //! Tolerances are abs + rel, with the reason for each bound next to it.
@@ -15,9 +16,9 @@ use common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMM
 use levelset_kernels::diff::{godunov_norms, upwind_norms};
 use levelset_kernels::rk::{cfl_dt_normal, cfl_dt_renorm};
 use levelset_kernels::{
-    box27_index, box_far39_index, star19_index, BandMasked, BoxFarWindow, BoxStarWindow, BoxWindow,
-    DenseBlock, Euler, InterfaceAnchor, KernelError, Lane, RenormRate, StarWindow, TileBlock,
-    Upwind1, VoxelKernel, Weno5,
+    box27_index, box_far39_index, star19_index, AnchoredRenormRate, BandMasked, BoxFarWindow,
+    BoxStarWindow, BoxWindow, DenseBlock, Euler, InterfaceAnchor, KernelError, Lane, RenormRate,
+    StarWindow, TileBlock, Upwind1, VoxelKernel, Weno5,
 };
 
 /// Voxel size of the lane tests (not 1, so that the scaling by h is exercised).
@@ -229,6 +230,39 @@ fn check_renorm_kernels(data: &[f32], dims: [usize; 3], rng: &mut Rng, tile: boo
             check_tile(&name("rate upwind1"), &up, data, &rate_up);
             check_tile(&name("rate weno5"), &we, data, &rate_we);
         }
+    }
+    // The anchors evaluated in place: the same bits as the anchor pass and a rate that
+    // reads them back, in every lane type and window.
+    let rate_up = check_all::<_, Reach1>(
+        "rate upwind1",
+        &RenormRate::<Upwind1, &[f32]>::new(H, &anchors),
+        data,
+        dims,
+    );
+    let rate_we = check_all::<_, Reach3>(
+        "rate weno5",
+        &RenormRate::<Weno5, &[f32]>::new(H, &anchors),
+        data,
+        dims,
+    );
+    let (fused_up, fused_we) =
+        (AnchoredRenormRate::<Upwind1>::new(H), AnchoredRenormRate::<Weno5>::new(H));
+    let got_up = check_all::<_, Reach1>("anchored rate upwind1", &fused_up, data, dims);
+    let got_we = check_all::<_, Reach3>("anchored rate weno5", &fused_we, data, dims);
+    for i in 0..n {
+        assert!(same_bits(got_up[i], rate_up[i]), "anchored upwind1 voxel {i}");
+        assert!(same_bits(got_we[i], rate_we[i]), "anchored weno5 voxel {i}");
+    }
+    let dt = cfl_dt_renorm(H, 0.5);
+    let masked = BandMasked {
+        step: Euler { rate: fused_we, dt, gamma: GAMMA },
+        box_min: &box_min,
+        gamma: GAMMA,
+    };
+    check_all::<_, Reach3>("masked euler anchored weno5", &masked, data, dims);
+    if tile {
+        check_tile("anchored rate upwind1", &fused_up, data, &rate_up);
+        check_tile("anchored rate weno5", &fused_we, data, &rate_we);
     }
 }
 

@@ -17,8 +17,8 @@
 use super::rep::dtgrid::PointWindow;
 use super::{EvolveError, SpatialScheme};
 use levelset_kernels::{
-    AdvectionRate, Eq3Rate, Euler, InterfaceAnchor, RenormRate, Rk3, ScaledVelocity, Scheme, Sum,
-    Upwind1, VoxelKernel, Weno5,
+    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, InterfaceAnchor, RenormRate, Rk3,
+    ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -166,10 +166,12 @@ pub(crate) fn dispatch_anchor<V: Sweep>(h: f32, sweep: V) -> Result<(), EvolveEr
 
 /// One forward-Euler sweep in pseudo time of the renormalisation rate, with the scheme's
 /// reach. `anchor` holds the Russo–Smereka anchors of φ⁰ per voxel (flat order): the
-/// distance estimate at voxels next to the interface, ±∞ elsewhere ([`InterfaceAnchor`]).
+/// distance estimate at voxels next to the interface, ±∞ elsewhere ([`InterfaceAnchor`]);
+/// `None` evaluates them in place from the values swept, which must be φ⁰ (the first
+/// sweep; [`AnchoredRenormRate`], the same bits as an anchor pass before it).
 pub(crate) fn dispatch_renorm<V: Sweep>(
     p: &RenormParams,
-    anchor: &[f32],
+    anchor: Option<&[f32]>,
     sweep: V,
 ) -> Result<(), EvolveError> {
     match p.scheme {
@@ -180,16 +182,23 @@ pub(crate) fn dispatch_renorm<V: Sweep>(
 
 fn renorm<'a, S: Scheme, const R: usize, V: Sweep>(
     p: &RenormParams,
-    anchor: &'a [f32],
+    anchor: Option<&'a [f32]>,
     sweep: V,
 ) -> Result<(), EvolveError>
 where
     Halo<R>: PointWindow,
 {
     let (h, dt, gamma) = (p.h, p.dtau, p.gamma);
-    sweep.run::<_, _, R>(move |r: Range<usize>| Euler {
-        rate: RenormRate::<S, &'a [f32]>::new(h, &anchor[r]),
-        dt,
-        gamma,
-    })
+    match anchor {
+        Some(anchor) => sweep.run::<_, _, R>(move |r: Range<usize>| Euler {
+            rate: RenormRate::<S, &'a [f32]>::new(h, &anchor[r]),
+            dt,
+            gamma,
+        }),
+        None => sweep.run::<_, _, R>(move |_| Euler {
+            rate: AnchoredRenormRate::<S>::new(h),
+            dt,
+            gamma,
+        }),
+    }
 }

@@ -169,14 +169,21 @@ impl Representation for DenseRep {
     }
 
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
-        self.undo.vacate_out(&mut self.phi_n, &mut self.out);
-        // The sweep writes `out`; the anchors take it (a swap).
-        dispatch_anchor(p.h, DenseSweep { rep: self, compute_mask: fresh })?;
-        std::mem::swap(&mut self.anchor, &mut self.out);
-        for _ in 0..p.sweeps {
+        // One sweep evaluates its anchors in place: no anchor pass.
+        let anchored = p.sweeps > 1;
+        if anchored {
+            self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+            // The sweep writes `out`; the anchors take it (a swap).
+            dispatch_anchor(p.h, DenseSweep { rep: self, compute_mask: fresh })?;
+            std::mem::swap(&mut self.anchor, &mut self.out);
+        }
+        for s in 0..p.sweeps {
             self.undo.vacate_out(&mut self.phi_n, &mut self.out);
             let anchor = std::mem::take(&mut self.anchor);
-            let r = dispatch_renorm(p, &anchor, DenseSweep { rep: self, compute_mask: false });
+            let a = anchored.then_some(&anchor[..]);
+            // At rest, the single sweep computes the band mask of φ⁰ itself.
+            let compute_mask = fresh && !anchored && s == 0;
+            let r = dispatch_renorm(p, a, DenseSweep { rep: self, compute_mask });
             self.anchor = anchor;
             r?;
             self.field.data_mut().swap_with_slice(&mut self.out);

@@ -194,15 +194,22 @@ impl Representation for DtRep {
 
     fn renormalize(&mut self, p: &RenormParams, _fresh: bool) -> Result<(), EvolveError> {
         // The grid stores exactly the band mask (of φⁿ within a step, of φ⁰ at rest).
-        self.undo.vacate_out(&mut self.phi_n, &mut self.out);
-        let mut anchor = std::mem::take(&mut self.anchor);
-        let r = dispatch_anchor(p.h, DtSweep { rep: self, out: &mut anchor });
-        self.anchor = anchor;
-        r?;
+        // One sweep evaluates its anchors in place: no anchor pass.
+        let anchored = p.sweeps > 1;
+        if anchored {
+            self.undo.vacate_out(&mut self.phi_n, &mut self.out);
+            let mut anchor = std::mem::take(&mut self.anchor);
+            let r = dispatch_anchor(p.h, DtSweep { rep: self, out: &mut anchor });
+            self.anchor = anchor;
+            r?;
+        }
         for _ in 0..p.sweeps {
             self.undo.vacate_out(&mut self.phi_n, &mut self.out);
             let mut out = std::mem::take(&mut self.out);
-            let r = dispatch_renorm(p, &self.anchor, DtSweep { rep: self, out: &mut out });
+            let anchor = std::mem::take(&mut self.anchor);
+            let a = anchored.then_some(&anchor[..]);
+            let r = dispatch_renorm(p, a, DtSweep { rep: self, out: &mut out });
+            self.anchor = anchor;
             let r = r.and_then(|()| Ok(self.grid.swap_values(&mut out)?));
             self.out = out;
             r?;

@@ -285,25 +285,30 @@ impl Representation for TilesRep {
 
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
         let n = self.grid.len();
-        self.buf.vacate_out(&mut self.undo);
-        self.buf.resize(n);
-        resize_exact(&mut self.buf.anchor, n, Tile::splat(0.0));
-        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-        let Buffers { anchor, box_min, activity, .. } = &mut self.buf;
-        // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
-        let sweep = TileSweep {
-            grid: &self.grid,
-            table: &self.table,
-            lanes: self.lanes,
-            out: anchor,
-            box_min,
-            compute_mask: fresh,
-            activity,
-        };
-        dispatch_anchor(p.h, sweep)?;
-        for _ in 0..p.sweeps {
+        // One sweep evaluates its anchors in place: no anchor pass, no anchor buffer.
+        let anchored = p.sweeps > 1;
+        if anchored {
             self.buf.vacate_out(&mut self.undo);
             self.buf.resize(n);
+            resize_exact(&mut self.buf.anchor, n, Tile::splat(0.0));
+            debug_assert_eq!(self.table.len(), n, "stale neighbour table");
+            let Buffers { anchor, box_min, activity, .. } = &mut self.buf;
+            // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
+            let sweep = TileSweep {
+                grid: &self.grid,
+                table: &self.table,
+                lanes: self.lanes,
+                out: anchor,
+                box_min,
+                compute_mask: fresh,
+                activity,
+            };
+            dispatch_anchor(p.h, sweep)?;
+        }
+        for s in 0..p.sweeps {
+            self.buf.vacate_out(&mut self.undo);
+            self.buf.resize(n);
+            debug_assert_eq!(self.table.len(), n, "stale neighbour table");
             let Buffers { out, box_min, activity, anchor, .. } = &mut self.buf;
             let sweep = TileSweep {
                 grid: &self.grid,
@@ -311,10 +316,11 @@ impl Representation for TilesRep {
                 lanes: self.lanes,
                 out,
                 box_min,
-                compute_mask: false,
+                // At rest, the single sweep computes the band mask of φ⁰ itself.
+                compute_mask: fresh && !anchored && s == 0,
                 activity,
             };
-            dispatch_renorm(p, tile_flat(anchor), sweep)?;
+            dispatch_renorm(p, anchored.then_some(tile_flat(anchor)), sweep)?;
             self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
             if self.undo == Undo::Nothing {
                 self.undo = Undo::Out;
