@@ -5,12 +5,14 @@
 
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
-    EvolveError, Flow, GridKind, Lanes, Reinit, Settings, Simulation, Speed, TimeStep,
+    EvolveError, Flow, GridKind, Lanes, Reinit, Settings, Simulation, Speed, TimeStep, VectorFn,
+    Velocity,
 };
 use sparse_levelset::fmm::Order;
 use sparse_levelset::grid::{GridError, GridSpec};
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
+use std::sync::Arc;
 
 const SPARSE: [GridKind; 3] =
     [GridKind::Tiles(Lanes::Scalar), GridKind::Tiles(Lanes::Simd), GridKind::DtGrid];
@@ -319,5 +321,46 @@ fn run_until_keeps_the_last_good_step() {
         assert!(matches!(r, Err(EvolveError::NonFiniteField { .. })), "{kind:?}: {r:?}");
         assert_eq!(Some(snapshot(&sim)), last, "{kind:?}");
         assert_eq!(sim.steps(), 7, "{kind:?}");
+    }
+}
+
+/// A time-separable field u = s(t) u₀(x) whose u₀ is NaN beyond x = 14: its samples are
+/// kept from step to step, and only tiles new to the band are sampled.
+struct DriftUntil;
+
+impl VectorFn for DriftUntil {
+    fn fill_run(&self, spec: &GridSpec, start: Coord, _t: f64, out: [&mut [f32]; 3]) {
+        let [u, v, w] = out;
+        for i in 0..u.len() {
+            let x = spec.world(Coord::new(start.x + i as i32, start.y, start.z))[0];
+            (u[i], v[i], w[i]) = (if x > 14.0 { f32::NAN } else { 1.0 }, 0.25, 0.0);
+        }
+    }
+    fn time_scale(&self, _t: f64) -> Option<f32> {
+        Some(1.0)
+    }
+}
+
+/// The band drifts into the region where the kept samples' field is NaN: the step that
+/// first stores a voxel there fails and changes nothing, and so does its retry (a sample
+/// found non-finite is not kept as checked). (The dense box samples its whole box and
+/// fails in the first step.)
+#[test]
+fn a_kept_velocity_sample_found_non_finite_fails_every_retry() {
+    let shape = Shape::Sphere { center: [0.1, 0.2, 0.3], radius: 5.0 };
+    let flow = Flow::advection(Velocity::Field(Arc::new(DriftUntil)));
+    for kind in SPARSE {
+        let mut sim = Simulation::from_shape(
+            kind,
+            &shape,
+            GridSpec::default(),
+            flow.clone(),
+            Settings::default(),
+        )
+        .unwrap();
+        let e = run_to_failure(&mut sim, 2, 100);
+        assert!(matches!(e, EvolveError::NonFiniteField { .. }), "{kind:?}: {e}");
+        let e = run_to_failure(&mut sim, 0, 1);
+        assert!(matches!(e, EvolveError::NonFiniteField { .. }), "{kind:?} retry: {e}");
     }
 }

@@ -3,9 +3,10 @@
 //! (eq. (5)–(7)), and the maxima the time step comes from.
 
 use super::dispatch::StageParams;
-use super::field::{Speed, Velocity};
+use super::field::{Speed, VectorFn, Velocity};
 use super::rep::{growth_bytes, resize_exact, vec_bytes, Representation};
 use super::{in_pool, EvolveError, Flow, Settings};
+use crate::coord::Coord;
 use crate::grid::GridSpec;
 use std::sync::Arc;
 
@@ -23,6 +24,23 @@ pub(crate) struct Inputs {
     velocity_scale: f32,
     /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
     base: Vec<f32>,
+    /// A time-separable velocity's samples u(x, 0) depend on the position only, so they
+    /// are kept from step to step: `velocity` holds the samples of the units (tiles)
+    /// `static_keys` names, taken on the grid `static_spec` (empty: nothing to reuse).
+    static_keys: Vec<Coord>,
+    static_spec: Option<GridSpec>,
+    /// The previous samples while the new ones are assembled (swapped with `velocity`).
+    spare: [Vec<f32>; 3],
+}
+
+/// What [`Inputs::fill_velocity`] wrote.
+enum Written {
+    /// Nothing (no velocity, or nothing to sample in this stage).
+    Nothing,
+    /// The arrays, to be checked.
+    Arrays,
+    /// Samples it has checked itself: whether they are finite.
+    Checked(bool),
 }
 
 impl Default for Inputs {
@@ -33,6 +51,9 @@ impl Default for Inputs {
             velocity: Default::default(),
             velocity_scale: 1.0,
             base: Vec::new(),
+            static_keys: Vec::new(),
+            static_spec: None,
+            spare: Default::default(),
         }
     }
 }
@@ -42,7 +63,8 @@ impl Inputs {
     pub fn bytes(&self) -> usize {
         vec_bytes(&self.speed)
             + vec_bytes(&self.base)
-            + self.velocity.iter().map(vec_bytes).sum::<usize>()
+            + self.velocity.iter().chain(&self.spare).map(vec_bytes).sum::<usize>()
+            + vec_bytes(&self.static_keys)
     }
 
     /// Bytes the inputs of `flow` have to allocate for `n` voxels.
@@ -53,6 +75,13 @@ impl Inputs {
         }
         if flow.velocity.is_some() {
             b += self.velocity.iter().map(|c| growth_bytes(c, n)).sum::<u64>();
+        }
+        if let Some(Velocity::Field(f)) = &flow.velocity {
+            if f.time_scale(0.0).is_some() {
+                // The previous samples and their keys (a tile's coordinate per 64 voxels).
+                b += self.spare.iter().map(|c| growth_bytes(c, n)).sum::<u64>()
+                    + growth_bytes(&self.static_keys, n / 64);
+            }
         }
         b
     }
@@ -77,13 +106,17 @@ impl Inputs {
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
         self.fill_speed(rep, &flow.speed, pool, t, first, add);
-        let check_velocity = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
+        let written = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
         let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
         let velocity_ok = self.velocity_scale.is_finite()
-            && (!check_velocity || self.velocity.iter().all(|c| finite(c)));
+            && match written {
+                Written::Nothing => true,
+                Written::Arrays => self.velocity.iter().all(|c| finite(c)),
+                Written::Checked(ok) => ok,
+            };
         let speed_ok = self.uniform_speed.map_or_else(|| finite(&self.speed), f32::is_finite);
         if !speed_ok || !velocity_ok {
             return Err(EvolveError::NonFiniteField { step, time: t });
@@ -136,8 +169,7 @@ impl Inputs {
         }
     }
 
-    /// Advection velocity u; returns whether the arrays were written (and must be
-    /// checked).
+    /// Advection velocity u; returns what was written (and how it is to be checked).
     fn fill_velocity(
         &mut self,
         rep: &dyn Representation,
@@ -145,10 +177,24 @@ impl Inputs {
         pool: &Option<Arc<rayon::ThreadPool>>,
         t: f64,
         first: bool,
-    ) -> bool {
+    ) -> Written {
         self.velocity_scale = 1.0;
-        let Some(vel) = velocity else { return false };
+        let Some(vel) = velocity else { return Written::Nothing };
         let n = rep.flat().len();
+        let written = |w: bool| if w { Written::Arrays } else { Written::Nothing };
+        // u(x, t) = s(t) u(x, 0): u(x, 0) sampled once per step (where the layout changed),
+        // the kernels multiply by s.
+        if let Velocity::Field(f) = vel {
+            if let Some(scale) = f.time_scale(t) {
+                self.velocity_scale = scale;
+                return if first {
+                    self.fill_static(rep, f.as_ref(), pool, n)
+                } else {
+                    Written::Nothing
+                };
+            }
+        }
+        self.static_keys.clear();
         for c in &mut self.velocity {
             resize_exact(c, n, 0.0);
         }
@@ -159,29 +205,54 @@ impl Inputs {
                         c.fill(v);
                     }
                 }
-                first
+                written(first)
             }
-            Velocity::Field(f) => match f.time_scale(t) {
-                // u(x, t) = s(t) u(x, 0): u(x, 0) sampled once per step, the kernels
-                // multiply by s.
-                Some(scale) => {
-                    if first {
-                        let [a, b, c] = &mut self.velocity;
-                        in_pool(pool, || rep.fill_vector(f.as_ref(), 0.0, [a, b, c]));
-                    }
-                    self.velocity_scale = scale;
-                    first
+            Velocity::Field(f) => {
+                let sample = first || f.time_dependent();
+                if sample {
+                    let [a, b, c] = &mut self.velocity;
+                    in_pool(pool, || rep.fill_vector(f.as_ref(), t, [a, b, c]));
                 }
-                None => {
-                    let sample = first || f.time_dependent();
-                    if sample {
-                        let [a, b, c] = &mut self.velocity;
-                        in_pool(pool, || rep.fill_vector(f.as_ref(), t, [a, b, c]));
-                    }
-                    sample
-                }
-            },
+                written(sample)
+            }
         }
+    }
+
+    /// u(x, 0) of a time-separable field at the `n` voxels of `rep`: the samples of
+    /// units kept from the last step are reused ([`Representation::fill_static_vector`]),
+    /// the others sampled and checked.
+    fn fill_static(
+        &mut self,
+        rep: &dyn Representation,
+        f: &dyn VectorFn,
+        pool: &Option<Arc<rayon::ThreadPool>>,
+        n: usize,
+    ) -> Written {
+        let spec = rep.spec();
+        if self.static_spec != Some(spec) {
+            self.static_keys.clear();
+        }
+        self.static_spec = Some(spec);
+        if self.static_keys.is_empty() {
+            // Nothing to reuse: no copy of the old samples either.
+            for c in &mut self.velocity {
+                c.clear();
+            }
+        }
+        for c in &mut self.spare {
+            resize_exact(c, n, 0.0);
+        }
+        std::mem::swap(&mut self.spare, &mut self.velocity);
+        let [a, b, c] = &mut self.velocity;
+        let [pa, pb, pc] = &self.spare;
+        let keys = &mut self.static_keys;
+        let ok = in_pool(pool, || rep.fill_static_vector(f, keys, [pa, pb, pc], [a, b, c]));
+        if !ok {
+            // Sample everything anew next time: the step stops here, and its retry must
+            // not take a non-finite sample as checked.
+            self.static_keys.clear();
+        }
+        Written::Checked(ok)
     }
 
     /// max |F|, max (|u|+|v|+|w|) and the same of the unscaled samples (u(x, 0) of a

@@ -41,6 +41,27 @@ pub(crate) trait Representation: Send + Sync {
     fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]);
     /// Samples a vector field at every stored voxel (flat order).
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
+    /// Samples a field that depends on the position only (u(x, 0) of a time-separable
+    /// field, [`VectorFn::time_scale`]) at t = 0 like [`Representation::fill_vector`],
+    /// reusing earlier samples: `prev` holds, unit by unit (a representation's run of
+    /// voxels in flat order, 64 per tile), the samples of the units `keys` names, and
+    /// `keys` becomes the units of `out`, or empty when the representation keeps no keys.
+    /// The samples are the field's, so reused and fresh ones have the same bits. Returns
+    /// whether every sample written anew is finite (the reused ones were checked when
+    /// they were sampled). The default samples everything anew.
+    fn fill_static_vector(
+        &self,
+        f: &dyn VectorFn,
+        keys: &mut Vec<Coord>,
+        prev: [&[f32]; 3],
+        out: [&mut [f32]; 3],
+    ) -> bool {
+        let _ = prev;
+        keys.clear();
+        let [u, v, w] = out;
+        self.fill_vector(f, 0.0, [&mut *u, &mut *v, &mut *w]);
+        [u, v, w].iter().all(|c| c.iter().all(|x| x.is_finite()))
+    }
     /// Runs one stage: the current values become the stage's result; in stages 2 and 3
     /// the kernel reads φⁿ, kept from stage 1. `last` marks the step's final stage. On
     /// an error the values are those before the stage.

@@ -245,6 +245,57 @@ impl Representation for TilesRep {
             .for_each(|(((u, v), w), &tc)| f.fill_tile(&spec, voxel_of(tc, 0), t, [u, v, w]));
     }
 
+    /// Tiles that stay in the list keep their samples: the previous and the current
+    /// list are both sorted, so each chunk of the current list finds its first
+    /// predecessor by binary search and then merges forward; only tiles new to the list
+    /// are sampled (and checked).
+    fn fill_static_vector(
+        &self,
+        f: &dyn VectorFn,
+        keys: &mut Vec<Coord>,
+        prev: [&[f32]; 3],
+        out: [&mut [f32]; 3],
+    ) -> bool {
+        let spec = self.spec();
+        let coords = self.grid.tile_coords();
+        let old: &[Coord] = keys;
+        debug_assert!(prev.iter().all(|c| c.len() == 64 * old.len()), "samples per key");
+        let [u, v, w] = out;
+        const CHUNK: usize = 64 * TILE_CHUNK;
+        let finite = u
+            .par_chunks_mut(CHUNK)
+            .zip(v.par_chunks_mut(CHUNK))
+            .zip(w.par_chunks_mut(CHUNK))
+            .zip(coords.par_chunks(TILE_CHUNK))
+            .map(|(((u, v), w), tiles)| {
+                let mut j = old.partition_point(|k| *k < tiles[0]);
+                let mut finite = true;
+                for (i, &tc) in tiles.iter().enumerate() {
+                    while j < old.len() && old[j] < tc {
+                        j += 1;
+                    }
+                    let r = 64 * i..64 * i + 64;
+                    let out = [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]];
+                    if j < old.len() && old[j] == tc {
+                        for (o, p) in out.into_iter().zip(prev) {
+                            o.copy_from_slice(&p[64 * j..64 * j + 64]);
+                        }
+                    } else {
+                        f.fill_tile(&spec, voxel_of(tc, 0), 0.0, out);
+                        let r = 64 * i..64 * i + 64;
+                        finite &= [&u[r.clone()], &v[r.clone()], &w[r]]
+                            .iter()
+                            .all(|c| c.iter().all(|x| x.is_finite()));
+                    }
+                }
+                finite
+            })
+            .reduce(|| true, |a, b| a && b);
+        keys.clear();
+        keys.extend_from_slice(coords);
+        finite
+    }
+
     fn stage(
         &mut self,
         p: &StageParams,
