@@ -257,38 +257,53 @@ impl Inputs {
 
     /// max |F|, max (|u|+|v|+|w|) and the same of the unscaled samples (u(x, 0) of a
     /// time-separable field; equal otherwise) over the band voxels of `flat` (the set
-    /// every representation holds, so every representation takes the same Δt).
+    /// every representation holds, so every representation takes the same Δt). In
+    /// parallel chunks (call it in the pool): a maximum of finite values does not depend on
+    /// how it is grouped, so neither do the bits.
     pub fn band_maxima(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
-        let mut max_f = 0.0f32;
-        match self.uniform_speed {
+        use rayon::prelude::*;
+        /// Voxels per parallel task (64 tiles).
+        const CHUNK: usize = 4096;
+        let max3 =
+            |a: (f32, f32, f32), b: (f32, f32, f32)| (a.0.max(b.0), a.1.max(b.1), a.2.max(b.2));
+        let s = self.velocity_scale;
+        let (speed, uniform) = match self.uniform_speed {
             // Every step starts with band voxels (or the interface has collapsed).
-            Some(f) => max_f = f.abs(),
-            None => {
-                for (&v, &f) in flat.iter().zip(&self.speed) {
-                    if v.abs() < g {
-                        max_f = max_f.max(f.abs());
+            Some(f) => (&[][..], Some(f.abs())),
+            None => (&self.speed[..], None),
+        };
+        let [a, b, c] = &self.velocity;
+        let (max_f, max_u, max_u0) = flat
+            .par_chunks(CHUNK)
+            .enumerate()
+            .map(|(k, v)| {
+                let r = k * CHUNK..k * CHUNK + v.len();
+                let mut m = (0.0f32, 0.0f32, 0.0f32);
+                if uniform.is_none() {
+                    for (&v, &f) in v.iter().zip(&speed[r.clone()]) {
+                        if v.abs() < g {
+                            m.0 = m.0.max(f.abs());
+                        }
                     }
                 }
-            }
-        }
-        let mut max_u = 0.0f32;
-        let mut max_u0 = 0.0f32;
-        if advects {
-            let [a, b, c] = &self.velocity;
-            let s = self.velocity_scale;
-            for (i, &v) in flat.iter().enumerate() {
-                if v.abs() < g {
-                    max_u0 = max_u0.max(a[i].abs() + b[i].abs() + c[i].abs());
-                    if s != 1.0 {
-                        max_u = max_u.max((a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs());
+                if advects {
+                    let (a, b, c) = (&a[r.clone()], &b[r.clone()], &c[r]);
+                    for (i, &v) in v.iter().enumerate() {
+                        if v.abs() < g {
+                            m.2 = m.2.max(a[i].abs() + b[i].abs() + c[i].abs());
+                            if s != 1.0 {
+                                let u = (a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs();
+                                m.1 = m.1.max(u);
+                            }
+                        }
                     }
                 }
-            }
-            // Unscaled samples (s = 1) are their own scaled maximum.
-            if s == 1.0 {
-                max_u = max_u0;
-            }
-        }
+                m
+            })
+            .reduce(|| (0.0, 0.0, 0.0), max3);
+        let max_f = uniform.unwrap_or(max_f);
+        // Unscaled samples (s = 1) are their own scaled maximum.
+        let max_u = if advects && s == 1.0 { max_u0 } else { max_u };
         (max_f, max_u, max_u0)
     }
 

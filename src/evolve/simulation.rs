@@ -516,7 +516,9 @@ impl Simulation {
     fn time_step(&self, until: f64) -> Result<(f32, bool), EvolveError> {
         let g = self.spec().gamma();
         let advects = self.flow.velocity.is_some();
-        let (max_f, max_u, max_u0) = self.inputs.band_maxima(self.rep.get().flat(), g, advects);
+        let (inputs, flat) = (&self.inputs, self.rep.get().flat());
+        let (max_f, max_u, max_u0) =
+            in_pool(&self.settings.pool, || inputs.band_maxima(flat, g, advects));
         let mut limit = self.stability_limit(max_f, max_u);
         let rest = (until - self.time) as f32;
         // A time-separable velocity s(t) u(x, 0) is read at the later stages' times too
