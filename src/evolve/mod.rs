@@ -560,6 +560,16 @@ pub struct Measures {
     pub work_bytes: usize,
 }
 
+/// Runs `f` on a thread of `pool` (of the global rayon pool when `None`), so that the
+/// parallel passes inside it start from a worker (a caller outside the pool is parked
+/// until `f` returns).
+fn in_worker<T: Send>(pool: &Option<Arc<rayon::ThreadPool>>, f: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Some(pool) => pool.install(f),
+        None => rayon::scope(|_| f()),
+    }
+}
+
 /// Runs `f` in `pool` (the global rayon pool when `None`).
 fn in_pool<T: Send>(pool: &Option<Arc<rayon::ThreadPool>>, f: impl FnOnce() -> T + Send) -> T {
     match pool {

@@ -6,7 +6,7 @@ use super::exact::ExactSum;
 use super::inputs::Inputs;
 use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
 use super::{
-    in_pool, EvolveError, Flow, GridKind, Integrator, Measures, Renormalization, Settings,
+    in_pool, in_worker, EvolveError, Flow, GridKind, Integrator, Measures, Renormalization, Settings,
     StepReport, Sweeps, TimeStep, Velocity, DENSE_MARGIN,
 };
 use crate::coord::Coord;
@@ -477,6 +477,15 @@ impl Simulation {
     /// neighbours, which every representation stores with the same bits, so all
     /// representations collapse in the same step.
     pub fn step_until(&mut self, until: f64) -> Result<StepReport, EvolveError> {
+        // The whole step on a thread of the pool: its parallel passes (seven or more per
+        // step) then start from a worker instead of being injected from outside, which
+        // would wake a worker and park the caller at every pass.
+        let pool = self.settings.pool.clone();
+        in_worker(&pool, || self.step_until_in_pool(until))
+    }
+
+    /// [`Simulation::step_until`], on a thread of the pool.
+    fn step_until_in_pool(&mut self, until: f64) -> Result<StepReport, EvolveError> {
         if self.collapsed {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
         }
