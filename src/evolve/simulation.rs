@@ -6,8 +6,8 @@ use super::exact::ExactSum;
 use super::inputs::Inputs;
 use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
 use super::{
-    in_pool, in_worker, EvolveError, Flow, GridKind, Integrator, Measures, Renormalization, Settings,
-    StepReport, Sweeps, TimeStep, Velocity, DENSE_MARGIN,
+    in_pool, in_worker, EvolveError, Flow, GridKind, Integrator, Measures, Renormalization,
+    Settings, StepReport, Sweeps, TimeStep, Velocity, DENSE_MARGIN,
 };
 use crate::coord::Coord;
 use crate::dense::DenseField;

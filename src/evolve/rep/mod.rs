@@ -73,7 +73,8 @@ pub(crate) trait Representation: Send + Sync {
     ) -> Result<(), EvolveError>;
     /// Renormalisation ([`super::Renormalization::Sweeps`]): the Russo–Smereka anchors of
     /// the current values φ⁰, then `p.sweeps` forward-Euler sweeps in pseudo time, each
-    /// swapped into the values. The voxels computed are those of the band mask of the
+    /// swapped into the values (a single sweep evaluates the anchors in place,
+    /// [`levelset_kernels::AnchoredRenormRate`]: no anchor pass). The voxels computed are those of the band mask of the
     /// step in progress (after its stages, before its band maintenance: the stored set
     /// every representation holds is still that of φⁿ) or, with `fresh`, the mask of
     /// φ⁰ (at rest, where the band maintenance has stored it; the pass then begins an
