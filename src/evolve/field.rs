@@ -43,8 +43,10 @@ pub trait VectorFn: Send + Sync {
     fn time_dependent(&self) -> bool {
         true
     }
-    /// For a field u(x, t) = s(t) u(x, 0): s(t). Then the field is sampled at t = 0 once
-    /// per step and scaled by s in each stage (in f32, the same on every representation).
+    /// For a field u(x, t) = s(t) u(x, 0): s(t). Then the field is sampled at t = 0 (at
+    /// most once per step, and on tiles only where the tile list changed: the samples
+    /// u(x, 0) must depend on the position alone) and scaled by s in each stage (in f32,
+    /// the same on every representation).
     fn time_scale(&self, t: f64) -> Option<f32> {
         let _ = t;
         None
