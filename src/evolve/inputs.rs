@@ -272,6 +272,10 @@ impl Inputs {
             Some(f) => (&[][..], Some(f.abs())),
             None => (&self.speed[..], None),
         };
+        if let (Some(f), false) = (uniform, advects) {
+            // Nothing per voxel to scan.
+            return (f, 0.0, 0.0);
+        }
         let [a, b, c] = &self.velocity;
         let (max_f, max_u, max_u0) = flat
             .par_chunks(CHUNK)
