@@ -7,8 +7,9 @@
 //! and gives every voxel its *anchor* — Russo & Smereka's distance estimate D at the voxels
 //! next to the interface, ±∞ (the sign of φ⁰) elsewhere; [`RenormRate`] is the rate of
 //! one sweep, read with those anchors; [`AnchoredRenormRate`] is the first sweep's rate
-//! with the anchors evaluated in place (no anchor pass when one sweep is all). Forward Euler in pseudo time with the step of
-//! [`crate::rk::cfl_dt_renorm`] wraps it ([`crate::Euler`]).
+//! with the anchors evaluated in place (no anchor pass when one sweep is all). Forward
+//! Euler in pseudo time with the step of [`crate::rk::cfl_dt_renorm`] wraps them
+//! ([`crate::Euler`]).
 
 use crate::diff::godunov_norms;
 use crate::diff::{Axis, X, Y, Z};
