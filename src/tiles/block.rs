@@ -35,6 +35,10 @@ impl<const R: usize> PaddedBlock<R> {
     pub const SX: usize = 12;
     /// Extent of the padded block along y and z.
     pub const W: usize = 4 + 2 * R;
+    /// How many tiles ahead of its gather a sweep prefetches ([`PaddedBlock::prefetch`]):
+    /// of 2 and 4 on the sphere run of [`PaddedBlock::prefetch`], 4 was faster (prefetching all 26 neighbours
+    /// 4 tiles ahead was slower than the +x ones alone).
+    pub const PREFETCH_AHEAD: usize = 4;
     const CHECK: () = assert!(R >= 1 && R <= TILE_DIM as usize, "halo must be 1..=4 voxels");
 
     pub fn new() -> Self {
@@ -83,6 +87,25 @@ impl<const R: usize> PaddedBlock<R> {
     pub fn gather_star_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
         let plan = &Self::STAR;
         self.gather_plan(grid, pos, |d| row.get(d), &plan.rows[..plan.len]);
+    }
+
+    /// Asks the CPU to bring into cache the neighbour tiles that a gather for the tile at
+    /// list position `pos` (neighbours `row`) reads and the gathers of the tiles before it
+    /// in the list did not: its +x neighbours (the list is x-fastest, so the others were
+    /// the +x neighbours of earlier tiles). A hint only: no value changes. A sweep calls it
+    /// [`PaddedBlock::PREFETCH_AHEAD`] tiles ahead of its gather; the loads of a gather from a band
+    /// larger than the L2 cache wait on memory otherwise (measured with
+    /// `levelset run sphere --renormalize coupled --rescale 1 --cfl 0.5 --steps 100
+    /// --threads 1`, 2-core AMD EPYC, 2026-11-24, five alternated runs: 1.47–1.80 s, mean
+    /// 1.61, → 1.37–1.51 s, mean 1.45; `levelset run enright --threads 1` 3–4 % faster).
+    #[inline(always)]
+    pub fn prefetch(grid: &TileGrid, row: &NeighbourRow) {
+        // Directions with offset +1 along x (d = (ox + 1) + 3 (oy + 1) + 9 (oz + 1)).
+        for d in [2, 5, 8, 11, 14, 17, 20, 23, 26] {
+            if let Some(p) = row.get(d) {
+                prefetch_tile(grid.tile(p));
+            }
+        }
     }
 
     #[inline(always)]
@@ -164,6 +187,23 @@ impl<const R: usize> PaddedBlock<R> {
             data[dst..dst + 4].copy_from_slice(&part[c.part as usize][src..src + 4]);
         }
     }
+}
+
+/// Prefetches the four cache lines of `tile` into every cache level.
+#[inline(always)]
+fn prefetch_tile(tile: &Tile) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = tile.0.as_ptr().cast::<i8>();
+        for line in 0..4 {
+            // SAFETY: a prefetch is a hint that never faults, whatever the address (this
+            // one is inside `tile`); SSE is part of every x86_64 target.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = tile;
 }
 
 /// Whether block coordinate `v` (along y or z: `-r..0` the − neighbour, `0..4` the tile,

@@ -162,6 +162,10 @@ impl TileSweep<'_> {
                 let mut block = PaddedBlock::<R>::new();
                 for i in 0..out.len() {
                     let pos = start + i;
+                    let ahead = pos + PaddedBlock::<R>::PREFETCH_AHEAD;
+                    if ahead < table.len() {
+                        PaddedBlock::<R>::prefetch(grid, table.row(ahead));
+                    }
                     let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
                         .try_into()
                         .expect("64 mask values per tile");
