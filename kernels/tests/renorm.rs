@@ -106,12 +106,9 @@ impl Points for Reach1 {
         f: &[f32; 39],
         i: usize,
     ) -> Vec<f32> {
-        vec![
-            k.eval::<f32, _>(&BoxWindow::new(b), i),
-            k.eval::<f32, _>(&StarWindow::new(s), i),
-            k.eval::<f32, _>(&BoxStarWindow::new(b, s), i),
-            k.eval::<f32, _>(&BoxFarWindow::new(f), i),
-        ]
+        let mut v = vec![k.eval::<f32, _>(&BoxWindow::new(b), i)];
+        v.extend(Reach3::eval(k, b, s, f, i));
+        v
     }
 }
 impl Points for Reach3 {

@@ -159,6 +159,20 @@ pub(crate) struct RenormParams {
     pub sweeps: u32,
 }
 
+impl RenormParams {
+    /// Whether the anchors get a pass and a buffer of their own: only when more than one
+    /// sweep reads them; a single sweep evaluates them in place ([`AnchoredRenormRate`]).
+    pub fn anchored(&self) -> bool {
+        anchors_stored(self.sweeps)
+    }
+}
+
+/// Whether a renormalisation of `sweeps` sweeps stores its anchors (see
+/// [`RenormParams::anchored`]); the memory estimates use the same rule.
+pub(crate) fn anchors_stored(sweeps: u32) -> bool {
+    sweeps > 1
+}
+
 /// The anchor pass of a renormalisation: [`InterfaceAnchor`] over φ⁰ (reach 1).
 pub(crate) fn dispatch_anchor<V: Sweep>(h: f32, sweep: V) -> Result<(), EvolveError> {
     sweep.run::<_, _, 1>(move |_| InterfaceAnchor { voxel_size: h })

@@ -1,7 +1,7 @@
 //! [`Simulation`]: one level set evolving under a [`Flow`] on one representation, one
 //! atomic step at a time.
 
-use super::dispatch::{RenormParams, StageParams};
+use super::dispatch::{anchors_stored, RenormParams, StageParams};
 use super::exact::ExactSum;
 use super::inputs::Inputs;
 use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
@@ -191,11 +191,14 @@ impl Simulation {
 
     /// The memory budget of [`Settings::memory_limit`].
     fn budget(&self) -> MemoryBudget {
-        let renorm = matches!(self.settings.renormalization, Renormalization::Sweeps(_));
+        let sweeps = match self.settings.renormalization {
+            Renormalization::Sweeps(s) => Some(s.sweeps),
+            _ => None,
+        };
         MemoryBudget {
             limit: self.settings.memory_limit,
-            keeps_phi_n: self.settings.integrator == Integrator::Rk3 || renorm,
-            renorm,
+            keeps_phi_n: self.settings.integrator == Integrator::Rk3 || sweeps.is_some(),
+            anchors: sweeps.is_some_and(anchors_stored),
             held: self.inputs.bytes() as u64,
         }
     }
@@ -235,10 +238,11 @@ impl Simulation {
         if self.collapsed {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
         }
-        let budget = MemoryBudget { keeps_phi_n: true, renorm: true, ..self.budget() };
+        let anchors = anchors_stored(sweeps.sweeps);
+        let budget = MemoryBudget { keeps_phi_n: true, anchors, ..self.budget() };
         let rep = self.rep.get();
         budget.admit(
-            rep.step_bytes(true, true),
+            rep.step_bytes(true, anchors),
             self.rep_bytes(),
             "the renormalisation's buffers",
         )?;
@@ -498,7 +502,7 @@ impl Simulation {
         // The buffers' memory, stage 1's inputs and Δt: nothing changes yet (but scratch).
         let rep = self.rep.get();
         let budget = self.budget();
-        let needed = rep.step_bytes(budget.keeps_phi_n, budget.renorm)
+        let needed = rep.step_bytes(budget.keeps_phi_n, budget.anchors)
             + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
         budget.admit(needed, self.rep_bytes(), "the step's buffers")?;
         let kappa_bar =

@@ -170,7 +170,7 @@ impl Representation for DenseRep {
 
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
         // One sweep evaluates its anchors in place: no anchor pass.
-        let anchored = p.sweeps > 1;
+        let anchored = p.anchored();
         if anchored {
             self.undo.vacate_out(&mut self.phi_n, &mut self.out);
             // The sweep writes `out`; the anchors take it (a swap).
@@ -273,7 +273,7 @@ impl Representation for DenseRep {
             + vec_bytes(&self.padded)
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
+    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64 {
         // The double buffer, the band mask, φⁿ and the padded copy (3-voxel halo, the
         // reach of HJ-WENO5).
         let n = self.field.data().len();
@@ -283,6 +283,6 @@ impl Representation for DenseRep {
             + growth_bytes(&self.box_min, n)
             + growth_bytes(&self.padded, padded)
             + if keeps_phi_n { growth_bytes(&self.phi_n, n) } else { 0 }
-            + if renorm { growth_bytes(&self.anchor, n) } else { 0 }
+            + if anchors { growth_bytes(&self.anchor, n) } else { 0 }
     }
 }

@@ -73,10 +73,10 @@ fn stencil_of(offsets: &[[i32; 3]]) -> Stencil {
 impl DtRep {
     /// Bytes the value buffers (double buffer, and φⁿ with `keeps_phi_n`) have to allocate
     /// to serve `points` points.
-    fn buffer_growth(&self, points: usize, keeps_phi_n: bool, renorm: bool) -> u64 {
+    fn buffer_growth(&self, points: usize, keeps_phi_n: bool, anchors: bool) -> u64 {
         growth_bytes(&self.out, points)
             + if keeps_phi_n { growth_bytes(&self.phi_n, points) } else { 0 }
-            + if renorm { growth_bytes(&self.anchor, points) } else { 0 }
+            + if anchors { growth_bytes(&self.anchor, points) } else { 0 }
     }
 
     pub fn new(grid: DtGrid) -> Self {
@@ -195,7 +195,7 @@ impl Representation for DtRep {
     fn renormalize(&mut self, p: &RenormParams, _fresh: bool) -> Result<(), EvolveError> {
         // The grid stores exactly the band mask (of φⁿ within a step, of φ⁰ at rest).
         // One sweep evaluates its anchors in place: no anchor pass.
-        let anchored = p.sweeps > 1;
+        let anchored = p.anchored();
         if anchored {
             self.undo.vacate_out(&mut self.phi_n, &mut self.out);
             let mut anchor = std::mem::take(&mut self.anchor);
@@ -325,8 +325,8 @@ impl Representation for DtRep {
             + self.next.memory().total()
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
+    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64 {
         (self.bytes() + self.work_bytes()) as u64
-            + self.buffer_growth(self.grid.len(), keeps_phi_n, renorm)
+            + self.buffer_growth(self.grid.len(), keeps_phi_n, anchors)
     }
 }

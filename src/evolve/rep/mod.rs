@@ -114,9 +114,9 @@ pub(crate) trait Representation: Send + Sync {
     /// Bytes of the representation and its buffers (as [`Representation::bytes`] +
     /// [`Representation::work_bytes`]) once a step's buffers hold the current band
     /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3 or a renormalisation;
-    /// `renorm`: with the anchors of a renormalisation): what its first stage may
+    /// `anchors`: with the stored anchors of a renormalisation): what its first stage may
     /// allocate.
-    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64;
+    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64;
 }
 
 /// The representation a simulation runs on.
@@ -156,8 +156,9 @@ pub(crate) struct MemoryBudget {
     /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3, or a renormalisation in the
     /// step), for the estimates.
     pub keeps_phi_n: bool,
-    /// Whether steps renormalise (an anchor buffer), for the estimates.
-    pub renorm: bool,
+    /// Whether steps' renormalisations store their anchors (an anchor buffer, more than
+    /// one sweep: [`super::dispatch::anchors_stored`]), for the estimates.
+    pub anchors: bool,
     /// Bytes the simulation holds besides the representation (the per-voxel inputs),
     /// counted against the limit.
     pub held: u64,

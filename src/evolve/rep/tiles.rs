@@ -67,14 +67,14 @@ struct Buffers {
 
 impl Buffers {
     /// Bytes they have to allocate to serve `tiles` tiles (φⁿ only with `keeps_phi_n`).
-    fn growth(&self, tiles: usize, keeps_phi_n: bool, renorm: bool) -> u64 {
+    fn growth(&self, tiles: usize, keeps_phi_n: bool, anchors: bool) -> u64 {
         let mut b = growth_bytes(&self.out, tiles)
             + growth_bytes(&self.box_min, 64 * tiles)
             + growth_bytes(&self.activity, tiles);
         if keeps_phi_n {
             b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
         }
-        if renorm {
+        if anchors {
             b += growth_bytes(&self.anchor, tiles);
         }
         b
@@ -341,7 +341,7 @@ impl Representation for TilesRep {
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
         let n = self.grid.len();
         // One sweep evaluates its anchors in place: no anchor pass, no anchor buffer.
-        let anchored = p.sweeps > 1;
+        let anchored = p.anchored();
         if anchored {
             self.buf.vacate_out(&mut self.undo);
             self.buf.resize(n);
@@ -516,10 +516,10 @@ impl Representation for TilesRep {
             + self.prev.as_ref().map_or(0, |p| p.memory().total())
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool, renorm: bool) -> u64 {
+    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64 {
         let tiles = self.grid.len();
         (self.bytes() + self.work_bytes()) as u64
-            + self.buf.growth(tiles, keeps_phi_n, renorm)
+            + self.buf.growth(tiles, keeps_phi_n, anchors)
             + self.table.growth_bytes(tiles) as u64
     }
 }
