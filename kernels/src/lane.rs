@@ -207,6 +207,86 @@ impl Lane for f32 {
     }
 }
 
+/// `load_rows4` of the wide types: `N / 4` rows of 4 values, row `k` at `p + k * stride`.
+///
+/// The portable version assembles the rows in an array and loads it as a vector; on x86
+/// with AVX that array round trip costs a failed store-to-load forward per load (one
+/// wide load reading several narrow stores), so there the rows are combined in registers
+/// (`vinsertf128` / `vinsertf32x4`-style inserts). The values are the same either way.
+#[allow(non_snake_case)]
+mod rows4 {
+    use wide::{f32x16, f32x4, f32x8};
+
+    /// Portable: through an array.
+    ///
+    /// # Safety
+    /// As [`super::sealed::Sealed::load_rows4`].
+    #[inline(always)]
+    unsafe fn portable<const N: usize>(p: *const f32, stride: usize) -> [f32; N] {
+        let mut a = [0.0f32; N];
+        for k in 0..N / 4 {
+            // SAFETY: the caller guarantees row `k` (4 values at `p + k * stride`) is
+            // readable.
+            let row = unsafe { p.add(k * stride).cast::<[f32; 4]>().read_unaligned() };
+            a[4 * k..4 * k + 4].copy_from_slice(&row);
+        }
+        a
+    }
+
+    /// # Safety
+    /// As [`super::sealed::Sealed::load_rows4`].
+    #[inline(always)]
+    pub unsafe fn f32x4(p: *const f32, stride: usize) -> f32x4 {
+        // SAFETY: the caller's guarantee (one row).
+        f32x4::from(unsafe { portable::<4>(p, stride) })
+    }
+
+    /// # Safety
+    /// As [`super::sealed::Sealed::load_rows4`].
+    #[inline(always)]
+    pub unsafe fn f32x8(p: *const f32, stride: usize) -> f32x8 {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+        {
+            use core::arch::x86_64::{_mm256_loadu2_m128, _mm256_storeu_ps};
+            let mut out = [0.0f32; 8];
+            // SAFETY: the caller guarantees both rows are readable; `avx` is enabled
+            // in this build; `out` holds 8 values.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), _mm256_loadu2_m128(p.add(stride), p)) };
+            f32x8::from(out)
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx")))]
+        // SAFETY: the caller's guarantee.
+        f32x8::from(unsafe { portable::<8>(p, stride) })
+    }
+
+    /// # Safety
+    /// As [`super::sealed::Sealed::load_rows4`].
+    #[inline(always)]
+    pub unsafe fn f32x16(p: *const f32, stride: usize) -> f32x16 {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
+        {
+            use core::arch::x86_64::*;
+            // SAFETY: the caller guarantees the four rows are readable; `avx512f` (and
+            // with it `avx`) is enabled in this build.
+            let v = unsafe {
+                let lo = _mm256_loadu2_m128(p.add(stride), p);
+                let hi = _mm256_loadu2_m128(p.add(3 * stride), p.add(2 * stride));
+                _mm512_insertf64x4::<1>(
+                    _mm512_castpd256_pd512(_mm256_castps_pd(lo)),
+                    _mm256_castps_pd(hi),
+                )
+            };
+            let mut out = [0.0f32; 16];
+            // SAFETY: `out` holds 16 values; `avx512f` is enabled.
+            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), _mm512_castpd_ps(v)) };
+            f32x16::from(out)
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
+        // SAFETY: the caller's guarantee.
+        f32x16::from(unsafe { portable::<16>(p, stride) })
+    }
+}
+
 macro_rules! impl_wide_lane {
     ($t:ident, $n:literal, $name:literal) => {
         impl sealed::Sealed for $t {
@@ -218,15 +298,8 @@ macro_rules! impl_wide_lane {
             }
             #[inline(always)]
             unsafe fn load_rows4(p: *const f32, stride: usize) -> Self {
-                const ROWS: usize = $n / 4;
-                let mut a = [0.0f32; $n];
-                for k in 0..ROWS {
-                    // SAFETY: the caller guarantees row `k` (4 values at `p + k * stride`)
-                    // is readable.
-                    let row = unsafe { p.add(k * stride).cast::<[f32; 4]>().read_unaligned() };
-                    a[4 * k..4 * k + 4].copy_from_slice(&row);
-                }
-                $t::from(a)
+                // SAFETY: the caller's guarantee, passed on.
+                unsafe { rows4::$t(p, stride) }
             }
         }
 
