@@ -210,9 +210,11 @@ impl Lane for f32 {
 /// `load_rows4` of the wide types: `N / 4` rows of 4 values, row `k` at `p + k * stride`.
 ///
 /// The portable version assembles the rows in an array and loads it as a vector; on x86
-/// with AVX that array round trip costs a failed store-to-load forward per load (one
-/// wide load reading several narrow stores), so there the rows are combined in registers
-/// (`vinsertf128` / `vinsertf32x4`-style inserts). The values are the same either way.
+/// with AVX the rows are combined in registers instead (128-bit loads and inserts). The
+/// values are the same either way. Measured with the kernels' criterion benchmark on a
+/// tile (`cargo bench -p levelset-kernels --bench kernels -- tile`, f32x16, 2-core AMD
+/// EPYC, 2026-11-24): upwind + curvature 113 → 100 ns per tile, HJ-WENO5 + TVD-RK3
+/// 511 → 459 ns.
 #[allow(non_snake_case)]
 mod rows4 {
     use wide::{f32x16, f32x4, f32x8};
