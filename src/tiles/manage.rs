@@ -23,7 +23,7 @@
 //! [`TileGrid::manage_tiles_streamed`] (tested).
 
 use super::flags::{ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
-use super::stream::NeighbourCursor;
+use super::stream::{NeighbourCursor, NeighbourTable, Neighbours};
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
@@ -59,15 +59,17 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
-        self.manage_tiles_checked(|_| Ok(())).map(|(stats, _)| stats)
+        self.manage_tiles_checked(None, |_| Ok(())).map(|(stats, _)| stats)
     }
 
     /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
     /// of `tiles` tiles (an error from it is returned and leaves the grid unchanged), and
     /// returns the previous grid when the list changed (`None` when nothing changed), so
-    /// that a caller can put it back.
+    /// that a caller can put it back. `table`, when given, holds the neighbours of the
+    /// current list (a caller that keeps one saves the walk that finds them).
     pub(crate) fn manage_tiles_checked(
         &mut self,
+        table: Option<&NeighbourTable>,
         admit: impl FnOnce(usize) -> Result<(), GridError>,
     ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
@@ -76,7 +78,7 @@ impl TileGrid {
         }
         let border_new: Vec<AtomicU32> = self.border.iter().map(|&b| AtomicU32::new(b)).collect();
         let mut keep = vec![false; n];
-        let created = self.keep_and_find_created(&border_new, &mut keep);
+        let created = self.keep_and_find_created(table, &border_new, &mut keep);
         if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
             return Err(GridError::OutOfRange { coord: c });
         }
@@ -99,18 +101,38 @@ impl TileGrid {
 
     /// Phases 1 and 2, per chunk: marks the tiles to keep in `keep`, writes the removal
     /// notices into `border_new` (Algorithm 3 lines 11–18) and returns the absent
-    /// positions the active tiles trigger, sorted and without duplicates.
-    fn keep_and_find_created(&self, border_new: &[AtomicU32], keep: &mut [bool]) -> Vec<Coord> {
+    /// positions the active tiles trigger, sorted and without duplicates. The neighbours
+    /// come from `table` (that of the current list) or a cursor walk.
+    fn keep_and_find_created(
+        &self,
+        table: Option<&NeighbourTable>,
+        border_new: &[AtomicU32],
+        keep: &mut [bool],
+    ) -> Vec<Coord> {
         let coords = &self.coords[..];
         let activity = &self.activity[..];
+        if let Some(t) = table {
+            debug_assert_eq!(t.len(), coords.len(), "stale neighbour table");
+        }
         let found: Vec<Vec<Coord>> = keep
             .par_chunks_mut(CHUNK)
             .enumerate()
             .map(|(c, keep)| {
                 let start = c * CHUNK;
                 let mut created = Vec::new();
-                let mut cur = NeighbourCursor::new(coords, start, start + keep.len());
-                while let Some(nb) = cur.next() {
+                let end = start + keep.len();
+                let mut cur = table.is_none().then(|| NeighbourCursor::new(coords, start, end));
+                let mut next = |p: usize| match (table, cur.as_mut()) {
+                    (Some(t), _) => {
+                        let row = t.row(p);
+                        let ptr = std::array::from_fn(|d| row.ptr[d] as usize);
+                        Some(Neighbours { pos: p, coord: coords[p], matched: row.matched, ptr })
+                    }
+                    (None, Some(cur)) => cur.next(),
+                    (None, None) => None,
+                };
+                for p in start..end {
+                    let nb = next(p).expect("one entry per position");
                     let p = nb.pos;
                     let mut triggered = false;
                     let mut m = nb.matched;

@@ -384,12 +384,12 @@ fn management_admission_and_undo_restore_the_grid() {
         randomize_activity(&mut grid, &mut rng);
         let before = grid.clone();
         let refuse = |_: usize| Err(GridError::InvalidParameter("refused".into()));
-        assert!(grid.manage_tiles_checked(refuse).is_err());
+        assert!(grid.manage_tiles_checked(None, refuse).is_err());
         grid.check_invariants().unwrap();
         assert_same_grid(&grid, &before);
         let mut asked = None;
         let (stats, prev) = grid
-            .manage_tiles_checked(|n| {
+            .manage_tiles_checked(None, |n| {
                 asked = Some(n);
                 Ok(())
             })
@@ -434,9 +434,15 @@ fn parallel_management_equals_streamed() {
             randomize_activity(&mut grid, &mut rng);
             let mut want = grid.clone();
             let want_stats = want.manage_tiles_streamed().unwrap();
-            for pool in &pools {
+            let mut table = NeighbourTable::default();
+            table.rebuild(grid.tile_coords());
+            // Each pool, finding the neighbours itself and reading them from a table.
+            for (pool, with_table) in pools.iter().flat_map(|p| [(p, false), (p, true)]) {
                 let mut got = grid.clone();
-                let stats = pool.install(|| got.manage_tiles()).unwrap();
+                let stats = pool
+                    .install(|| got.manage_tiles_checked(with_table.then_some(&table), |_| Ok(())))
+                    .unwrap()
+                    .0;
                 assert_eq!(stats, want_stats);
                 assert_eq!(got.tile_coords(), want.tile_coords());
                 for p in 0..got.len() {

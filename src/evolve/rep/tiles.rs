@@ -390,7 +390,8 @@ impl Representation for TilesRep {
         // (which a step in progress keeps until it stands); the step buffers grow to the
         // new list in the next step, which admits them before its first stage.
         let table = &self.table;
-        let (_, prev) = self.grid.manage_tiles_checked(|tiles| {
+        debug_assert_eq!(table.len(), self.grid.len(), "stale neighbour table");
+        let (_, prev) = self.grid.manage_tiles_checked(Some(table), |tiles| {
             let needed =
                 current + tiles as u64 * TILE_GRID_BYTES + table.growth_bytes(tiles) as u64;
             budget.admit(needed, current, "the band's tiles")
