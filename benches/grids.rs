@@ -7,6 +7,7 @@ use sparse_levelset::bench::{dtgrid_smooth7, dtgrid_star19, tiles_smooth7, tiles
 use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;
+use sparse_levelset::tiles::{NeighbourTable, PaddedBlock, TileGrid};
 use sparse_levelset::Coord;
 
 fn grids(c: &mut Criterion) {
@@ -57,7 +58,39 @@ fn grids(c: &mut Criterion) {
             )
         });
         g.finish();
+
+        // The per-tile work of the tile engine around its kernels: the star gather of
+        // every tile (first order and HJ-WENO5 halos) and the neighbour table rebuilt
+        // after tile management.
+        let mut table = NeighbourTable::default();
+        table.rebuild(tiles.tile_coords());
+        let mut g = c.benchmark_group(format!("engine/{name}"));
+        g.throughput(Throughput::Elements(tiles.len() as u64));
+        g.bench_function(
+            BenchmarkId::new("star_gather_r1", format!("{}tiles", tiles.len())),
+            |b| b.iter(|| star_gather::<1>(&tiles, &table)),
+        );
+        g.bench_function(
+            BenchmarkId::new("star_gather_r3", format!("{}tiles", tiles.len())),
+            |b| b.iter(|| star_gather::<3>(&tiles, &table)),
+        );
+        g.bench_function(
+            BenchmarkId::new("neighbour_table", format!("{}tiles", tiles.len())),
+            |b| b.iter(|| table.rebuild(tiles.tile_coords())),
+        );
+        g.finish();
     }
+}
+
+/// Gathers every tile's star block; returns one value of each so that none is skipped.
+fn star_gather<const R: usize>(grid: &TileGrid, table: &NeighbourTable) -> f32 {
+    let mut block = PaddedBlock::<R>::new();
+    let mut acc = 0.0;
+    for pos in 0..grid.len() {
+        block.gather_star_row(grid, pos, table.row(pos));
+        acc += block.get(0, 0, 0);
+    }
+    acc
 }
 
 criterion_group! {

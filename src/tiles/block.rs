@@ -158,11 +158,11 @@ impl<const R: usize> PaddedBlock<R> {
     ///
     /// Padded row by padded row: a box row (`y, z` in `-1..5`) is the same x-row of three
     /// neighbouring parts, three 4-value copies; a star row outside the box is the tile
-    /// column's piece alone. Measured with the star gather over every tile of a sphere's
-    /// band (r = 100, 20,528 tiles, 2-core AMD EPYC, 2026-11-24), against a loop over a
-    /// precomputed table of row copies: 96 → 47 ns per tile for `R = 1` and 118 → 63 ns
-    /// for `R = 3`; of that, the unchecked copies (instead of indexing with bounds checks)
-    /// are 66 → 47 ns.
+    /// column's piece alone. Against a loop over a precomputed table of row copies
+    /// (`cargo bench --bench grids -- engine/sphere`, a sphere's band of 7,374 tiles, one
+    /// thread, 2-core AMD EPYC, 2026-11-24): `R = 1` 721 → 280 µs, `R = 3` 898 → 456 µs;
+    /// of that, the unchecked copies (instead of indexing with bounds checks) gave about a
+    /// third.
     #[inline(always)]
     fn gather_parts<const STAR: bool>(
         &mut self,

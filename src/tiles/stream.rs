@@ -220,9 +220,9 @@ fn line_key(c: Coord) -> i64 {
 /// its nine neighbour lines `(y + dy, z + dz)`; the cursor compares whole coordinates
 /// for every tile and every row pointer, this finds each neighbour line once per line
 /// (forward-moving pointers, seeded by binary search) and then matches the tiles along
-/// x with integer compares. Measured on a sphere's band (r = 100, 20,528 tiles, one
-/// thread, 2-core AMD EPYC, 2026-11-24): 86 → 78 ns per tile; a spiral's (4,851 tiles):
-/// 69 → 47 ns.
+/// x with integer compares. Measured with `cargo bench --bench grids -- engine`
+/// (one thread, 2-core AMD EPYC, 2026-11-24): a sphere's band of 7,374 tiles 751 → 674 µs,
+/// a spiral's of 4,851 tiles 374 → 269 µs.
 fn fill_rows(coords: &[Coord], start: usize, rows: &mut [NeighbourRow]) {
     let n = coords.len();
     let end = start + rows.len();
