@@ -161,8 +161,8 @@ impl<const R: usize> PaddedBlock<R> {
     /// column's piece alone. Against a loop over a precomputed table of row copies
     /// (`cargo bench --bench grids -- engine/sphere`, a sphere's band of 7,374 tiles, one
     /// thread, 2-core AMD EPYC, 2026-11-24): `R = 1` 721 → 280 µs, `R = 3` 898 → 456 µs;
-    /// of that, the unchecked copies (instead of indexing with bounds checks) gave about a
-    /// third.
+    /// of that, the unchecked copies (instead of indexing with bounds checks) gave about two
+    /// fifths.
     #[inline(always)]
     fn gather_parts<const STAR: bool>(
         &mut self,
