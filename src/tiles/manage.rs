@@ -27,6 +27,7 @@ use super::stream::{NeighbourCursor, NeighbourTable, Neighbours};
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
+use crate::memory::grown_capacity;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -248,10 +249,17 @@ impl TileGrid {
                 k + cuts[c + 1] - cuts[c]
             })
             .collect();
-        let mut new_coords = vec![Coord::default(); total];
-        let mut new_arena = vec![Tile::splat(0.0); total];
-        let mut new_border = vec![0u32; total];
-        let mut new_activity = vec![0u32; total];
+        // With the headroom of a growing band's buffers (`grown_capacity`): the step
+        // buffers the arena is swapped with then rarely have to grow.
+        fn filled<T: Clone>(total: usize, v: T) -> Vec<T> {
+            let mut out = Vec::with_capacity(grown_capacity(total));
+            out.resize(total, v);
+            out
+        }
+        let mut new_coords = filled(total, Coord::default());
+        let mut new_arena = filled(total, Tile::splat(0.0));
+        let mut new_border = filled(total, 0u32);
+        let mut new_activity = filled(total, 0u32);
         split_by(&mut new_coords, &lens)
             .into_par_iter()
             .zip(split_by(&mut new_arena, &lens))

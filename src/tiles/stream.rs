@@ -173,8 +173,10 @@ impl NeighbourTable {
         assert!(coords.len() < u32::MAX as usize, "tile list too long for a neighbour table");
         let empty = NeighbourRow { matched: 0, ptr: [0; 27] };
         self.rows.clear();
-        // Exactly the rows needed (a growing band would otherwise double the capacity).
-        self.rows.reserve_exact(coords.len());
+        // The rows needed and a band's headroom (`grown_capacity`), not a doubling.
+        if coords.len() > self.rows.capacity() {
+            self.rows.reserve_exact(crate::memory::grown_capacity(coords.len()));
+        }
         self.rows.resize(coords.len(), empty);
         self.rows.par_chunks_mut(Self::CHUNK).enumerate().for_each(|(c, rows)| {
             fill_rows(coords, c * Self::CHUNK, rows);
@@ -204,7 +206,11 @@ impl NeighbourTable {
 
     /// Bytes a rebuild for a list of `len` tiles has to allocate.
     pub fn growth_bytes(&self, len: usize) -> usize {
-        len.saturating_sub(self.rows.capacity()) * std::mem::size_of::<NeighbourRow>()
+        if len <= self.rows.capacity() {
+            return 0;
+        }
+        (crate::memory::grown_capacity(len) - self.rows.capacity())
+            * std::mem::size_of::<NeighbourRow>()
     }
 }
 

@@ -29,6 +29,7 @@ use super::field::{ScalarFn, VectorFn};
 use super::{EvolveError, SpatialScheme};
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
+use crate::memory::grown_capacity;
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{Lane, VoxelKernel, Window};
 
@@ -227,16 +228,20 @@ pub(crate) fn vec_bytes<T>(v: &Vec<T>) -> usize {
     used + slack
 }
 
-/// Bytes a vector has to allocate to hold `n` elements.
+/// Bytes a vector has to allocate to hold `n` elements ([`resize_exact`]'s growth).
 pub(crate) fn growth_bytes<T>(v: &Vec<T>, n: usize) -> u64 {
-    (n.saturating_sub(v.capacity()) * std::mem::size_of::<T>()) as u64
+    if n <= v.capacity() {
+        return 0;
+    }
+    ((grown_capacity(n) - v.capacity()) * std::mem::size_of::<T>()) as u64
 }
 
-/// Resizes a buffer to `n` elements without the amortised over-allocation of a growing
-/// `Vec` (so its capacity is what the memory budget admitted).
+/// Resizes a buffer to `n` elements; when it has to grow, to the capacity
+/// [`grown_capacity`] gives (a sixteenth of headroom instead of the doubling of a growing
+/// `Vec`), so that its capacity is what the memory budget admitted ([`growth_bytes`]).
 pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
     if n > v.capacity() {
-        v.reserve_exact(n - v.len());
+        v.reserve_exact(grown_capacity(n) - v.len());
     }
     v.resize(n, fill);
 }

@@ -13,6 +13,7 @@ use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme};
 use crate::grid::GridSpec;
+use crate::memory::grown_capacity;
 use crate::tiles::{
     compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
@@ -392,8 +393,9 @@ impl Representation for TilesRep {
         let table = &self.table;
         debug_assert_eq!(table.len(), self.grid.len(), "stale neighbour table");
         let (_, prev) = self.grid.manage_tiles_checked(Some(table), |tiles| {
-            let needed =
-                current + tiles as u64 * TILE_GRID_BYTES + table.growth_bytes(tiles) as u64;
+            let needed = current
+                + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
+                + table.growth_bytes(tiles) as u64;
             budget.admit(needed, current, "the band's tiles")
         })?;
         if let Some(prev) = prev {
