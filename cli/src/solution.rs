@@ -32,6 +32,9 @@ pub struct SolutionConfig {
     /// Every default size times this (the spheres' radii follow; a quick look or a test,
     /// not a measurement, below 1). At least 8 voxels.
     pub scale: f64,
+    /// Runs of every case and thread count; the fastest is reported
+    /// ([`crate::scenario::fastest_of`]).
+    pub reps: usize,
 }
 
 impl Default for SolutionConfig {
@@ -41,6 +44,7 @@ impl Default for SolutionConfig {
             pin: false,
             enright_size: None,
             scale: 1.0,
+            reps: 1,
         }
     }
 }
@@ -258,11 +262,13 @@ pub fn run_time_to_solution(
     let mut out = Vec::new();
     for case in Case::ALL {
         for &t in &threads {
-            let sc = scenario(case, cfg, t)?;
-            let label =
-                format!("time to solution: {} {}³, {t} thread(s)", case.name(), sc.params.size);
-            progress(&label, 0.0);
-            let (s, _) = sc.run(|f| progress(&label, f)).map_err(|e| format!("{label}: {e}"))?;
+            let size = scenario(case, cfg, t)?.params.size;
+            let label = format!("time to solution: {} {size}³, {t} thread(s)", case.name());
+            let (s, _) = crate::scenario::fastest_of(cfg.reps, &label, || {
+                let sc = scenario(case, cfg, t)?;
+                progress(&label, 0.0);
+                sc.run(|f| progress(&label, f)).map_err(|e| format!("{label}: {e}"))
+            })?;
             let (quantity, error_kind, a) = accuracy(case, &s);
             out.push(SolutionRun {
                 case: case.name(),

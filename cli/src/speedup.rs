@@ -29,6 +29,8 @@ pub struct SpeedupConfig {
     pub full: bool,
     /// A quick look: small sizes and few steps (not a measurement).
     pub quick: bool,
+    /// Runs of every configuration; the fastest is reported ([`crate::scenario::fastest_of`]).
+    pub reps: usize,
 }
 
 impl Default for SpeedupConfig {
@@ -38,6 +40,7 @@ impl Default for SpeedupConfig {
             pin: false,
             full: false,
             quick: false,
+            reps: 3,
         }
     }
 }
@@ -94,6 +97,8 @@ pub struct SpeedupReport {
     pub profile: &'static str,
     pub threads: usize,
     pub pinned: bool,
+    /// Runs of every configuration (scenarios and time to solution); the fastest is shown.
+    pub reps: usize,
     pub scenarios: Vec<ScenarioBench>,
     /// The operators around the evolution (fast marching, isosurfacing) on the sphere
     /// benchmark's initial band.
@@ -112,6 +117,7 @@ impl SpeedupReport {
             profile: crate::storage::build_profile(),
             threads: cfg.threads,
             pinned: cfg.pin,
+            reps: cfg.reps,
             scenarios: Vec::new(),
             tools: Vec::new(),
             time_to_solution: Vec::new(),
@@ -289,12 +295,15 @@ pub fn run_speedup(
             o.threads = Some(threads);
             o.pin = cfg.pin;
             o.record_every = u64::MAX;
-            let sc = Scenario::resolve(o).map_err(|e| format!("{}: {e}", kind.name()))?;
-            kernel = match sc.params.scheme {
-                sparse_levelset::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
-                sparse_levelset::evolve::SpatialScheme::Weno5 => "weno5_rk3",
-            };
-            let (summary, sim) = sc.run(|_| {}).map_err(|e| format!("{}: {e}", kind.name()))?;
+            let what = format!("{} {}", kind.name(), grid_label(grid));
+            let (summary, sim) = crate::scenario::fastest_of(cfg.reps, &what, || {
+                let sc = Scenario::resolve(o.clone()).map_err(|e| format!("{what}: {e}"))?;
+                kernel = match sc.params.scheme {
+                    sparse_levelset::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
+                    sparse_levelset::evolve::SpatialScheme::Weno5 => "weno5_rk3",
+                };
+                sc.run(|_| {}).map_err(|e| format!("{what}: {e}"))
+            })?;
             let last = summary.records.last().expect("records");
             let b = band(&sim);
             if let Some((rb, rs)) = &reference {
@@ -361,12 +370,14 @@ impl SpeedupReport {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "CPU: {}; target features: {}; {} build; up to {} thread(s){}",
+            "CPU: {}; target features: {}; {} build; up to {} thread(s){}; stepping seconds: \
+             the fastest of {} run(s) of each configuration",
             self.cpu,
             self.target_features.join(","),
             self.profile,
             self.threads,
-            if self.pinned { ", pinned" } else { "" }
+            if self.pinned { ", pinned" } else { "" },
+            self.reps
         );
         for sc in &self.scenarios {
             let _ = writeln!(

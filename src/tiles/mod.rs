@@ -13,7 +13,7 @@
 //! Tile coordinates are voxel coordinates divided by 4 with floor (`voxel >> 2`); inside a
 //! tile x is fastest: `local = lx + 4 ly + 16 lz`.
 
-pub mod block;
+mod block;
 mod directory;
 pub mod flags;
 mod grid;
