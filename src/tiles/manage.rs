@@ -23,7 +23,7 @@
 //! [`TileGrid::manage_tiles_streamed`] (tested).
 
 use super::flags::{ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
-use super::stream::{NeighbourCursor, NeighbourTable, Neighbours};
+use super::stream::{NeighbourCursor, NeighbourTable};
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
@@ -123,17 +123,14 @@ impl TileGrid {
                 let mut created = Vec::new();
                 let end = start + keep.len();
                 let mut cur = table.is_none().then(|| NeighbourCursor::new(coords, start, end));
-                let mut next = |p: usize| match (table, cur.as_mut()) {
-                    (Some(t), _) => {
-                        let row = t.row(p);
-                        let ptr = std::array::from_fn(|d| row.ptr[d] as usize);
-                        Some(Neighbours { pos: p, coord: coords[p], matched: row.matched, ptr })
-                    }
-                    (None, Some(cur)) => cur.next(),
-                    (None, None) => None,
-                };
-                for p in start..end {
-                    let nb = next(p).expect("one entry per position");
+                for (i, &coord) in coords[start..end].iter().enumerate() {
+                    let nb = match table {
+                        Some(t) => t.row(start + i).neighbours(start + i, coord),
+                        None => cur
+                            .as_mut()
+                            .and_then(NeighbourCursor::next)
+                            .expect("a cursor yields every entry of its range"),
+                    };
                     let p = nb.pos;
                     let mut triggered = false;
                     let mut m = nb.matched;

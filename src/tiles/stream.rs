@@ -133,6 +133,13 @@ pub struct NeighbourRow {
 }
 
 impl NeighbourRow {
+    /// The row as the [`Neighbours`] of list entry `pos` at `coord`.
+    #[inline]
+    pub fn neighbours(&self, pos: usize, coord: Coord) -> Neighbours {
+        let ptr = std::array::from_fn(|d| self.ptr[d] as usize);
+        Neighbours { pos, coord, matched: self.matched, ptr }
+    }
+
     /// List position of the neighbour in direction `d`, if it exists.
     #[inline(always)]
     pub fn get(&self, d: usize) -> Option<usize> {
