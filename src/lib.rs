@@ -25,6 +25,7 @@
 pub mod bench;
 pub mod build;
 pub mod coord;
+pub mod csg;
 pub mod dense;
 pub mod dtgrid;
 pub mod evolve;

@@ -561,6 +561,64 @@ fn distance_command() {
     assert_eq!(o.status.code(), Some(2), "clap rejects --order 3");
 }
 
+/// `levelset csg`: each operator on two balls of different array sizes equals the
+/// pointwise operator on the inputs (clamped to ±γ; +γ beyond an array), over the box of
+/// both arrays; different voxel lattices are refused.
+#[test]
+fn csg_command() {
+    use sparse_levelset::csg::CsgOp;
+    use sparse_levelset::npy;
+    let a = common::ball([20, 20, 20], [8.5, 9.0, 10.2], 6.0, 1.0);
+    let b = common::ball([26, 18, 22], [14.0, 9.5, 10.0], 5.0, 1.0);
+    let (pa, pb) = (common::npy("csg-a.npy", &a), common::npy("csg-b.npy", &b));
+    let gamma = 3.0f32;
+    let read = |f: &DenseField, c: Coord| f.get(c).map_or(gamma, |v| v.clamp(-gamma, gamma));
+    for (op, name) in [
+        (CsgOp::Union, "union"),
+        (CsgOp::Intersection, "intersection"),
+        (CsgOp::Difference, "difference"),
+    ] {
+        let out = tmp(&format!("csg-{name}.npy"));
+        let o = levelset(&[
+            "csg",
+            pa.to_str().unwrap(),
+            pb.to_str().unwrap(),
+            "--op",
+            name,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("band voxels"));
+        let got = npy::read_npy(&out).unwrap();
+        assert_eq!(got.dims(), [26, 20, 22]);
+        let mut band = 0;
+        for z in 0..22 {
+            for y in 0..20 {
+                for x in 0..26 {
+                    let c = Coord::new(x, y, z);
+                    let want = op.apply(read(&a, c), read(&b, c));
+                    assert_eq!(got.get(c).unwrap(), want, "{name} at {c:?}");
+                    band += (want.abs() < gamma) as usize;
+                }
+            }
+        }
+        assert!(band > 0, "{name}");
+    }
+    let out = tmp("csg-refused.npy");
+    let o = levelset(&[
+        "csg",
+        pa.to_str().unwrap(),
+        pb.to_str().unwrap(),
+        "--op",
+        "nonsense",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!out.exists());
+}
+
 #[test]
 fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let ok = |args: &[&str]| {
@@ -735,6 +793,8 @@ fn every_tool(field: &Path, tag: &str, iso: &str) -> Vec<(&'static str, Output, 
         npy.to_str().unwrap(),
         dir.to_str().unwrap(),
     );
+    let csg = tmp(&format!("{tag}-csg.npy"));
+    let csg_s = csg.to_str().unwrap();
     vec![
         ("info", levelset(&["info", f]), PathBuf::new()),
         ("distance", levelset(&["distance", f, "-o", npy_s]), npy.clone()),
@@ -749,6 +809,7 @@ fn every_tool(field: &Path, tag: &str, iso: &str) -> Vec<(&'static str, Output, 
             levelset(&["run", "expand", "--init", f, "--steps", "2", "--quiet", "--out", dir_s]),
             dir.clone(),
         ),
+        ("csg", levelset(&["csg", f, f, "--op", "union", "-o", csg_s]), csg.clone()),
     ]
 }
 
@@ -769,7 +830,7 @@ fn all_refuse(runs: &[(&str, Output, PathBuf)], tools: &[&str], needle: &str) {
 
 #[test]
 fn one_loader_one_verdict_for_every_subcommand() {
-    let all = ["info", "distance", "mesh", "render", "run"];
+    let all = ["info", "distance", "mesh", "render", "run", "csg"];
     let ball = common::ball([20, 20, 20], [9.5; 3], 6.0, 1.0);
 
     // NaN: refused everywhere with one message.
@@ -791,7 +852,7 @@ fn one_loader_one_verdict_for_every_subcommand() {
     // which makes distance fields, accepts it.
     let steep = common::ball([20, 20, 20], [9.5; 3], 6.0, 1000.0);
     let runs = every_tool(&common::npy("v-steep.npy", &steep), "v-steep", "0");
-    all_refuse(&runs, &["info", "mesh", "render", "run"], "not a signed distance field");
+    all_refuse(&runs, &["info", "mesh", "render", "run", "csg"], "not a signed distance field");
     let (_, o, out) = runs.iter().find(|(t, ..)| *t == "distance").unwrap();
     assert!(o.status.success() && out.exists(), "{}", stderr(o));
 

@@ -2,6 +2,7 @@
 //! library's one loader ([`sparse_levelset::input`]) and every output path is checked
 //! before the work starts. The speed-up report is its own binary, `levelset-speedup`.
 
+mod csg;
 mod distance;
 mod info;
 mod mesh;
@@ -40,6 +41,9 @@ enum Command {
     /// Mesh the zero set of a shape or a dense .npy field (simplicial isosurfacing on the
     /// Kuhn triangulation) into a PLY or OBJ file and report its size and checks.
     Mesh(mesh::MeshArgs),
+    /// Union, intersection or difference of two dense .npy signed distance fields,
+    /// computed on their sparse bands, into a .npy field.
+    Csg(csg::CsgArgs),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +53,7 @@ fn main() -> ExitCode {
         Command::Distance(a) => distance::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Mesh(a) => mesh::run(&a),
+        Command::Csg(a) => csg::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
