@@ -5,6 +5,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use sparse_levelset::bench::{dtgrid_smooth7, dtgrid_star19, tiles_smooth7, tiles_star19};
 use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
+use sparse_levelset::csg::{csg, CsgOp};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::{NeighbourTable, PaddedBlock, TileGrid};
@@ -93,9 +94,27 @@ fn star_gather<const R: usize>(grid: &TileGrid, table: &NeighbourTable) -> f32 {
     acc
 }
 
+/// CSG of two overlapping spheres of radius 60 (a third of a radius apart) on tiles:
+/// the merge of the bands and the stored result, per band voxel of both operands.
+fn csg_bench(c: &mut Criterion) {
+    let spec = GridSpec::default();
+    let a = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 60.0 }, spec).unwrap();
+    let b =
+        tiles_from_shape(&Shape::Sphere { center: [20.0, 0.0, 0.0], radius: 60.0 }, spec).unwrap();
+    let band = (a.band_voxels() + b.band_voxels()) as u64;
+    let mut g = c.benchmark_group("csg/spheres_r60");
+    g.throughput(Throughput::Elements(band));
+    for op in [CsgOp::Union, CsgOp::Intersection, CsgOp::Difference] {
+        g.bench_function(BenchmarkId::new(op.name(), format!("{band}pts")), |bench| {
+            bench.iter(|| csg(&a, &b, op).unwrap())
+        });
+    }
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(500));
-    targets = grids
+    targets = grids, csg_bench
 }
 criterion_main!(benches);
