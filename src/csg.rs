@@ -94,6 +94,8 @@ pub struct Csg<'a, A: ?Sized, B: ?Sized> {
     a: &'a A,
     b: &'a B,
     op: CsgOp,
+    /// `a.band_voxels()`: the size of the merge's buffer, admitted in [`Csg::new`].
+    a_band: usize,
 }
 
 impl<'a, A: LevelSet + ?Sized, B: LevelSet + ?Sized> Csg<'a, A, B> {
@@ -113,9 +115,10 @@ impl<'a, A: LevelSet + ?Sized, B: LevelSet + ?Sized> Csg<'a, A, B> {
         differ("voxel size", sa.voxel_size.to_string(), sb.voxel_size.to_string())?;
         differ("origin", format!("{:?}", sa.origin), format!("{:?}", sb.origin))?;
         differ("half-width", sa.half_width.to_string(), sb.half_width.to_string())?;
-        let buffer = crate::memory::bytes_of(a.band_voxels() as u128, size_of::<Coord>());
+        let a_band = a.band_voxels();
+        let buffer = crate::memory::bytes_of(a_band as u128, size_of::<Coord>());
         crate::memory::check(buffer, "the CSG merge's coordinates")?;
-        Ok(Csg { a, b, op })
+        Ok(Csg { a, b, op, a_band })
     }
 
     /// The operator.
@@ -163,7 +166,7 @@ impl<A: LevelSet + ?Sized, B: LevelSet + ?Sized> LevelSet for Csg<'_, A, B> {
     /// streamed past them) and reports each voxel of either once, if the result is in the
     /// band there.
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let mut first = Vec::with_capacity(self.a.band_voxels());
+        let mut first = Vec::with_capacity(self.a_band);
         self.a.for_each_band_voxel(&mut |c, _| first.push(c));
         let gamma = self.spec().gamma();
         let (mut acc_a, mut acc_b) = (self.a.accessor(), self.b.accessor());

@@ -262,10 +262,16 @@ pub fn run_time_to_solution(
     let mut out = Vec::new();
     for case in Case::ALL {
         for &t in &threads {
-            let size = scenario(case, cfg, t)?.params.size;
+            // The first repetition runs the scenario built here (which names the size);
+            // the others build their own.
+            let mut built = Some(scenario(case, cfg, t)?);
+            let size = built.as_ref().map_or(0, |sc| sc.params.size);
             let label = format!("time to solution: {} {size}³, {t} thread(s)", case.name());
             let (s, _) = crate::scenario::fastest_of(cfg.reps, &label, || {
-                let sc = scenario(case, cfg, t)?;
+                let sc = match built.take() {
+                    Some(sc) => sc,
+                    None => scenario(case, cfg, t)?,
+                };
                 progress(&label, 0.0);
                 sc.run(|f| progress(&label, f)).map_err(|e| format!("{label}: {e}"))
             })?;

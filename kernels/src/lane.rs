@@ -215,7 +215,6 @@ impl Lane for f32 {
 /// tile (`cargo bench -p levelset-kernels --bench kernels -- tile`, f32x16, 2-core AMD
 /// EPYC, 2026-11-24): upwind + curvature 113 → 100 ns per tile, HJ-WENO5 + TVD-RK3
 /// 511 → 459 ns.
-#[allow(non_snake_case)]
 mod rows4 {
     use wide::{f32x16, f32x4, f32x8};
 
