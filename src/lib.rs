@@ -32,6 +32,7 @@ pub mod evolve;
 pub mod fmm;
 pub mod fsutil;
 pub mod grid;
+pub mod hrle;
 pub mod input;
 pub mod levelset;
 pub mod measure;
