@@ -85,6 +85,17 @@ pub trait LevelSet: Sync {
         None
     }
 
+    /// The storage as a DT-Grid when it is one.
+    fn as_dtgrid(&self) -> Option<&DtGrid> {
+        None
+    }
+
+    /// The storage as an H-RLE level set when it is one (its domain and fields are then
+    /// available, e.g. to [`crate::sls::save`]).
+    fn as_hrle(&self) -> Option<&crate::hrle::HrleGrid> {
+        None
+    }
+
     /// The tight inclusive box of the band voxels (one pass over them).
     fn band_bounding_box(&self) -> Option<(Coord, Coord)> {
         let mut b: Option<(Coord, Coord)> = None;
@@ -223,6 +234,9 @@ impl LevelSet for DtGrid {
     }
     fn memory(&self) -> MemoryReport {
         DtGrid::memory(self)
+    }
+    fn as_dtgrid(&self) -> Option<&DtGrid> {
+        Some(self)
     }
 }
 

@@ -43,6 +43,7 @@ pub mod progress;
 pub mod render;
 pub mod sample;
 pub mod shapes;
+pub mod sls;
 pub mod tiles;
 
 /// The README's code is compiled and run as a test.

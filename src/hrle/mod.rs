@@ -331,9 +331,69 @@ impl HrleGrid {
         }
     }
 
+    /// A grid from its parts (a decoded file), checked: every invariant must hold.
+    pub(crate) fn from_parts(
+        spec: GridSpec,
+        blocks: [Block; 3],
+        values: Vec<f32>,
+        domain: Option<(Coord, Coord)>,
+    ) -> Result<HrleGrid, String> {
+        let mut g =
+            HrleGrid { spec, blocks, values, fields: Vec::new(), band: 0, bbox: None, domain };
+        g.check_structure()?;
+        let gamma = spec.gamma();
+        g.band = g.values.iter().filter(|v| v.abs() < gamma).count();
+        let mut bbox = None;
+        g.for_each_defined(|c, _| bbox = Some(grow_box(bbox, c)));
+        g.bbox = bbox;
+        g.check_invariants()?;
+        Ok(g)
+    }
+
     /// Checks every invariant of [`HrleGrid`] (O(size)); the message says which failed.
     pub fn check_invariants(&self) -> Result<(), String> {
+        self.check_structure()?;
         let gamma = self.spec.gamma();
+        let mut band = 0;
+        for (i, v) in self.values.iter().enumerate() {
+            if v.is_nan() || v.abs() > gamma {
+                return Err(format!("value {i} = {v} is NaN or outside [-γ, γ] (γ = {gamma})"));
+            }
+            band += (v.abs() < gamma) as usize;
+        }
+        if band != self.band {
+            return Err(format!("band count {} but {band} values with |φ| < γ", self.band));
+        }
+        for f in &self.fields {
+            if f.len() != self.values.len() {
+                return Err(format!(
+                    "field {:?} has {} entries for {} values",
+                    f.name,
+                    f.len(),
+                    self.values.len()
+                ));
+            }
+        }
+        let mut bbox: Option<(Coord, Coord)> = None;
+        self.for_each_defined(|c, _| bbox = Some(grow_box(bbox, c)));
+        if bbox != self.bbox {
+            return Err(format!("bounding box {:?}, stored voxels span {bbox:?}", self.bbox));
+        }
+        if let Some((lo, hi)) = self.domain {
+            if lo.x > hi.x || lo.y > hi.y || lo.z > hi.z {
+                return Err(format!("empty domain {lo}..{hi}"));
+            }
+            if let Some((a, b)) = bbox {
+                if !in_box(a, lo, hi) || !in_box(b, lo, hi) {
+                    return Err(format!("stored voxels {a}..{b} leave the domain {lo}..{hi}"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The block structure: segment counts, run order and targets, value count.
+    fn check_structure(&self) -> Result<(), String> {
         let mut targets = 1u64; // the z block has one segment above it
         for (b, block) in self.blocks.iter().enumerate() {
             let axis = ["z", "y", "x"][b];
@@ -404,41 +464,6 @@ impl HrleGrid {
         }
         if targets != self.values.len() as u64 {
             return Err(format!("{} values for {targets} defined voxels", self.values.len()));
-        }
-        let mut band = 0;
-        for (i, v) in self.values.iter().enumerate() {
-            if v.is_nan() || v.abs() > gamma {
-                return Err(format!("value {i} = {v} is NaN or outside [-γ, γ] (γ = {gamma})"));
-            }
-            band += (v.abs() < gamma) as usize;
-        }
-        if band != self.band {
-            return Err(format!("band count {} but {band} values with |φ| < γ", self.band));
-        }
-        for f in &self.fields {
-            if f.len() != self.values.len() {
-                return Err(format!(
-                    "field {:?} has {} entries for {} values",
-                    f.name,
-                    f.len(),
-                    self.values.len()
-                ));
-            }
-        }
-        let mut bbox: Option<(Coord, Coord)> = None;
-        self.for_each_defined(|c, _| bbox = Some(grow_box(bbox, c)));
-        if bbox != self.bbox {
-            return Err(format!("bounding box {:?}, stored voxels span {bbox:?}", self.bbox));
-        }
-        if let (Some((lo, hi)), Some((a, b))) = (self.domain, bbox) {
-            if !in_box(a, lo, hi) || !in_box(b, lo, hi) {
-                return Err(format!("stored voxels {a}..{b} leave the domain {lo}..{hi}"));
-            }
-        }
-        if let Some((lo, hi)) = self.domain {
-            if lo.x > hi.x || lo.y > hi.y || lo.z > hi.z {
-                return Err(format!("empty domain {lo}..{hi}"));
-            }
         }
         Ok(())
     }
@@ -531,5 +556,8 @@ impl LevelSet for HrleGrid {
     }
     fn memory(&self) -> MemoryReport {
         HrleGrid::memory(self)
+    }
+    fn as_hrle(&self) -> Option<&HrleGrid> {
+        Some(self)
     }
 }

@@ -1,0 +1,120 @@
+//! Fuzzing the `.sls` reader: flipped, truncated, spliced, inserted and deleted bytes, with
+//! and without a re-computed checksum (so the structure checks are reached, not only the
+//! CRC). The reader must never panic, never return an invalid grid, and never make an
+//! allocation much larger than the file (a counting allocator watches; this binary has
+//! one test, so nothing else allocates meanwhile).
+
+use sparse_levelset::build::tiles_from_shape;
+use sparse_levelset::hrle::HrleGrid;
+use sparse_levelset::shapes::Shape;
+use sparse_levelset::sls::{self, SlsError, Source};
+use sparse_levelset::{Coord, GridSpec};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static LARGEST: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        LARGEST.fetch_max(l.size(), Ordering::Relaxed);
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: `p` came from `alloc` above with this layout.
+        unsafe { System.dealloc(p, l) }
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+fn crc32(b: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &x in b {
+        c ^= x as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+#[test]
+fn mutated_files_are_refused_or_valid_never_a_panic_or_a_huge_allocation() {
+    let sphere = Shape::Sphere { center: [0.3, 0.1, -0.2], radius: 6.5 };
+    let tiles = tiles_from_shape(&sphere, GridSpec::default()).unwrap();
+    let mut h = HrleGrid::from_level_set(&tiles).unwrap();
+    let open = h.clip(Coord::new(-9, -9, -9), Coord::new(1, 9, 9)).unwrap();
+    h.add_scalar_field("s", |c, _| c.x as f32).unwrap();
+    let files = [sls::encode(&h, Source::Hrle), sls::encode(&open, Source::Tiles)];
+    let mut rng = fastrand::Rng::with_seed(2026);
+    let mut counts = std::collections::BTreeMap::<&str, usize>::new();
+    let rounds = 20_000;
+    for round in 0..rounds {
+        let base = &files[round % 2];
+        let mut b = base.clone();
+        let op = rng.u8(0..5);
+        match op {
+            0 => {
+                for _ in 0..rng.usize(1..8) {
+                    let k = rng.usize(0..b.len());
+                    b[k] ^= 1 << rng.u8(0..8);
+                }
+            }
+            1 => b.truncate(rng.usize(0..b.len())),
+            2 => {
+                let other = &files[(round + 1) % 2];
+                let (a, n) = (rng.usize(0..other.len()), rng.usize(1..64));
+                let chunk = &other[a..(a + n).min(other.len())];
+                let at = rng.usize(0..b.len());
+                let end = (at + chunk.len()).min(b.len());
+                b[at..end].copy_from_slice(&chunk[..end - at]);
+            }
+            3 => {
+                let at = rng.usize(0..b.len());
+                for _ in 0..rng.usize(1..16) {
+                    b.insert(at, rng.u8(..));
+                }
+            }
+            _ => {
+                let at = rng.usize(0..b.len());
+                let n = rng.usize(1..16).min(b.len() - at);
+                b.drain(at..at + n);
+            }
+        }
+        // Half the mutants get a valid checksum, so the parser itself is exercised.
+        let resealed = round % 4 >= 2 && b.len() >= 4;
+        if resealed {
+            let n = b.len() - 4;
+            let crc = crc32(&b[..n]);
+            b[n..].copy_from_slice(&crc.to_le_bytes());
+        }
+        LARGEST.store(0, Ordering::Relaxed);
+        let r = sls::decode(&b);
+        let largest = LARGEST.load(Ordering::Relaxed);
+        assert!(
+            largest <= 8 * base.len() + 4096,
+            "round {round}: an allocation of {largest} bytes for a {}-byte file",
+            b.len()
+        );
+        let kind = match r {
+            Ok((g, _)) => {
+                g.check_invariants().unwrap();
+                "accepted (still a valid level set)"
+            }
+            Err(SlsError::Checksum { .. }) => "refused: checksum",
+            Err(SlsError::Truncated(_)) => "refused: truncated",
+            Err(SlsError::NotSls) => "refused: not .sls",
+            Err(SlsError::Version(_)) => "refused: version",
+            Err(SlsError::Corrupt(_)) => "refused: corrupt structure",
+            Err(e) => panic!("unexpected error kind: {e}"),
+        };
+        *counts.entry(kind).or_default() += 1;
+        let _ = resealed;
+    }
+    eprintln!("sls fuzz, {rounds} mutants: {counts:?}");
+    assert!(counts.get("refused: corrupt structure").copied().unwrap_or(0) > rounds / 10);
+    assert!(counts.get("refused: checksum").copied().unwrap_or(0) > rounds / 10);
+}
