@@ -1,10 +1,13 @@
-//! The `levelset info` report: both grids built from one input, with their voxel counts and
-//! bytes by part.
+//! The `levelset info` report: the three grids (DT-Grid, tiles, H-RLE) built from one
+//! input, with their voxel counts and bytes by part, and the size of its `.sls` file.
 
 use serde::Serialize;
-use sparse_levelset::build::{dtgrid_from, dtgrid_from_dense, tiles_from_dense, tiles_from_shape};
+use sparse_levelset::build::{
+    dtgrid_from, dtgrid_from_dense, tiles_from, tiles_from_dense, tiles_from_shape,
+};
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
+use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::LevelSet;
 use std::fmt::Write as _;
@@ -35,7 +38,7 @@ impl From<MemoryReport> for Bytes {
 /// One grid's line of the report.
 #[derive(Clone, Debug, Serialize)]
 pub struct GridInfo {
-    /// `"dtgrid"` or `"tiles"`.
+    /// `"dtgrid"`, `"tiles"` or `"hrle"`.
     pub grid: &'static str,
     /// Stored voxels with |φ| < γ.
     pub band_voxels: usize,
@@ -69,6 +72,16 @@ pub struct InfoReport {
     pub grids: Vec<GridInfo>,
     /// Tile bytes / DT-Grid bytes (the tile paper measured about 2.5 at 4³, Sec. 5.3).
     pub tiles_over_dtgrid_bytes: f64,
+    /// H-RLE bytes / DT-Grid bytes (the H-RLE paper's Table II: 1.05–1.07).
+    pub hrle_over_dtgrid_bytes: f64,
+    /// Bytes of the level set as a `.sls` file.
+    pub sls_bytes: usize,
+    /// The domain of an unenclosed (clipped) level set, `[lo, hi]` as `[x, y, z]`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub domain: Option<[[i32; 3]; 2]>,
+    /// Augmented fields (`.sls` input).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub fields: Vec<String>,
     /// Things the user should know about the input.
     pub warnings: Vec<String>,
 }
@@ -88,28 +101,90 @@ fn grid_info<G: LevelSet>(name: &'static str, g: &G, tiles: usize, secs: f64) ->
     }
 }
 
-fn assemble(
+/// The H-RLE line and the `.sls` size of a level set.
+fn hrle_info<G: LevelSet>(g: &G) -> Result<(HrleGrid, GridInfo, usize), GridError> {
+    let t0 = Instant::now();
+    let mut h = match g.as_hrle() {
+        Some(h) => h.clone(),
+        None => HrleGrid::from_level_set(g)?,
+    };
+    h.shrink_to_fit();
+    let info = grid_info("hrle", &h, 0, t0.elapsed().as_secs_f64());
+    let bytes = sparse_levelset::sls::encode(&h, sparse_levelset::sls::Source::Hrle).len();
+    Ok((h, info, bytes))
+}
+
+struct Parts {
     source: String,
     shape: Option<Shape>,
     dense_dims: Option<[usize; 3]>,
     spec: GridSpec,
-    dt: GridInfo,
-    tiles: GridInfo,
+    grids: [GridInfo; 3],
+    hrle: HrleGrid,
+    sls_bytes: usize,
     warnings: Vec<String>,
-) -> InfoReport {
-    let ratio =
-        if dt.bytes.total > 0 { tiles.bytes.total as f64 / dt.bytes.total as f64 } else { 0.0 };
+}
+
+fn assemble(p: Parts) -> InfoReport {
+    let [dt, tiles, h] = p.grids;
+    let over = |a: &GridInfo| {
+        if dt.bytes.total > 0 {
+            a.bytes.total as f64 / dt.bytes.total as f64
+        } else {
+            0.0
+        }
+    };
     InfoReport {
-        source,
-        shape,
-        dense_dims,
-        voxel_size: spec.voxel_size,
-        half_width: spec.half_width,
-        gamma: spec.gamma(),
-        grids: vec![dt, tiles],
-        tiles_over_dtgrid_bytes: ratio,
-        warnings,
+        source: p.source,
+        shape: p.shape,
+        dense_dims: p.dense_dims,
+        voxel_size: p.spec.voxel_size,
+        half_width: p.spec.half_width,
+        gamma: p.spec.gamma(),
+        tiles_over_dtgrid_bytes: over(&tiles),
+        hrle_over_dtgrid_bytes: over(&h),
+        sls_bytes: p.sls_bytes,
+        domain: p.hrle.domain().map(|(lo, hi)| [[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]]),
+        fields: p.hrle.fields().iter().map(|f| f.name.clone()).collect(),
+        grids: vec![dt, tiles, h],
+        warnings: p.warnings,
     }
+}
+
+/// Reports a sparse level set read from a `.sls` file: its H-RLE encoding and the tile
+/// list and DT-Grid it converts into.
+pub fn info_from_sparse(name: &str, grid: &HrleGrid) -> Result<InfoReport, GridError> {
+    let t0 = Instant::now();
+    let mut tiles = tiles_from(grid);
+    tiles.shrink_to_fit();
+    let t_tiles = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let mut dt = dtgrid_from(grid);
+    dt.shrink_to_fit();
+    let t_dt = t1.elapsed().as_secs_f64();
+    let (hrle, h, sls_bytes) = hrle_info(grid)?;
+    let mut warnings = Vec::new();
+    if grid.domain().is_some() {
+        warnings.push(
+            "the level set is unenclosed (clipped to its domain): the tiles and the DT-Grid \
+             hold its band but read their own signs beyond it"
+                .into(),
+        );
+    }
+    Ok(assemble(Parts {
+        source: name.to_string(),
+        shape: None,
+        dense_dims: None,
+        spec: grid.spec(),
+        grids: [
+            grid_info("dtgrid", &dt, 0, t_dt),
+            grid_info("tiles", &tiles, tiles.len(), t_tiles),
+            h,
+        ],
+        hrle,
+        sls_bytes,
+        warnings,
+    }))
 }
 
 /// Builds both grids of a shape and reports them.
@@ -127,15 +202,21 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     if tiles.is_empty() {
         warnings.push("the shape has no voxel within the band: both grids are empty".into());
     }
-    Ok(assemble(
-        name.to_string(),
-        Some(shape.clone()),
-        None,
+    let (hrle, h, sls_bytes) = hrle_info(&tiles)?;
+    Ok(assemble(Parts {
+        source: name.to_string(),
+        shape: Some(shape.clone()),
+        dense_dims: None,
         spec,
-        grid_info("dtgrid", &dt, 0, t_dt),
-        grid_info("tiles", &tiles, tiles.len(), t_tiles),
+        grids: [
+            grid_info("dtgrid", &dt, 0, t_dt),
+            grid_info("tiles", &tiles, tiles.len(), t_tiles),
+            h,
+        ],
+        hrle,
+        sls_bytes,
         warnings,
-    ))
+    }))
 }
 
 /// Builds both grids of a dense field and reports them. The field is expected to have
@@ -166,15 +247,21 @@ pub fn info_from_dense(
     if tiles.is_empty() {
         warnings.push(format!("no voxel has |φ| < γ = {g}: both grids are empty"));
     }
-    Ok(assemble(
-        source.to_string(),
-        None,
-        Some(field.dims()),
+    let (hrle, h, sls_bytes) = hrle_info(&tiles)?;
+    Ok(assemble(Parts {
+        source: source.to_string(),
+        shape: None,
+        dense_dims: Some(field.dims()),
         spec,
-        grid_info("dtgrid", &dt, 0, t_dt),
-        grid_info("tiles", &tiles, tiles.len(), t_tiles),
+        grids: [
+            grid_info("dtgrid", &dt, 0, t_dt),
+            grid_info("tiles", &tiles, tiles.len(), t_tiles),
+            h,
+        ],
+        hrle,
+        sls_bytes,
         warnings,
-    ))
+    }))
 }
 
 /// Bytes for people: B, KiB, MiB or GiB.
@@ -238,7 +325,19 @@ impl InfoReport {
         for g in &self.grids {
             let _ = writeln!(s, "{}: total / values = {:.3}", g.grid, g.total_over_values);
         }
-        let _ = writeln!(s, "tiles / dtgrid bytes = {:.2}", self.tiles_over_dtgrid_bytes);
+        let _ = writeln!(
+            s,
+            "tiles / dtgrid bytes = {:.2}   hrle / dtgrid bytes = {:.3}   .sls file: {}",
+            self.tiles_over_dtgrid_bytes,
+            self.hrle_over_dtgrid_bytes,
+            human_bytes(self.sls_bytes)
+        );
+        if let Some([lo, hi]) = self.domain {
+            let _ = writeln!(s, "domain (unenclosed level set): {lo:?} .. {hi:?}");
+        }
+        if !self.fields.is_empty() {
+            let _ = writeln!(s, "fields: {}", self.fields.join(", "));
+        }
         for w in &self.warnings {
             let _ = writeln!(s, "warning: {w}");
         }

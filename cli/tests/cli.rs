@@ -795,6 +795,8 @@ fn every_tool(field: &Path, tag: &str, iso: &str) -> Vec<(&'static str, Output, 
     );
     let csg = tmp(&format!("{tag}-csg.npy"));
     let csg_s = csg.to_str().unwrap();
+    let sls = tmp(&format!("{tag}-out.sls"));
+    let sls_s = sls.to_str().unwrap();
     vec![
         ("info", levelset(&["info", f]), PathBuf::new()),
         ("distance", levelset(&["distance", f, "-o", npy_s]), npy.clone()),
@@ -810,6 +812,7 @@ fn every_tool(field: &Path, tag: &str, iso: &str) -> Vec<(&'static str, Output, 
             dir.clone(),
         ),
         ("csg", levelset(&["csg", f, f, "--op", "union", "-o", csg_s]), csg.clone()),
+        ("convert", levelset(&["convert", f, sls_s, "--quiet"]), sls.clone()),
     ]
 }
 
@@ -830,7 +833,7 @@ fn all_refuse(runs: &[(&str, Output, PathBuf)], tools: &[&str], needle: &str) {
 
 #[test]
 fn one_loader_one_verdict_for_every_subcommand() {
-    let all = ["info", "distance", "mesh", "render", "run", "csg"];
+    let all = ["info", "distance", "mesh", "render", "run", "csg", "convert"];
     let ball = common::ball([20, 20, 20], [9.5; 3], 6.0, 1.0);
 
     // NaN: refused everywhere with one message.

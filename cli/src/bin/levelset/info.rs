@@ -1,8 +1,9 @@
-//! `levelset info`: both grids of a shape or a dense field, their voxels and bytes.
+//! `levelset info`: the grids of a shape, a dense field or a `.sls` file, their voxels and
+//! bytes.
 
 use crate::source::{Input, SourceArgs};
 use clap::Args;
-use levelset_cli::info::{info_from_dense, info_from_shape};
+use levelset_cli::info::{info_from_dense, info_from_shape, info_from_sparse};
 use levelset_cli::{out, outln};
 use sparse_levelset::input::Expect;
 
@@ -17,14 +18,17 @@ pub struct InfoArgs {
 
 pub fn run(a: &InfoArgs) -> Result<(), String> {
     let spec = a.source.spec()?;
-    // Both grids are held at once.
-    let expect = Expect { copies: 2.0, ..Expect::new(spec) };
+    // The three grids are held at once.
+    let expect = Expect { copies: 3.0, ..Expect::new(spec) };
     let report = match a.source.load(&expect)? {
         Input::Field { name, field } => {
             info_from_dense(&name, &field, spec).map_err(|e| format!("{name}: {e}"))?
         }
         Input::Shape { name, shape } => {
             info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())?
+        }
+        Input::Sparse { name, grid } => {
+            info_from_sparse(&name, &grid).map_err(|e| format!("{name}: {e}"))?
         }
     };
     if a.json {

@@ -2,6 +2,7 @@
 //! library's one loader ([`sparse_levelset::input`]) and every output path is checked
 //! before the work starts. The speed-up report is its own binary, `levelset-speedup`.
 
+mod convert;
 mod csg;
 mod distance;
 mod info;
@@ -29,7 +30,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Build both grids from a shape or a dense .npy field and report voxels and bytes.
+    /// Build the grids (DT-Grid, tiles, H-RLE) from a shape, a dense .npy field or a .sls
+    /// file and report voxels and bytes, and the size of the .sls file.
     Info(info::InfoArgs),
     /// Evolve one of the papers' scenarios and write DIR/summary.json.
     Run(run::RunArgs),
@@ -41,6 +43,9 @@ enum Command {
     /// Mesh the zero set of a shape or a dense .npy field (simplicial isosurfacing on the
     /// Kuhn triangulation) into a PLY or OBJ file and report its size and checks.
     Mesh(mesh::MeshArgs),
+    /// Convert between dense .npy fields, sparse .sls files and meshes (.ply, .obj), by
+    /// the files' extensions.
+    Convert(convert::ConvertArgs),
     /// Union, intersection or difference of two dense .npy signed distance fields,
     /// computed on their sparse bands, into a .npy field.
     Csg(csg::CsgArgs),
@@ -54,6 +59,7 @@ fn main() -> ExitCode {
         Command::Render(a) => render::run(&a),
         Command::Mesh(a) => mesh::run(&a),
         Command::Csg(a) => csg::run(&a),
+        Command::Convert(a) => convert::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -45,6 +45,11 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
             bar.set_message("meshing");
             mesh::isosurface_dense(field, &spec, a.iso).map_err(|e| format!("{name}: {e}"))?
         }
+        Input::Sparse { grid, .. } => {
+            bar.set_message("meshing");
+            mesh::isosurface(grid, &mesh::MeshOptions { iso: a.iso, ..Default::default() })
+                .map_err(|e| format!("{}: {e}", input.name()))?
+        }
         Input::Shape { shape, .. } => {
             bar.set_message("building tiles");
             let tiles =

@@ -5,9 +5,15 @@
 use clap::{Args, ValueEnum};
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
+use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::input::{self, Expect};
 use sparse_levelset::shapes::Shape;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// A path with the `.sls` extension (any case).
+pub fn is_sls(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("sls"))
+}
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ShapeKind {
@@ -102,9 +108,10 @@ impl ShapeArgs {
 /// The input level set of `info`, `render` and `mesh`: FIELD or a shape, on a grid.
 #[derive(Args)]
 pub struct SourceArgs {
-    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units); without
-    /// it, the shape given by --shape and its flags.
-    #[arg(value_name = "FIELD.npy", conflicts_with_all = [
+    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units), or a
+    /// sparse .sls file (which carries its own voxel size and half-width); without it, the
+    /// shape given by --shape and its flags.
+    #[arg(value_name = "FIELD.npy|FILE.sls", conflicts_with_all = [
         "shape", "radius", "major_radius", "minor_radius", "radii", "half_extents", "depth",
         "turns", "thickness", "center",
     ])]
@@ -123,13 +130,16 @@ pub struct SourceArgs {
 pub enum Input {
     Field { name: String, field: DenseField },
     Shape { name: String, shape: Shape },
+    Sparse { name: String, grid: HrleGrid },
 }
 
 impl Input {
     /// The file's path or the shape's name.
     pub fn name(&self) -> &str {
         match self {
-            Input::Field { name, .. } | Input::Shape { name, .. } => name,
+            Input::Field { name, .. } | Input::Shape { name, .. } | Input::Sparse { name, .. } => {
+                name
+            }
         }
     }
 }
@@ -144,6 +154,10 @@ impl SourceArgs {
     /// before any work.
     pub fn load(&self, expect: &Expect) -> Result<Input, String> {
         if let Some(path) = &self.field {
+            if is_sls(path) {
+                let grid = input::load_sls(path, expect).map_err(|e| e.to_string())?;
+                return Ok(Input::Sparse { name: path.display().to_string(), grid });
+            }
             let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
             return Ok(Input::Field { name: path.display().to_string(), field });
         }

@@ -1,0 +1,102 @@
+//! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files and meshes,
+//! chosen by the extensions. Every input goes through the library's one loader; the
+//! output path is checked before any work and written atomically.
+
+use crate::source::is_sls;
+use clap::Args;
+use levelset_cli::output::check_output;
+use levelset_cli::{outln, progress};
+use sparse_levelset::build::{self, tiles_from_dense};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::hrle::HrleGrid;
+use sparse_levelset::input::{self, Expect};
+use sparse_levelset::mesh::{self, MeshFormat};
+use sparse_levelset::sls;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct ConvertArgs {
+    /// Input: a dense float32 .npy signed distance field or a sparse .sls file.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// Output: .sls (sparse, H-RLE encoded), .npy (dense, the band's box grown by
+    /// --margin, ±γ beyond the band), or a mesh of the zero set (.ply binary, .obj).
+    #[arg(value_name = "OUT")]
+    pub output: PathBuf,
+    /// Voxel edge length in world units of a .npy input (a .sls file carries its own).
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub voxel_size: f32,
+    /// Band half-width γ in voxels of a .npy input.
+    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
+    pub half_width: f32,
+    /// Voxels of ±γ around the band in a .npy output.
+    #[arg(long, default_value_t = 2)]
+    pub margin: u32,
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+enum Out {
+    Sls,
+    Npy,
+    Mesh(MeshFormat),
+}
+
+fn is_npy(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+}
+
+pub fn run(a: &ConvertArgs) -> Result<(), String> {
+    let out = if is_sls(&a.output) {
+        Out::Sls
+    } else if is_npy(&a.output) {
+        Out::Npy
+    } else {
+        Out::Mesh(MeshFormat::from_path(&a.output, false).map_err(|_| {
+            format!("{}: unknown output type; use .sls, .npy, .ply or .obj", a.output.display())
+        })?)
+    };
+    if !(is_sls(&a.input) || is_npy(&a.input)) {
+        return Err(format!("{}: unknown input type; use .npy or .sls", a.input.display()));
+    }
+    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    check_output(&a.output)?;
+    let name = a.input.display().to_string();
+    let bar = progress::spinner(a.quiet);
+    let start = std::time::Instant::now();
+    bar.set_message(format!("reading {name}"));
+    // The input and the grid made from it are held at once.
+    let expect = Expect { copies: 2.0, ..Expect::new(spec) };
+    let grid: HrleGrid = if is_sls(&a.input) {
+        input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?
+    } else {
+        let field = input::load_npy(&a.input, &expect).map_err(|e| e.to_string())?;
+        let tiles = tiles_from_dense(&field, spec).map_err(|e| format!("{name}: {e}"))?;
+        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
+    };
+    bar.set_message(format!("writing {}", a.output.display()));
+    let what = match out {
+        Out::Sls => {
+            sls::save(&a.output, &grid).map_err(|e| e.to_string())?;
+            format!("{} band voxels", grid.band_voxels())
+        }
+        Out::Npy => {
+            let origin = build::export_npy(&grid, &a.output, a.margin)
+                .map_err(|e| format!("{}: {e}", a.output.display()))?;
+            format!("{} band voxels, array origin voxel {origin}", grid.band_voxels())
+        }
+        Out::Mesh(format) => {
+            let m =
+                mesh::isosurface(&grid, &Default::default()).map_err(|e| format!("{name}: {e}"))?;
+            if m.is_empty() {
+                return Err(format!("{name}: the level set has no surface to mesh"));
+            }
+            m.write(&a.output, Some(format)).map_err(|e| e.to_string())?;
+            format!("{} triangles", m.num_triangles())
+        }
+    };
+    bar.finish_and_clear();
+    outln!("{name} -> {}: {what} ({:.3} s)", a.output.display(), start.elapsed().as_secs_f64());
+    Ok(())
+}
