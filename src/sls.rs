@@ -361,8 +361,8 @@ pub fn decode(bytes: &[u8]) -> Result<(HrleGrid, Header), SlsError> {
     // Every run takes at least one byte, every value four.
     let nvalues = r.count(header.values, 4, "values")?;
     let mut nruns = [0usize; 3];
-    for k in 0..3 {
-        nruns[k] = r.count(header.runs[k], 1, "runs")?;
+    for (n, &claimed) in nruns.iter_mut().zip(&header.runs) {
+        *n = r.count(claimed, 1, "runs")?;
     }
     let mut blocks: [Block; 3] = Default::default();
     let mut segments = 1u64;

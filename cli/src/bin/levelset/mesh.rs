@@ -47,7 +47,7 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
         }
         Input::Sparse { grid, .. } => {
             bar.set_message("meshing");
-            mesh::isosurface(grid, &mesh::MeshOptions { iso: a.iso, ..Default::default() })
+            mesh::isosurface(grid.as_ref(), &mesh::MeshOptions { iso: a.iso, ..Default::default() })
                 .map_err(|e| format!("{}: {e}", input.name()))?
         }
         Input::Shape { shape, .. } => {

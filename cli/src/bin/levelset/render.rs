@@ -83,7 +83,7 @@ pub fn run(a: &RenderArgs) -> Result<(), String> {
         Input::Shape { shape, .. } => {
             build::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?
         }
-        Input::Sparse { grid, .. } => build::tiles_from(grid),
+        Input::Sparse { grid, .. } => build::tiles_from(grid.as_ref()),
     };
     drop(input);
     let build_seconds = start.elapsed().as_secs_f64();

@@ -130,7 +130,7 @@ pub struct SourceArgs {
 pub enum Input {
     Field { name: String, field: DenseField },
     Shape { name: String, shape: Shape },
-    Sparse { name: String, grid: HrleGrid },
+    Sparse { name: String, grid: Box<HrleGrid> },
 }
 
 impl Input {
@@ -156,7 +156,10 @@ impl SourceArgs {
         if let Some(path) = &self.field {
             if is_sls(path) {
                 let grid = input::load_sls(path, expect).map_err(|e| e.to_string())?;
-                return Ok(Input::Sparse { name: path.display().to_string(), grid });
+                return Ok(Input::Sparse {
+                    name: path.display().to_string(),
+                    grid: Box::new(grid),
+                });
             }
             let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
             return Ok(Input::Field { name: path.display().to_string(), field });
