@@ -17,6 +17,7 @@
 //! ```
 
 pub mod info;
+pub mod memtable;
 pub mod output;
 pub mod pin;
 pub mod progress;

@@ -92,3 +92,19 @@ fn a_corrupt_sls_file_gets_one_message_from_every_tool() {
     let e = stderr(&levelset(&["convert", s, "x.vtk"]));
     assert!(e.contains("unknown output type"), "{e}");
 }
+
+#[test]
+fn memory_table_rows_compare_the_three_grids() {
+    let rows = levelset_cli::memtable::analytic_rows(24.0, |_| {}).unwrap();
+    assert_eq!(rows.len(), 3);
+    for r in &rows[..2] {
+        // A closed band: the H-RLE within 15 % of the DT-Grid (Table II: 5–7 %), the file
+        // smaller than either in memory.
+        assert!(r.hrle_over_dtgrid > 1.0 && r.hrle_over_dtgrid < 1.15, "{r:?}");
+        assert!(r.sls_bytes < r.dtgrid_bytes && r.tiles_bytes > r.dtgrid_bytes, "{r:?}");
+    }
+    // Unenclosed: the open hemisphere costs less than the closed one in a DT-Grid.
+    let open = &rows[2];
+    assert!(open.hrle_over_dtgrid < 0.9, "{open:?}");
+    assert!(2 * open.band_voxels < rows[1].band_voxels + 4000);
+}

@@ -63,6 +63,14 @@ struct BenchArgs {
     #[arg(long, value_name = "F", allow_hyphen_values = true,
           conflicts_with_all = ["kernels", "storage"], value_parser = scale)]
     solution_scale: Option<f64>,
+    /// The memory table instead (H-RLE paper, Table II): bytes of the H-RLE, the DT-Grid,
+    /// the tiles and the .sls file for the spiral, a sphere of radius 1000 (--memory-radius)
+    /// and that sphere clipped by a plane (unenclosed).
+    #[arg(long, conflicts_with_all = ["kernels", "storage", "solution"])]
+    memory: bool,
+    /// Memory table: the sphere's radius in voxels.
+    #[arg(long, default_value_t = 1000.0, requires = "memory", allow_hyphen_values = true)]
+    memory_radius: f64,
     /// Also write the results as JSON to this file (checked before the work starts).
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -114,7 +122,27 @@ fn run(a: &BenchArgs) -> Result<(), String> {
     if a.storage {
         return storage(a);
     }
+    if a.memory {
+        return memory(a);
+    }
     speedup(a)
+}
+
+fn memory(a: &BenchArgs) -> Result<(), String> {
+    use levelset_cli::memtable::{analytic_rows, MemoryTable};
+    let r = a.memory_radius;
+    if !(r.is_finite() && (2.0..=100_000.0).contains(&r)) {
+        return Err(format!("--memory-radius must be in [2, 100000] voxels, got {r}"));
+    }
+    let bar = progress::spinner(false);
+    let rows = analytic_rows(r, |m| bar.set_message(m.to_string())).map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    let table = MemoryTable { half_width: GridSpec::default().half_width, rows };
+    out!("{}", table.to_text());
+    if let Some(path) = &a.json {
+        write_json(path, &table)?;
+    }
+    Ok(())
 }
 
 fn storage(a: &BenchArgs) -> Result<(), String> {
