@@ -3,10 +3,13 @@
 //! Benchmark ids carry the voxel counts so times convert to throughput.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sparse_levelset::bench::{dtgrid_smooth7, dtgrid_star19, tiles_smooth7, tiles_star19};
+use sparse_levelset::bench::{
+    dtgrid_smooth7, dtgrid_star19, hrle_smooth7, tiles_smooth7, tiles_star19,
+};
 use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::csg::{csg, CsgOp};
 use sparse_levelset::grid::GridSpec;
+use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::{NeighbourTable, PaddedBlock, TileGrid};
 use sparse_levelset::Coord;
@@ -96,6 +99,44 @@ fn star_gather<const R: usize>(grid: &TileGrid, table: &NeighbourTable) -> f32 {
 
 /// CSG of two overlapping spheres of radius 60 (a third of a radius apart) on tiles:
 /// the merge of the bands and the stored result, per band voxel of both operands.
+/// The H-RLE against the DT-Grid it is compared with in the paper (Table I): the same
+/// 7-point smoothing through each one's stencil iterator, random access, dilation.
+fn hrle_bench(c: &mut Criterion) {
+    let spec = GridSpec::default();
+    let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 60.0 }, spec).unwrap();
+    let dt = dtgrid_from(&tiles);
+    let h = HrleGrid::from_level_set(&tiles).unwrap();
+    let band = dt.len() as u64;
+    let mut g = c.benchmark_group("hrle/sphere_r60");
+    g.throughput(Throughput::Elements(band));
+    let mut out = Vec::new();
+    g.bench_function(BenchmarkId::new("hrle_smooth7", format!("{band}pts")), |b| {
+        b.iter(|| hrle_smooth7(&h, &mut out))
+    });
+    g.bench_function(BenchmarkId::new("dtgrid_smooth7", format!("{band}pts")), |b| {
+        b.iter(|| dtgrid_smooth7(&dt, &mut out))
+    });
+    g.bench_function(BenchmarkId::new("hrle_dilate1", format!("{band}pts")), |b| {
+        b.iter(|| h.dilate(1).unwrap())
+    });
+    g.bench_function(BenchmarkId::new("dtgrid_dilate1", format!("{band}pts")), |b| {
+        b.iter(|| dt.dilate(1).unwrap())
+    });
+    g.bench_function(BenchmarkId::new("from_tiles", format!("{band}pts")), |b| {
+        b.iter(|| HrleGrid::from_level_set(&tiles).unwrap())
+    });
+    let probes: Vec<Coord> = (0..band as i32)
+        .map(|i| Coord::new((i * 7919) % 131 - 65, (i * 104_729) % 131 - 65, (i * 1299) % 131 - 65))
+        .collect();
+    g.bench_function(BenchmarkId::new("hrle_random", format!("{band}pts")), |b| {
+        b.iter(|| probes.iter().map(|&p| h.value(p)).sum::<f32>())
+    });
+    g.bench_function(BenchmarkId::new("dtgrid_random", format!("{band}pts")), |b| {
+        b.iter(|| probes.iter().map(|&p| dt.value(p)).sum::<f32>())
+    });
+    g.finish();
+}
+
 fn csg_bench(c: &mut Criterion) {
     let spec = GridSpec::default();
     let a = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 60.0 }, spec).unwrap();
@@ -115,6 +156,6 @@ fn csg_bench(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(500));
-    targets = grids, csg_bench
+    targets = grids, csg_bench, hrle_bench
 }
 criterion_main!(benches);

@@ -68,6 +68,15 @@ pub fn dtgrid_smooth7(grid: &DtGrid, out: &mut Vec<f32>) {
     }
 }
 
+/// The same 7-point smoothing over an H-RLE level set, read with its stencil iterator
+/// ([`crate::hrle::HrleGrid::for_each_star`]); the output is indexed like the DT-Grid's.
+pub fn hrle_smooth7(grid: &crate::hrle::HrleGrid, out: &mut Vec<f32>) {
+    out.clear();
+    out.resize(grid.len(), 0.0);
+    let g = grid.spec().gamma();
+    grid.for_each_star(|_, i, v| out[i] = smooth7(v, g));
+}
+
 /// `star19` over every tile with a 3-voxel halo.
 pub fn tiles_star19(grid: &TileGrid, out: &mut Vec<Tile>) {
     // The PaddedBlock<3> layout: rows of 12 (x from -4), 10 rows per slice, 10 slices.

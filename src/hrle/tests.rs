@@ -283,3 +283,15 @@ fn memory_is_close_to_the_dtgrid_for_a_closed_band() {
     let (a, b) = (h.memory().used() as f64, d.memory().used() as f64);
     assert!(a > b && a < 1.15 * b, "H-RLE {a} bytes, DT-Grid {b}");
 }
+
+#[test]
+fn smoothing_reads_the_same_stencils_as_the_dtgrid() {
+    let t = torus();
+    let h = HrleGrid::from_level_set(&t).unwrap();
+    let d = dtgrid_from(&t);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    crate::bench::hrle_smooth7(&h, &mut a);
+    crate::bench::dtgrid_smooth7(&d, &mut b);
+    assert_eq!(a.len(), b.len());
+    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+}
