@@ -5,9 +5,10 @@
 //! [`GridSpec`], the value at any voxel (stored, or ±γ outside the band), a cached
 //! [`Accessor`] for runs of nearby lookups (OpenVDB's `ValueAccessor`), the band voxels in
 //! [`Coord`] order, a bounding box and the memory used. The Sorted Tile List
-//! ([`TileGrid`]), the DT-Grid ([`DtGrid`]) and a running simulation's current state
-//! ([`crate::evolve::Simulation`]) implement it; the tools take any of them through one
-//! function each with one options struct:
+//! ([`TileGrid`]), the DT-Grid ([`DtGrid`]), the H-RLE level set
+//! ([`crate::hrle::HrleGrid`]), a CSG view ([`crate::csg::Csg`]) and a running
+//! simulation's current state ([`crate::evolve::Simulation`]) implement it; the tools take
+//! any of them through one function each with one options struct:
 //!
 //! | tool | function |
 //! |---|---|
@@ -16,7 +17,8 @@
 //! | reinitialisation by fast marching | [`crate::fmm::reinitialize`] |
 //! | dense field, `.npy` | [`crate::build::to_dense`], [`crate::build::export_npy`] |
 //! | band voxels, volume, area | [`crate::measure::measure`] |
-//! | conversion | [`crate::build::tiles_from`], [`crate::build::dtgrid_from`] |
+//! | conversion | [`crate::build::tiles_from`], [`crate::build::dtgrid_from`], [`crate::hrle::HrleGrid::from_level_set`] |
+//! | `.sls` file | [`crate::sls::save`] (and [`crate::sls::load`] into an H-RLE) |
 //!
 //! Progress and cancellation are a field of the options ([`crate::progress::Progress`]),
 //! not a second family of functions. Inputs that are not a level set have their own
