@@ -143,14 +143,17 @@ pub fn load_npy(path: &Path, expect: &Expect) -> Result<DenseField, InputError> 
 /// Loads a sparse level set from a `.sls` file ([`crate::sls::load`]: memory, checksum and
 /// every invariant checked before it is returned). Its own voxel size, origin and
 /// half-width replace `expect.spec`; the isovalue must lie inside its band.
-pub fn load_sls(path: &Path, expect: &Expect) -> Result<crate::hrle::HrleGrid, InputError> {
+pub fn load_sls(
+    path: &Path,
+    expect: &Expect,
+) -> Result<(crate::hrle::HrleGrid, crate::sls::Header), InputError> {
     let (grid, header) = crate::sls::load(path)?;
     let name = path.display().to_string();
     check_iso(&name, &Expect { spec: header.spec, ..*expect })?;
     let needed = (expect.copies.max(1.0) - 1.0) * grid.memory().used() as f64;
     crate::memory::check(needed, "the level set with the tool's working copies")
         .map_err(|error| InputError::OutOfMemory { input: name, error })?;
-    Ok(grid)
+    Ok((grid, header))
 }
 
 /// Checks a dense level set against `expect` (rules 3 to 7 of the module docs; `input`

@@ -55,6 +55,17 @@ pub struct GridInfo {
     pub build_seconds: f64,
 }
 
+/// The header of a `.sls` input.
+#[derive(Clone, Debug, Serialize)]
+pub struct SlsFileInfo {
+    pub version: u32,
+    /// The grid it was written from.
+    pub written_from: String,
+    /// Runs of the z, y and x blocks.
+    pub runs: [u64; 3],
+    pub origin: [f64; 3],
+}
+
 /// The whole report.
 #[derive(Clone, Debug, Serialize)]
 pub struct InfoReport {
@@ -79,6 +90,9 @@ pub struct InfoReport {
     /// The domain of an unenclosed (clipped) level set, `[lo, hi]` as `[x, y, z]`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub domain: Option<[[i32; 3]; 2]>,
+    /// What the `.sls` file's header says (`.sls` input).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sls_file: Option<SlsFileInfo>,
     /// Augmented fields (`.sls` input).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub fields: Vec<String>,
@@ -114,7 +128,7 @@ fn hrle_info<G: LevelSet>(g: &G) -> Result<(HrleGrid, GridInfo, usize), GridErro
     Ok((h, info, bytes))
 }
 
-struct Parts {
+struct Parts<'a> {
     source: String,
     shape: Option<Shape>,
     dense_dims: Option<[usize; 3]>,
@@ -122,6 +136,7 @@ struct Parts {
     grids: [GridInfo; 3],
     hrle: HrleGrid,
     sls_bytes: usize,
+    header: Option<&'a sparse_levelset::sls::Header>,
     warnings: Vec<String>,
 }
 
@@ -146,6 +161,12 @@ fn assemble(p: Parts) -> InfoReport {
         sls_bytes: p.sls_bytes,
         domain: p.hrle.domain().map(|(lo, hi)| [[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]]),
         fields: p.hrle.fields().iter().map(|f| f.name.clone()).collect(),
+        sls_file: p.header.map(|h| SlsFileInfo {
+            version: h.version,
+            written_from: format!("{:?}", h.source).to_lowercase(),
+            runs: h.runs,
+            origin: h.spec.origin,
+        }),
         grids: vec![dt, tiles, h],
         warnings: p.warnings,
     }
@@ -153,7 +174,11 @@ fn assemble(p: Parts) -> InfoReport {
 
 /// Reports a sparse level set read from a `.sls` file: its H-RLE encoding and the tile
 /// list and DT-Grid it converts into.
-pub fn info_from_sparse(name: &str, grid: &HrleGrid) -> Result<InfoReport, GridError> {
+pub fn info_from_sparse(
+    name: &str,
+    grid: &HrleGrid,
+    header: &sparse_levelset::sls::Header,
+) -> Result<InfoReport, GridError> {
     let t0 = Instant::now();
     let mut tiles = tiles_from(grid);
     tiles.shrink_to_fit();
@@ -183,6 +208,7 @@ pub fn info_from_sparse(name: &str, grid: &HrleGrid) -> Result<InfoReport, GridE
         ],
         hrle,
         sls_bytes,
+        header: Some(header),
         warnings,
     }))
 }
@@ -215,6 +241,7 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
         ],
         hrle,
         sls_bytes,
+        header: None,
         warnings,
     }))
 }
@@ -260,6 +287,7 @@ pub fn info_from_dense(
         ],
         hrle,
         sls_bytes,
+        header: None,
         warnings,
     }))
 }
@@ -332,6 +360,13 @@ impl InfoReport {
             self.hrle_over_dtgrid_bytes,
             human_bytes(self.sls_bytes)
         );
+        if let Some(f) = &self.sls_file {
+            let _ = writeln!(
+                s,
+                ".sls version {}, written from {}, origin {:?}, runs (z, y, x) {:?}, checksum verified",
+                f.version, f.written_from, f.origin, f.runs
+            );
+        }
         if let Some([lo, hi]) = self.domain {
             let _ = writeln!(s, "domain (unenclosed level set): {lo:?} .. {hi:?}");
         }

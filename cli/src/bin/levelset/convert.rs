@@ -69,7 +69,7 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     // The input and the grid made from it are held at once.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
     let grid: HrleGrid = if is_sls(&a.input) {
-        input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?
+        input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?.0
     } else {
         let field = input::load_npy(&a.input, &expect).map_err(|e| e.to_string())?;
         let tiles = tiles_from_dense(&field, spec).map_err(|e| format!("{name}: {e}"))?;

@@ -27,8 +27,8 @@ pub fn run(a: &InfoArgs) -> Result<(), String> {
         Input::Shape { name, shape } => {
             info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())?
         }
-        Input::Sparse { name, grid } => {
-            info_from_sparse(&name, &grid).map_err(|e| format!("{name}: {e}"))?
+        Input::Sparse { name, grid, header } => {
+            info_from_sparse(&name, &grid, &header).map_err(|e| format!("{name}: {e}"))?
         }
     };
     if a.json {

@@ -8,6 +8,7 @@ use sparse_levelset::grid::GridSpec;
 use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::input::{self, Expect};
 use sparse_levelset::shapes::Shape;
+use sparse_levelset::sls;
 use std::path::{Path, PathBuf};
 
 /// A path with the `.sls` extension (any case).
@@ -130,7 +131,7 @@ pub struct SourceArgs {
 pub enum Input {
     Field { name: String, field: DenseField },
     Shape { name: String, shape: Shape },
-    Sparse { name: String, grid: Box<HrleGrid> },
+    Sparse { name: String, grid: Box<HrleGrid>, header: sls::Header },
 }
 
 impl Input {
@@ -155,11 +156,9 @@ impl SourceArgs {
     pub fn load(&self, expect: &Expect) -> Result<Input, String> {
         if let Some(path) = &self.field {
             if is_sls(path) {
-                let grid = input::load_sls(path, expect).map_err(|e| e.to_string())?;
-                return Ok(Input::Sparse {
-                    name: path.display().to_string(),
-                    grid: Box::new(grid),
-                });
+                let (grid, header) = input::load_sls(path, expect).map_err(|e| e.to_string())?;
+                let name = path.display().to_string();
+                return Ok(Input::Sparse { name, grid: Box::new(grid), header });
             }
             let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
             return Ok(Input::Field { name: path.display().to_string(), field });
