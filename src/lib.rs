@@ -43,6 +43,7 @@ pub mod render;
 pub mod sample;
 pub mod shapes;
 pub mod tiles;
+pub mod voxelize;
 
 /// The README's code is compiled and run as a test.
 #[cfg(doctest)]
