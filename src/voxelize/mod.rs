@@ -72,7 +72,7 @@ use crate::grid::{GridError, GridSpec};
 use crate::mesh::TriangleMesh;
 use crate::progress::{Cancelled, Progress};
 use crate::tiles::{tile_in_range, Tile, TileGrid, TILE_MAX, TILE_MIN};
-use distance::Tri;
+use distance::{Tri, LANES};
 use rayon::prelude::*;
 use sign::{Rays, Votes};
 
@@ -146,6 +146,8 @@ pub enum VoxelizeError {
 
 /// Half-diagonal of a tile's voxel-centre box (3 voxels a side), in voxels.
 const TILE_RADIUS: f64 = 1.5 * 1.732_050_807_568_877_2;
+/// Half-diagonal of a 2³ sub-block of voxel centres (1 voxel a side), in voxels.
+const SUB_RADIUS: f64 = 0.5 * 1.732_050_807_568_877_2;
 /// Relative slack of the distance bounds (covers f64 rounding many times over).
 const SLACK: f64 = 1e-9;
 
@@ -423,7 +425,12 @@ fn tile_distances(
     scratch
         .extend(ids.map(|i| ((tris[i as usize].dist2(centre).sqrt() - TILE_RADIUS).max(0.0), i)));
     scratch.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // The scan runs over the 2³ sub-blocks of the tile, each skipped when its centre's
+    // distance less its half-diagonal (a bound for its 8 voxels) cannot improve them.
     let mut best = [gamma * gamma; 64];
+    let mut sub_worst = [gamma * gamma; 8];
+    let sub_centres: [[f64; LANES]; 3] =
+        std::array::from_fn(|a| std::array::from_fn(|s| base[a] + 2.0 * (s >> a & 1) as f64 + 0.5));
     let mut worst = gamma * gamma;
     for &(bound, i) in scratch.iter() {
         let b = bound * (1.0 - SLACK);
@@ -431,15 +438,27 @@ fn tile_distances(
             break;
         }
         let tri = &tris[i as usize];
-        for (l, d) in best.iter_mut().enumerate() {
-            let p = [
-                base[0] + (l & 3) as f64,
-                base[1] + (l >> 2 & 3) as f64,
-                base[2] + (l >> 4) as f64,
-            ];
-            *d = d.min(tri.dist2(p));
+        let centres = tri.dist2_x8(&sub_centres);
+        for (s, sw) in sub_worst.iter_mut().enumerate() {
+            let ds = (centres[s].sqrt() - SUB_RADIUS) * (1.0 - SLACK);
+            if ds > 0.0 && ds * ds >= *sw {
+                continue;
+            }
+            let (sx, sy, sz) = (2 * (s & 1), 2 * (s >> 1 & 1), 2 * (s >> 2));
+            let p: [[f64; LANES]; 3] = std::array::from_fn(|a| {
+                std::array::from_fn(|v| base[a] + [sx, sy, sz][a] as f64 + (v >> a & 1) as f64)
+            });
+            let d = tri.dist2_x8(&p);
+            let mut m = 0f64;
+            for (v, dv) in d.iter().enumerate() {
+                let (x, y, z) = (sx + (v & 1), sy + (v >> 1 & 1), sz + (v >> 2));
+                let b = &mut best[x + 4 * y + 16 * z];
+                *b = b.min(*dv);
+                m = m.max(*b);
+            }
+            *sw = m;
         }
-        worst = best.iter().fold(0.0, |m: f64, &d| m.max(d));
+        worst = sub_worst.iter().fold(0.0, |m: f64, &d| m.max(d));
     }
     best
 }
