@@ -4,6 +4,8 @@
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::sample::band_voxel_box;
 use sparse_levelset::voxelize::{
     default_voxel_size, read_mesh, voxelize, SignMethod, VoxelizeOptions,
 };
@@ -75,18 +77,16 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
         Some(h) => h,
         None => default_voxel_size(&mesh).map_err(|e| format!("{name}: {e}"))?,
     };
-    // The dense output's box is the mesh's box and the band: check it before the work.
+    // The grid (every voxel of the band in the i32 range) and the dense output's box (the
+    // mesh's box and the band) are checked before the work.
+    let (lo, hi) =
+        mesh.positions.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), p| {
+            (std::array::from_fn(|i| lo[i].min(p[i])), std::array::from_fn(|i| hi[i].max(p[i])))
+        });
+    let spec = GridSpec::new(h, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    band_voxel_box(lo, hi, &spec).map_err(|e| format!("{name}: {e}"))?;
     match kind {
         Output::Npy => {
-            let (lo, hi) = mesh.positions.iter().fold(
-                ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
-                |(lo, hi), p| {
-                    (
-                        std::array::from_fn(|i| lo[i].min(p[i])),
-                        std::array::from_fn(|i| hi[i].max(p[i])),
-                    )
-                },
-            );
             let extra = 2.0 * (a.half_width.max(0.0) as f64 + MARGIN as f64 + 1.0);
             let voxels: f64 =
                 (0..3).map(|i| ((hi[i] - lo[i]) / h as f64).max(0.0) + extra).product();
