@@ -58,7 +58,8 @@ impl Tri {
         let n = cross(ab, ac);
         let (ab2, ac2, bc2) = (dot(ab, ab), dot(ac, ac), dot(bc, bc));
         let n2 = dot(n, n);
-        let degenerate = !(n2 > 1e-24 * ab2 * ac2) || ab2 == 0.0 || ac2 == 0.0 || bc2 == 0.0;
+        let degenerate =
+            n2.is_nan() || n2 <= 1e-24 * ab2 * ac2 || ab2 == 0.0 || ac2 == 0.0 || bc2 == 0.0;
         let inv = |e2: f64| if e2 > 0.0 { 1.0 / e2 } else { 0.0 };
         let side = if degenerate {
             [[0.0; 3]; 3]
@@ -192,7 +193,7 @@ impl Tri {
             let t = dotv(r, d);
             let mut o = [0.0; N];
             for l in 0..N {
-                let t = (t[l] * inv).max(0.0).min(1.0);
+                let t = (t[l] * inv).clamp(0.0, 1.0);
                 let q = [r[0][l] - t * d[0], r[1][l] - t * d[1], r[2][l] - t * d[2]];
                 o[l] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
             }

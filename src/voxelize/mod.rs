@@ -11,8 +11,8 @@
 //!   listed with the 4³ tiles whose centre lies within γ + the tile's half-diagonal of it
 //!   (a tile–triangle distance bound, scanned over the slab around the triangle's plane),
 //!   the (tile, triangle) pairs are sorted by tile, and the tiles are computed in parallel,
-//!   each taking its triangles nearest first and stopping once the next one's bound cannot
-//!   improve any voxel. Memory is O(band + triangles + pairs), as the paper's subvolume
+//!   each taking its triangles nearest first, skipping the 2³ sub-blocks a triangle cannot
+//!   improve, and stopping once the next triangle's bound cannot improve any voxel. Memory is O(band + triangles + pairs), as the paper's subvolume
 //!   scheme is; nothing is dense.
 //! * **Sign: ray votes** ([`SignMethod::Rays`], Sec. 6.2.2 after Houston et al. 2003):
 //!   axis-aligned rays along the voxel-centre lines of x, y and z accumulate the oriented
@@ -26,11 +26,11 @@
 //! * **Closing** (Sec. 6.2.2, "regions of opposite sign being immediately adjacent, with no
 //!   defined narrowband in between"): a hole wider than the band leaves the vote's sign
 //!   change across it without band voxels. Every absent tile next to the band is checked
-//!   (its 64 signs must agree, and agree with the beyond-the-band voxels it touches); one
+//!   (its 64 signs must agree, and agree with the voxels it touches across its faces); one
 //!   that fails becomes a band tile, and the check floods on from it. Then each voxel
-//!   beyond the band whose face neighbour beyond the band has the other sign gets ±h/2:
-//!   the zero level passes half-way between them. The result is always a closed level set
-//!   (the band separates inside from outside); it is a distance field everywhere except on
+//!   beyond the band with a face neighbour of the other sign gets ±h/2: the zero level
+//!   passes half-way between them. The result is always a closed level set (the band
+//!   separates inside from outside); it is a distance field everywhere except on
 //!   those patches, where [`crate::fmm::reinitialize`] can smooth it.
 //!
 //! For a closed, clean mesh the band is exactly the signed distance (tested against brute
@@ -192,7 +192,7 @@ pub fn default_voxel_size(mesh: &TriangleMesh) -> Result<f32, VoxelizeError> {
 
 fn default_size(mesh: &TriangleMesh, lo: [f64; 3], hi: [f64; 3]) -> Result<f32, VoxelizeError> {
     let longest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    if !(longest > 0.0) {
+    if longest <= 0.0 {
         return Err(VoxelizeError::ZeroExtent);
     }
     let p = &mesh.positions;
