@@ -45,6 +45,7 @@ pub mod sample;
 pub mod shapes;
 pub mod sls;
 pub mod tiles;
+pub mod voxelize;
 
 /// The README's code is compiled and run as a test.
 #[cfg(doctest)]

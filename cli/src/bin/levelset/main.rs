@@ -10,6 +10,7 @@ mod mesh;
 mod render;
 mod run;
 mod source;
+mod voxelize;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -49,6 +50,9 @@ enum Command {
     /// Union, intersection or difference of two dense .npy signed distance fields,
     /// computed on their sparse bands, into a .npy field.
     Csg(csg::CsgArgs),
+    /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
+    /// distances, inside/outside by ray votes robust to holes, into a .npy field.
+    Voxelize(voxelize::VoxelizeArgs),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +64,7 @@ fn main() -> ExitCode {
         Command::Mesh(a) => mesh::run(&a),
         Command::Csg(a) => csg::run(&a),
         Command::Convert(a) => convert::run(&a),
+        Command::Voxelize(a) => voxelize::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
