@@ -1,7 +1,7 @@
 //! The memory table (`levelset-speedup --memory`), in the style of the H-RLE paper's
 //! Table II: the bytes of one level set held by the H-RLE encoding, the DT-Grid and the
 //! Sorted Tile List, and the size of its `.sls` file, at half-width 3 (the paper's band of
-//! 6 voxels). Rows: meshes voxelised at increasing resolution, the tile paper's spiral, a
+//! 6 voxels). Rows: a mesh voxelised at increasing resolution, the tile paper's spiral, a
 //! sphere of radius 1000, and an unenclosed level set (a sphere clipped by a plane, Fig. 9),
 //! which the H-RLE stores open while the DT-Grid and the tiles must store the closed
 //! hemisphere, band along the cut included.
@@ -11,9 +11,11 @@ use serde::Serialize;
 use sparse_levelset::build::{dtgrid_from, tiles_from_sdf, tiles_from_shape};
 use sparse_levelset::grid::{GridError, GridSpec};
 use sparse_levelset::hrle::HrleGrid;
+use sparse_levelset::mesh::TriangleMesh;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::sls::{self, Source};
 use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
 use sparse_levelset::{Coord, LevelSet};
 use std::fmt::Write as _;
 
@@ -67,6 +69,34 @@ fn row(model: &str, h: &HrleGrid, dtgrid_bytes: usize, tiles_bytes: usize) -> Me
         sls_bytes: sls::encode(h, Source::Hrle).len(),
         hrle_over_dtgrid: hrle_bytes as f64 / dtgrid_bytes.max(1) as f64,
     }
+}
+
+/// Rows of a mesh voxelised (exact distances, [`sparse_levelset::voxelize`]) so that the
+/// longest side of its bounding box spans each of `sizes` voxels. `progress` is told each
+/// size.
+pub fn mesh_rows(
+    name: &str,
+    mesh: &TriangleMesh,
+    sizes: &[u32],
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<MemoryRow>, String> {
+    let (lo, hi) =
+        mesh.positions.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), p| {
+            (std::array::from_fn(|i| lo[i].min(p[i])), std::array::from_fn(|i| hi[i].max(p[i])))
+        });
+    let side = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
+    let mut rows = Vec::new();
+    for &n in sizes {
+        progress(&format!("{name} at {n}"));
+        let opts =
+            VoxelizeOptions { voxel_size: Some((side / n as f64) as f32), ..Default::default() };
+        let tiles = voxelize(mesh, &opts).map_err(|e| format!("{name}: {e}"))?;
+        rows.push(
+            row_of_tiles(&format!("{name}, {n} voxels across"), &tiles)
+                .map_err(|e| e.to_string())?,
+        );
+    }
+    Ok(rows)
 }
 
 /// The analytic rows: the spiral (tile paper, radius 50, depth 40), a sphere of radius

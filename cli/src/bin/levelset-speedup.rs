@@ -68,6 +68,15 @@ struct BenchArgs {
     /// and that sphere clipped by a plane (unenclosed).
     #[arg(long, conflicts_with_all = ["kernels", "storage", "solution"])]
     memory: bool,
+    /// Memory table: also this mesh (.obj, .ply, .stl; e.g. the Stanford bunny from
+    /// `python3 docs/data/fetch_bunny.py`), voxelised at each of --memory-sizes.
+    #[arg(long, value_name = "MESH", requires = "memory")]
+    memory_mesh: Option<PathBuf>,
+    /// Memory table: voxels across the mesh's longest side, one row each.
+    #[arg(long, value_delimiter = ',', default_values_t = [256u32, 512, 1024, 2048],
+          requires = "memory_mesh",
+          value_parser = clap::value_parser!(u32).range(8..=65536))]
+    memory_sizes: Vec<u32>,
     /// Memory table: the sphere's radius in voxels.
     #[arg(long, default_value_t = 1000.0, requires = "memory", allow_hyphen_values = true)]
     memory_radius: f64,
@@ -135,7 +144,15 @@ fn memory(a: &BenchArgs) -> Result<(), String> {
         return Err(format!("--memory-radius must be in [2, 100000] voxels, got {r}"));
     }
     let bar = progress::spinner(false);
-    let rows = analytic_rows(r, |m| bar.set_message(m.to_string())).map_err(|e| e.to_string())?;
+    let mut rows = Vec::new();
+    if let Some(path) = &a.memory_mesh {
+        let mesh = sparse_levelset::voxelize::read_mesh(path).map_err(|e| e.to_string())?;
+        let name = path.file_stem().map_or("mesh".into(), |s| s.to_string_lossy().into_owned());
+        rows = levelset_cli::memtable::mesh_rows(&name, &mesh, &a.memory_sizes, |m| {
+            bar.set_message(m.to_string())
+        })?;
+    }
+    rows.extend(analytic_rows(r, |m| bar.set_message(m.to_string())).map_err(|e| e.to_string())?);
     bar.finish_and_clear();
     let table = MemoryTable { half_width: GridSpec::default().half_width, rows };
     out!("{}", table.to_text());

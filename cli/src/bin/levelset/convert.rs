@@ -1,4 +1,5 @@
-//! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files and meshes,
+//! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files and meshes
+//! (read: `.obj`, `.ply`, `.stl`; written: `.ply`, `.obj`),
 //! chosen by the extensions. Every input goes through the library's one loader; the
 //! output path is checked before any work and written atomically.
 
@@ -12,21 +13,24 @@ use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::input::{self, Expect};
 use sparse_levelset::mesh::{self, MeshFormat};
 use sparse_levelset::sls;
+use sparse_levelset::voxelize::{read_mesh, voxelize, MeshFileFormat, VoxelizeOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct ConvertArgs {
-    /// Input: a dense float32 .npy signed distance field or a sparse .sls file.
+    /// Input: a dense float32 .npy signed distance field, a sparse .sls file, or a mesh
+    /// (.obj, .ply, .stl), voxelised as `levelset voxelize` does.
     #[arg(value_name = "IN")]
     pub input: PathBuf,
     /// Output: .sls (sparse, H-RLE encoded), .npy (dense, the band's box grown by
     /// --margin, ±γ beyond the band), or a mesh of the zero set (.ply binary, .obj).
     #[arg(value_name = "OUT")]
     pub output: PathBuf,
-    /// Voxel edge length in world units of a .npy input (a .sls file carries its own).
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub voxel_size: f32,
-    /// Band half-width γ in voxels of a .npy input.
+    /// Voxel edge length in world units of a .npy input [default: 1] or of a voxelised mesh
+    /// [default: chosen from the mesh, as `levelset voxelize`]; a .sls file carries its own.
+    #[arg(long, allow_hyphen_values = true)]
+    pub voxel_size: Option<f32>,
+    /// Band half-width γ in voxels of a .npy or mesh input.
     #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
     pub half_width: f32,
     /// Voxels of ±γ around the band in a .npy output.
@@ -57,10 +61,15 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
             format!("{}: unknown output type; use .sls, .npy, .ply or .obj", a.output.display())
         })?)
     };
-    if !(is_sls(&a.input) || is_npy(&a.input)) {
-        return Err(format!("{}: unknown input type; use .npy or .sls", a.input.display()));
+    let is_mesh = MeshFileFormat::from_path(&a.input).is_some();
+    if !(is_sls(&a.input) || is_npy(&a.input) || is_mesh) {
+        return Err(format!(
+            "{}: unknown input type; use .npy, .sls, .obj, .ply or .stl",
+            a.input.display()
+        ));
     }
-    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    let spec = GridSpec::new(a.voxel_size.unwrap_or(1.0), [0.0; 3], a.half_width)
+        .map_err(|e| e.to_string())?;
     check_output(&a.output)?;
     let name = a.input.display().to_string();
     let bar = progress::spinner(a.quiet);
@@ -68,7 +77,17 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     bar.set_message(format!("reading {name}"));
     // The input and the grid made from it are held at once.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
-    let grid: HrleGrid = if is_sls(&a.input) {
+    let grid: HrleGrid = if is_mesh {
+        let mesh = read_mesh(&a.input).map_err(|e| e.to_string())?;
+        bar.set_message(format!("voxelising {name}"));
+        let opts = VoxelizeOptions {
+            voxel_size: a.voxel_size,
+            half_width: a.half_width,
+            ..Default::default()
+        };
+        let tiles = voxelize(&mesh, &opts).map_err(|e| format!("{name}: {e}"))?;
+        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
+    } else if is_sls(&a.input) {
         input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?.0
     } else {
         let field = input::load_npy(&a.input, &expect).map_err(|e| e.to_string())?;

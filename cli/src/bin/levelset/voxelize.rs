@@ -24,9 +24,10 @@ pub struct VoxelizeArgs {
     /// The mesh: .obj, .ply or .stl (ASCII or binary), any case.
     #[arg(value_name = "MESH")]
     pub mesh: PathBuf,
-    /// Output: OUT.npy, a dense float32 field (shape (nz, ny, nx), φ < 0 inside, world
-    /// units) covering the band plus one voxel, ±γ beyond the band; written atomically.
-    #[arg(short, long, value_name = "OUT.npy")]
+    /// Output: OUT.sls, the sparse band (docs/sls-format.md), or OUT.npy, a dense float32
+    /// field (shape (nz, ny, nx), φ < 0 inside, world units) covering the band plus one
+    /// voxel, ±γ beyond the band; written atomically.
+    #[arg(short, long, value_name = "OUT.sls|OUT.npy")]
     pub output: PathBuf,
     /// Voxel edge length in world units [default: the mesh's median edge length, clamped
     /// to 64..1024 voxels along the longest side of its bounding box].
@@ -47,9 +48,11 @@ pub struct VoxelizeArgs {
     pub quiet: bool,
 }
 
-/// The output formats, by extension (`.sls` will join them).
+/// The output formats, by extension.
 #[derive(Clone, Copy, Debug)]
 enum Output {
+    /// The sparse band as a `.sls` file ([`sparse_levelset::sls::save`]).
+    Sls,
     /// A dense `.npy` around the band ([`sparse_levelset::build::export_npy`]).
     Npy,
 }
@@ -61,7 +64,8 @@ fn output_kind(path: &Path) -> Result<Output, String> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("npy") => Ok(Output::Npy),
-        _ => Err(format!("{}: unknown output format (use .npy)", path.display())),
+        Some("sls") => Ok(Output::Sls),
+        _ => Err(format!("{}: unknown output format (use .sls or .npy)", path.display())),
     }
 }
 
@@ -86,6 +90,7 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
     let spec = GridSpec::new(h, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     band_voxel_box(lo, hi, &spec).map_err(|e| format!("{name}: {e}"))?;
     match kind {
+        Output::Sls => {}
         Output::Npy => {
             let extra = 2.0 * (a.half_width.max(0.0) as f64 + MARGIN as f64 + 1.0);
             let voxels: f64 =
@@ -129,6 +134,10 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
     );
     bar.set_message(format!("writing {}", a.output.display()));
     let written = match kind {
+        Output::Sls => {
+            sparse_levelset::sls::save(&a.output, &grid).map_err(|e| e.to_string())?;
+            format!("({} band voxels, sparse)", grid.band_voxels())
+        }
         Output::Npy => {
             let origin = sparse_levelset::build::export_npy(&grid, &a.output, MARGIN)
                 .map_err(|e| format!("{}: {e}", a.output.display()))?;
