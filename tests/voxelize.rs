@@ -237,7 +237,7 @@ fn sphere_and_torus_meshes_match_the_analytic_distance() {
     let torus = uv_torus(c, 24.0, 8.0, 160, 64);
     let grid = voxelize(&torus, &opts(1.0)).unwrap();
     assert_analytic("torus", &grid, |p| torus_sdf(p, c, 24.0, 8.0), 0.05);
-    grid.check_invariants().unwrap();
+    assert_contract("torus", &grid);
 }
 
 /// Every pair of face neighbours with different signs has both voxels in the band: the
@@ -255,6 +255,18 @@ fn assert_closed(name: &str, grid: &TileGrid) {
                 );
             }
         }
+    }
+}
+
+/// The grid keeps the `LevelSet` contract: its tile invariants hold, and the DT-Grid of
+/// its band reads the same value at every voxel around it (the two storages' rules for
+/// unstored voxels agree only when the band separates inside from outside).
+fn assert_contract(name: &str, grid: &TileGrid) {
+    grid.check_invariants().unwrap();
+    let dt = sparse_levelset::build::dtgrid_from(grid);
+    assert_eq!(dt.band_voxels(), grid.band_voxels(), "{name}");
+    for c in voxels_around(grid, 2) {
+        assert_eq!(dt.value(c), grid.value(c), "{name}: {c}");
     }
 }
 
@@ -282,7 +294,7 @@ fn open_meshes_give_closed_level_sets_that_differ_only_near_the_holes() {
     {
         let grid = voxelize(&open, &opts(1.0)).unwrap();
         assert_closed("open icosphere", &grid);
-        grid.check_invariants().unwrap();
+        assert_contract("open icosphere", &grid);
         let mut differ = 0;
         for c in voxels_around(&closed, 4) {
             if (grid.value(c) < 0.0) != (closed.value(c) < 0.0) {
@@ -323,7 +335,7 @@ fn open_meshes_give_closed_level_sets_that_differ_only_near_the_holes() {
         (0..full.triangles.len()).filter(|f| !cap.contains(f)).map(|f| full.triangles[f]).collect();
     let grid = voxelize(&cup, &opts(1.0)).unwrap();
     assert_closed("cup", &grid);
-    grid.check_invariants().unwrap();
+    assert_contract("cup", &grid);
     for c in voxels_around(&closed, 4) {
         if (grid.value(c) < 0.0) != (closed.value(c) < 0.0) {
             let p = closed.spec().world(c);
@@ -346,6 +358,7 @@ fn overlapping_closed_parts_give_their_union() {
     for sign in [SignMethod::Rays, SignMethod::SingleRay] {
         let grid = voxelize(&both, &VoxelizeOptions { sign, ..opts(1.0) }).unwrap();
         assert_closed("union", &grid);
+        assert_contract("union", &grid);
         let spec = *grid.spec();
         let mut inside = 0;
         for c in voxels_around(&grid, 3) {
