@@ -732,3 +732,44 @@ fn bad_mesh_files_give_their_errors_not_panics() {
     let e = read_mesh(Path::new("/no/such/dir/mesh.obj")).unwrap_err();
     assert!(matches!(e, E::Io { .. }) && e.to_string().contains("mesh.obj"), "{e}");
 }
+
+#[test]
+fn damaged_files_never_panic() {
+    // Prefixes of each valid file and a few hundred damaged copies: the readers return a
+    // mesh or an error, and a mesh they return is valid (triangles, indices in range,
+    // finite coordinates).
+    let files: Vec<(&str, Vec<u8>)> = vec![
+        ("fuzz.obj", OBJ.into()),
+        ("fuzz.ply", ascii_ply(PLY_VERTICES, PLY_FACES).into_bytes()),
+        ("fuzz-le.ply", binary_ply(false)),
+        ("fuzz.stl", stl_binary(&pyramid())),
+        ("fuzz-ascii.stl", stl_ascii(&pyramid()).into_bytes()),
+    ];
+    let mut rng = fastrand::Rng::with_seed(13);
+    for (name, bytes) in files {
+        let path = common::tmp(name);
+        let mut tries: Vec<Vec<u8>> =
+            (0..bytes.len()).step_by(7).map(|n| bytes[..n].to_vec()).collect();
+        for _ in 0..150 {
+            let mut b = bytes.clone();
+            for _ in 0..rng.usize(1..4) {
+                let i = rng.usize(..b.len());
+                b[i] = match rng.u8(..4) {
+                    0 => rng.u8(..),
+                    1 => b'9',
+                    2 => b'-',
+                    _ => b'\n',
+                };
+            }
+            tries.push(b);
+        }
+        for b in tries {
+            std::fs::write(&path, &b).unwrap();
+            if let Ok(m) = read_mesh(&path) {
+                assert!(!m.triangles.is_empty(), "{name}");
+                assert!(m.triangles.iter().flatten().all(|&i| (i as usize) < m.positions.len()));
+                assert!(m.positions.iter().flatten().all(|c| c.is_finite()), "{name}");
+            }
+        }
+    }
+}
