@@ -237,7 +237,7 @@ fn sphere_and_torus_meshes_match_the_analytic_distance() {
     let torus = uv_torus(c, 24.0, 8.0, 160, 64);
     let grid = voxelize(&torus, &opts(1.0)).unwrap();
     assert_analytic("torus", &grid, |p| torus_sdf(p, c, 24.0, 8.0), 0.05);
-    grid.check_invariants().unwrap();
+    assert_contract("torus", &grid);
 }
 
 /// Every pair of face neighbours with different signs has both voxels in the band: the
@@ -255,6 +255,18 @@ fn assert_closed(name: &str, grid: &TileGrid) {
                 );
             }
         }
+    }
+}
+
+/// The grid keeps the `LevelSet` contract: its tile invariants hold, and the DT-Grid of
+/// its band reads the same value at every voxel around it (the two storages' rules for
+/// unstored voxels agree only when the band separates inside from outside).
+fn assert_contract(name: &str, grid: &TileGrid) {
+    grid.check_invariants().unwrap();
+    let dt = sparse_levelset::build::dtgrid_from(grid);
+    assert_eq!(dt.band_voxels(), grid.band_voxels(), "{name}");
+    for c in voxels_around(grid, 2) {
+        assert_eq!(dt.value(c), grid.value(c), "{name}: {c}");
     }
 }
 
@@ -282,7 +294,7 @@ fn open_meshes_give_closed_level_sets_that_differ_only_near_the_holes() {
     {
         let grid = voxelize(&open, &opts(1.0)).unwrap();
         assert_closed("open icosphere", &grid);
-        grid.check_invariants().unwrap();
+        assert_contract("open icosphere", &grid);
         let mut differ = 0;
         for c in voxels_around(&closed, 4) {
             if (grid.value(c) < 0.0) != (closed.value(c) < 0.0) {
@@ -323,7 +335,7 @@ fn open_meshes_give_closed_level_sets_that_differ_only_near_the_holes() {
         (0..full.triangles.len()).filter(|f| !cap.contains(f)).map(|f| full.triangles[f]).collect();
     let grid = voxelize(&cup, &opts(1.0)).unwrap();
     assert_closed("cup", &grid);
-    grid.check_invariants().unwrap();
+    assert_contract("cup", &grid);
     for c in voxels_around(&closed, 4) {
         if (grid.value(c) < 0.0) != (closed.value(c) < 0.0) {
             let p = closed.spec().world(c);
@@ -346,6 +358,7 @@ fn overlapping_closed_parts_give_their_union() {
     for sign in [SignMethod::Rays, SignMethod::SingleRay] {
         let grid = voxelize(&both, &VoxelizeOptions { sign, ..opts(1.0) }).unwrap();
         assert_closed("union", &grid);
+        assert_contract("union", &grid);
         let spec = *grid.spec();
         let mut inside = 0;
         for c in voxels_around(&grid, 3) {
@@ -718,4 +731,45 @@ fn bad_mesh_files_give_their_errors_not_panics() {
     assert!(matches!(refused("pyramid", OBJ.as_bytes()), E::UnknownFormat { .. }));
     let e = read_mesh(Path::new("/no/such/dir/mesh.obj")).unwrap_err();
     assert!(matches!(e, E::Io { .. }) && e.to_string().contains("mesh.obj"), "{e}");
+}
+
+#[test]
+fn damaged_files_never_panic() {
+    // Prefixes of each valid file and a few hundred damaged copies: the readers return a
+    // mesh or an error, and a mesh they return is valid (triangles, indices in range,
+    // finite coordinates).
+    let files: Vec<(&str, Vec<u8>)> = vec![
+        ("fuzz.obj", OBJ.into()),
+        ("fuzz.ply", ascii_ply(PLY_VERTICES, PLY_FACES).into_bytes()),
+        ("fuzz-le.ply", binary_ply(false)),
+        ("fuzz.stl", stl_binary(&pyramid())),
+        ("fuzz-ascii.stl", stl_ascii(&pyramid()).into_bytes()),
+    ];
+    let mut rng = fastrand::Rng::with_seed(13);
+    for (name, bytes) in files {
+        let path = common::tmp(name);
+        let mut tries: Vec<Vec<u8>> =
+            (0..bytes.len()).step_by(7).map(|n| bytes[..n].to_vec()).collect();
+        for _ in 0..150 {
+            let mut b = bytes.clone();
+            for _ in 0..rng.usize(1..4) {
+                let i = rng.usize(..b.len());
+                b[i] = match rng.u8(..4) {
+                    0 => rng.u8(..),
+                    1 => b'9',
+                    2 => b'-',
+                    _ => b'\n',
+                };
+            }
+            tries.push(b);
+        }
+        for b in tries {
+            std::fs::write(&path, &b).unwrap();
+            if let Ok(m) = read_mesh(&path) {
+                assert!(!m.triangles.is_empty(), "{name}");
+                assert!(m.triangles.iter().flatten().all(|&i| (i as usize) < m.positions.len()));
+                assert!(m.positions.iter().flatten().all(|c| c.is_finite()), "{name}");
+            }
+        }
+    }
 }

@@ -280,15 +280,21 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
                 let t = pairs[s].0;
                 let d2 =
                     tile_distances(&tris, pairs[s..e].iter().map(|p| p.1), t, gamma_v, scratch);
-                let inside = rays.tile_inside(t);
                 let mut values = [0f32; 64];
                 let mut far = 0u64;
                 for (l, v) in values.iter_mut().enumerate() {
-                    let d = ((d2[l].sqrt() * hf) as f32).min(g);
-                    far |= ((d >= g) as u64) << l;
-                    *v = if inside >> l & 1 == 1 { -d } else { d };
+                    *v = ((d2[l].sqrt() * hf) as f32).min(g);
+                    far |= ((*v >= g) as u64) << l;
                 }
+                // A tile without band voxels stays absent (its signs come later, if a
+                // band tile neighbours it).
                 if far != u64::MAX {
+                    let inside = rays.tile_inside(t);
+                    for (l, v) in values.iter_mut().enumerate() {
+                        if inside >> l & 1 == 1 {
+                            *v = -*v;
+                        }
+                    }
                     out.push(TileOut { coord: t, values, inside, far });
                 }
             }
