@@ -29,9 +29,11 @@
 //!   (its 64 signs must agree, and agree with the voxels it touches across its faces); one
 //!   that fails becomes a band tile, and the check floods on from it. Then each voxel
 //!   beyond the band with a face neighbour of the other sign gets ±h/2: the zero level
-//!   passes half-way between them. The result is always a closed level set (the band
-//!   separates inside from outside); it is a distance field everywhere except on
-//!   those patches, where [`crate::fmm::reinitialize`] can smooth it.
+//!   passes half-way between them. Every sign change that meets the band is closed this
+//!   way (an opening's does, at its rim), so the band separates inside from outside; a
+//!   change floating free of the band (where lines through three different holes cross)
+//!   is not searched for. Values are distances everywhere except on the closing patches,
+//!   where [`crate::fmm::reinitialize`] can smooth them.
 //!
 //! For a closed, clean mesh the band is exactly the signed distance (tested against brute
 //! force); the results are bitwise identical for any number of threads.
