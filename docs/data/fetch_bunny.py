@@ -69,8 +69,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("output", type=pathlib.Path, help="the .ply file to write")
     ap.add_argument("--version", default="1.0.1", help="npm package version (default 1.0.1)")
+    ap.add_argument("--z-up", action="store_true",
+                    help="turn the scan's up axis (+y) to +z, (x, y, z) -> (x, -z, y), as the"
+                         " renderer's ground plane expects; a rotation, so orientation is kept")
     args = ap.parse_args()
     positions, cells = fetch(args.version)
+    if args.z_up:
+        positions = [[x, -z, y] for x, y, z in positions]
     n = len(positions)
     bad = [c for c in cells if len(c) < 3 or min(c) < 0 or max(c) >= n]
     if bad:
