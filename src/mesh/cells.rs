@@ -299,43 +299,185 @@ pub(super) const BEFORE: u32 = {
     m
 };
 
-/// A vertex as computed from the values around its Kuhn edge: the parameter t of eq. (2)
-/// measured from the edge's lower voxel (unclamped; the placement clamps it) and the unit
-/// normal, the central-difference gradient at both ends interpolated (zero where it
-/// vanishes).
+/// Most vertices a tile owns: 7 Kuhn edges from each of its 64 voxels.
+pub(super) const TILE_VERTS: usize = 7 * 64;
+
+/// The vertices of one tile (or any batch of up to [`TILE_VERTS`]), gathered one by one
+/// ([`VertexBatch::push`]) and finished together ([`VertexBatch::finish`]): the
+/// arithmetic runs over arrays without branches, so the compiler vectorises it.
 ///
-/// `val(p)` reads φ at `p` = the lower voxel + an offset in −1..=2 per axis; `d` is the
-/// edge's direction (bit mask). Every caller passes the same values for the same edge, so
-/// copies agree bit for bit.
-#[inline(always)]
-pub(super) fn edge_vertex(
-    val: impl Fn(i32, i32, i32) -> f32,
-    d: usize,
-    iso: f64,
-) -> (f64, [f32; 3]) {
-    let (dx, dy, dz) = ((d & 1) as i32, ((d >> 1) & 1) as i32, (d >> 2) as i32);
-    let a = val(0, 0, 0) as f64 - iso;
-    let b = val(dx, dy, dz) as f64 - iso;
-    // a and b have opposite signs (one may be zero), so t lies in [0, 1].
-    let t = a / (a - b);
-    let grad = |x: i32, y: i32, z: i32| -> [f64; 3] {
-        let v = |p: (i32, i32, i32)| val(p.0, p.1, p.2) as f64;
-        [
-            v((x + 1, y, z)) - v((x - 1, y, z)),
-            v((x, y + 1, z)) - v((x, y - 1, z)),
-            v((x, y, z + 1)) - v((x, y, z - 1)),
-        ]
-    };
-    let (g0, g1) = (grad(0, 0, 0), grad(dx, dy, dz));
-    let n = [0, 1, 2].map(|k| g0[k] + t * (g1[k] - g0[k]));
-    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let n = if len > 0.0 && len.is_finite() {
-        let inv = 1.0 / len;
-        n.map(|c| (c * inv) as f32)
-    } else {
-        [0.0; 3]
-    };
-    (t, n)
+/// A vertex lies on the Kuhn edge from voxel `lo` in direction `d` at the parameter t of
+/// eq. (2), measured from `lo`; its normal is the central-difference gradient at both
+/// ends, interpolated at t and normalised (zero where it vanishes). Its position is
+/// `t` clamped to `[δ, 1 − δ]` with `δ = OFFSET_ULPS · ulp / h` (the ulp of the output
+/// precision at the largest coordinate of the edge's ends), interpolated from the nearer
+/// end and, for f32 output, rounded to an f32 value (see the surface module docs,
+/// "Exact zeros" and "Precision").
+pub(super) struct VertexBatch {
+    len: usize,
+    /// φ − iso at the lower and the upper end.
+    a: [f64; TILE_VERTS],
+    b: [f64; TILE_VERTS],
+    /// Gradients (central differences, one voxel each way) at both ends, per axis.
+    g0: [[f64; TILE_VERTS]; 3],
+    g1: [[f64; TILE_VERTS]; 3],
+    /// The lower voxel and the direction, per axis.
+    lo: [[f64; TILE_VERTS]; 3],
+    d: [[f64; TILE_VERTS]; 3],
+    /// Results, per axis.
+    out_p: [[f64; TILE_VERTS]; 3],
+    out_n: [[f32; TILE_VERTS]; 3],
+}
+
+/// A vertex keeps at least this many ulps (of the chosen precision, at the magnitude of
+/// its edge's end points) times the edge length away from both ends of its edge.
+pub(super) const OFFSET_ULPS: f64 = 32.0;
+
+/// Where vertices go: origin and voxel size of the grid.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Placement {
+    pub origin: [f64; 3],
+    pub h: f64,
+}
+
+impl VertexBatch {
+    pub fn new() -> Box<VertexBatch> {
+        Box::new(VertexBatch {
+            len: 0,
+            a: [0.0; TILE_VERTS],
+            b: [0.0; TILE_VERTS],
+            g0: [[0.0; TILE_VERTS]; 3],
+            g1: [[0.0; TILE_VERTS]; 3],
+            lo: [[0.0; TILE_VERTS]; 3],
+            d: [[0.0; TILE_VERTS]; 3],
+            out_p: [[0.0; TILE_VERTS]; 3],
+            out_n: [[0.0; TILE_VERTS]; 3],
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// Adds the vertex on the edge from voxel `lo` in direction `d` (a bit mask over x,
+    /// y, z), whose ends lie on both sides of iso. `val(x, y, z)` reads φ at `lo` + the
+    /// offset (−1..=2 per axis).
+    #[inline(always)]
+    pub fn push(&mut self, lo: [i64; 3], d: usize, iso: f64, val: impl Fn(i32, i32, i32) -> f32) {
+        let i = self.len;
+        let dv = [(d & 1) as i32, ((d >> 1) & 1) as i32, (d >> 2) as i32];
+        let v = |x: i32, y: i32, z: i32| val(x, y, z) as f64;
+        self.a[i] = v(0, 0, 0) - iso;
+        self.b[i] = v(dv[0], dv[1], dv[2]) - iso;
+        let (x, y, z) = (dv[0], dv[1], dv[2]);
+        self.g0[0][i] = v(1, 0, 0) - v(-1, 0, 0);
+        self.g0[1][i] = v(0, 1, 0) - v(0, -1, 0);
+        self.g0[2][i] = v(0, 0, 1) - v(0, 0, -1);
+        self.g1[0][i] = v(x + 1, y, z) - v(x - 1, y, z);
+        self.g1[1][i] = v(x, y + 1, z) - v(x, y - 1, z);
+        self.g1[2][i] = v(x, y, z + 1) - v(x, y, z - 1);
+        for k in 0..3 {
+            // Exact: voxel coordinates are far below 2⁵³.
+            self.lo[k][i] = lo[k] as f64;
+            self.d[k][i] = dv[k] as f64;
+        }
+        self.len = i + 1;
+    }
+
+    /// Positions and normals of the batch's vertices, in the order they were pushed,
+    /// for output precision f32 (`F32`) or f64. `place` must be the placement whose
+    /// precision rule chose `F32` for coordinates up to the batch's (so the ulps are
+    /// finite). Returns whether some normal is zero.
+    #[inline]
+    pub fn finish<const F32: bool>(
+        &mut self,
+        place: &Placement,
+        pos: &mut [std::mem::MaybeUninit<[f64; 3]>],
+        nrm: &mut [std::mem::MaybeUninit<[f32; 3]>],
+    ) -> bool {
+        let n = self.len;
+        let (o, h) = (place.origin, place.h);
+        let mut zero = false;
+        {
+            let (a, b) = (&self.a[..n], &self.b[..n]);
+            let [g0x, g0y, g0z] = &self.g0;
+            let [g1x, g1y, g1z] = &self.g1;
+            let (g0x, g0y, g0z, g1x, g1y, g1z) =
+                (&g0x[..n], &g0y[..n], &g0z[..n], &g1x[..n], &g1y[..n], &g1z[..n]);
+            let [lx, ly, lz] = &self.lo;
+            let [dx, dy, dz] = &self.d;
+            let (lx, ly, lz, dx, dy, dz) =
+                (&lx[..n], &ly[..n], &lz[..n], &dx[..n], &dy[..n], &dz[..n]);
+            let [px, py, pz] = &mut self.out_p;
+            let [nx, ny, nz] = &mut self.out_n;
+            let (px, py, pz, nx, ny, nz) = (
+                &mut px[..n],
+                &mut py[..n],
+                &mut pz[..n],
+                &mut nx[..n],
+                &mut ny[..n],
+                &mut nz[..n],
+            );
+            for i in 0..n {
+                // a and b lie on both sides of 0 (one may be 0), so t lies in [0, 1].
+                let t = a[i] / (a[i] - b[i]);
+                let gx = g0x[i] + t * (g1x[i] - g0x[i]);
+                let gy = g0y[i] + t * (g1y[i] - g0y[i]);
+                let gz = g0z[i] + t * (g1z[i] - g0z[i]);
+                let len = (gx * gx + gy * gy + gz * gz).sqrt();
+                let ok = len > 0.0 && len < f64::INFINITY;
+                let inv = 1.0 / len;
+                nx[i] = if ok { (gx * inv) as f32 } else { 0.0 };
+                ny[i] = if ok { (gy * inv) as f32 } else { 0.0 };
+                nz[i] = if ok { (gz * inv) as f32 } else { 0.0 };
+                zero |= !ok;
+                let (ax, ay, az) = (o[0] + h * lx[i], o[1] + h * ly[i], o[2] + h * lz[i]);
+                let (bx, by, bz) = (
+                    o[0] + h * (lx[i] + dx[i]),
+                    o[1] + h * (ly[i] + dy[i]),
+                    o[2] + h * (lz[i] + dz[i]),
+                );
+                let m =
+                    ax.abs().max(ay.abs()).max(az.abs()).max(bx.abs()).max(by.abs()).max(bz.abs());
+                // The next representable value minus the value (finite by the precision
+                // rule).
+                let ulp = if F32 {
+                    let x = m as f32;
+                    (f32::from_bits(x.to_bits() + 1) - x) as f64
+                } else {
+                    f64::from_bits(m.to_bits() + 1) - m
+                };
+                let delta = OFFSET_ULPS * ulp / h;
+                let t = t.max(delta).min(1.0 - delta);
+                // From the nearer end (1 − t is exact for t ≥ 1/2).
+                let near = t <= 0.5;
+                let s = if near { t } else { 1.0 - t };
+                let (fx, fy, fz) = if near { (ax, ay, az) } else { (bx, by, bz) };
+                let (tx, ty, tz) = if near { (bx, by, bz) } else { (ax, ay, az) };
+                let (qx, qy, qz) = (fx + s * (tx - fx), fy + s * (ty - fy), fz + s * (tz - fz));
+                if F32 {
+                    px[i] = qx as f32 as f64;
+                    py[i] = qy as f32 as f64;
+                    pz[i] = qz as f32 as f64;
+                } else {
+                    px[i] = qx;
+                    py[i] = qy;
+                    pz[i] = qz;
+                }
+            }
+        }
+        let [px, py, pz] = &self.out_p;
+        let [nx, ny, nz] = &self.out_n;
+        for (i, (p, q)) in pos[..n].iter_mut().zip(&mut nrm[..n]).enumerate() {
+            p.write([px[i], py[i], pz[i]]);
+            q.write([nx[i], ny[i], nz[i]]);
+        }
+        zero
+    }
 }
 
 #[cfg(test)]

@@ -82,8 +82,9 @@
 //! (errors −2.572·10⁻⁵ → −2.561·10⁻⁵ and −5.0011·10⁻⁵ → −5.0015·10⁻⁵).
 
 use super::cells::{
-    bidx, cell_cases, cell_tiles, cut_cells, edge_masks, edge_vertex, f32_threshold, owns_cell,
-    pattern, signs, tile_and_local, uniform, BEFORE, BLOCK, CELL_EDGES, CELL_XY, TILE_XY,
+    bidx, cell_cases, cell_tiles, cut_cells, edge_masks, f32_threshold, owns_cell, pattern, signs,
+    tile_and_local, uniform, Placement, VertexBatch, BEFORE, BLOCK, CELL_EDGES, CELL_XY,
+    TILE_VERTS, TILE_XY,
 };
 use super::{MeshError, MeshOptions, TriangleMesh};
 use crate::coord::{direction_index, NEIGHBOURHOOD};
@@ -548,8 +549,8 @@ fn fill<S: Source, const F32: bool>(
     let missing: Vec<bool> = work
         .into_par_iter()
         .map_init(
-            || Box::new([0f32; BLOCK]),
-            |values, (start, end, pos, nrm, tri)| {
+            || (Box::new([0f32; BLOCK]), VertexBatch::new()),
+            |(values, batch), (start, end, pos, nrm, tri)| {
                 ticker.check()?;
                 let mut missing = false;
                 let (v0, t0) = (vstart(start), tri_start[start]);
@@ -561,29 +562,30 @@ fn fill<S: Source, const F32: bool>(
                     let stored = src.gather(&nb, values);
                     let s = signs(values, below);
                     // Vertices, by direction then voxel (the rank order of `SlotInfo`).
-                    let mut w = me.base[0] as usize - v0;
+                    let w = me.base[0] as usize - v0;
                     let t = nb.coord;
                     let tile = [4 * t.x as i64, 4 * t.y as i64, 4 * t.z as i64];
+                    batch.clear();
                     for (k, &e) in me.edges.iter().enumerate() {
-                        let d = k + 1;
                         let mut m = e;
                         while m != 0 {
                             let l = m.trailing_zeros() as usize;
                             m &= m - 1;
                             let (lx, ly, lz) = (l & 3, (l >> 2) & 3, l >> 4);
-                            let at = bidx(lx + 2, ly + 2, lz + 2);
-                            let val = |a: i32, b: i32, c: i32| {
-                                values[(at as i32 + a + 8 * b + 64 * c) as usize]
-                            };
-                            let (tp, n) = edge_vertex(val, d, iso);
-                            let voxel =
+                            let at = bidx(lx + 2, ly + 2, lz + 2) as i32;
+                            let lo =
                                 [tile[0] + lx as i64, tile[1] + ly as i64, tile[2] + lz as i64];
-                            pos[w].write(placer.place::<F32>(voxel, d, tp));
-                            nrm[w].write(n);
-                            missing |= n == [0.0; 3];
-                            w += 1;
+                            batch.push(lo, k + 1, iso, |a, b, c| {
+                                values[(at + a + 8 * b + 64 * c) as usize]
+                            });
                         }
                     }
+                    let w = w + batch.len();
+                    missing |= batch.finish::<F32>(
+                        &placer.placement(),
+                        &mut pos[w - batch.len()..],
+                        &mut nrm[w - batch.len()..],
+                    );
                     assert_eq!(w, vstart(nb.pos + 1) - v0, "every vertex written once");
                     // Triangles of the owned cut cells.
                     let nbr: [Option<&SlotInfo>; 27] =
@@ -618,15 +620,18 @@ fn fill<S: Source, const F32: bool>(
         )
         .collect::<Result<_, Cancelled>>()?;
     let mut missing = missing.contains(&true);
-    for (i, &(v, d)) in c.orphans.iter().enumerate() {
-        let lo = [v[2], v[1], v[0]];
-        let val = |a: i32, b: i32, c: i32| {
-            src.value([lo[0] + a as i64, lo[1] + b as i64, lo[2] + c as i64])
-        };
-        let (tp, n) = edge_vertex(val, d as usize, iso);
-        orphan_pos[i].write(placer.place::<F32>(lo, d as usize, tp));
-        orphan_nrm[i].write(n);
-        missing |= n == [0.0; 3];
+    let mut batch = VertexBatch::new();
+    for (k, group) in c.orphans.chunks(TILE_VERTS).enumerate() {
+        batch.clear();
+        for &(v, d) in group {
+            let lo = [v[2], v[1], v[0]];
+            batch.push(lo, d as usize, iso, |a, b, c| {
+                src.value([lo[0] + a as i64, lo[1] + b as i64, lo[2] + c as i64])
+            });
+        }
+        let at = k * TILE_VERTS;
+        missing |=
+            batch.finish::<F32>(&placer.placement(), &mut orphan_pos[at..], &mut orphan_nrm[at..]);
     }
     // SAFETY: the chunks partition `0..slot_verts` and `0..tris` (ranges from the
     // counts of pass 1), and each chunk wrote its ranges front to back, one element per
@@ -683,10 +688,6 @@ impl Precision {
 /// this fraction of a voxel (rounding error ≤ 1/8192 voxel).
 const MAX_ULP_IN_VOXELS: f64 = 1.0 / 4096.0;
 
-/// A vertex keeps at least this many ulps (of the chosen precision, at the magnitude of
-/// its edge's end points) times the edge length away from both ends of its edge.
-const OFFSET_ULPS: f64 = 32.0;
-
 /// Places vertices: world positions from an edge and its parameter, in the precision
 /// the whole mesh needs.
 struct Placer {
@@ -716,36 +717,8 @@ impl Placer {
         [0, 1, 2].map(|a| self.origin[a] + self.h * v[a] as f64)
     }
 
-    /// The vertex on the edge from voxel `lo` in direction `d` at parameter `t` from
-    /// `lo`: `t` clamped to `[δ, 1 − δ]` with `δ = OFFSET_ULPS · ulp / h`, interpolated
-    /// from the nearer end; `F32` (the precision [`Placer::new`] chose): rounded to an
-    /// f32 value.
-    #[inline(always)]
-    fn place<const F32: bool>(&self, lo: [i64; 3], d: usize, t: f64) -> [f64; 3] {
-        debug_assert_eq!(F32, self.precision == Precision::F32);
-        let a = self.world(lo);
-        let b = self.world([0, 1, 2].map(|i| lo[i] + ((d >> i) & 1) as i64));
-        // Every coordinate lies within the extent that `new` checked, so the ulp is
-        // finite: the next representable value minus the value.
-        let m = magnitude(a, b);
-        let ulp = if F32 {
-            let x = m as f32;
-            (f32::from_bits(x.to_bits() + 1) - x) as f64
-        } else {
-            f64::from_bits(m.to_bits() + 1) - m
-        };
-        let delta = OFFSET_ULPS * ulp / self.h;
-        let t = t.clamp(delta, 1.0 - delta);
-        // From the nearer end (1 − t is exact for t ≥ 1/2), without a branch.
-        let near = t <= 0.5;
-        let s = if near { t } else { 1.0 - t };
-        let (from, to) = if near { (a, b) } else { (b, a) };
-        let p = [0, 1, 2].map(|i| from[i] + s * (to[i] - from[i]));
-        if F32 {
-            p.map(|c| c as f32 as f64)
-        } else {
-            p
-        }
+    fn placement(&self) -> Placement {
+        Placement { origin: self.origin, h: self.h }
     }
 }
 
