@@ -200,6 +200,7 @@ impl Source for GridSource<'_> {
 }
 
 /// Block coordinate along one axis → (neighbour tile offset + 1, local coordinate).
+#[inline(always)]
 const fn axis_split(b: usize) -> (usize, usize) {
     let c = b as i64 - 2;
     ((c.div_euclid(4) + 1) as usize, c.rem_euclid(4) as usize)
