@@ -401,7 +401,9 @@ impl VertexBatch {
     ) -> bool {
         let n = self.len;
         let (o, h) = (place.origin, place.h);
-        let mut zero = false;
+        // Whole vectors: the lanes past `n` compute garbage from stale entries (harmless,
+        // nothing reads it), and no scalar remainder loop runs.
+        let n = n.next_multiple_of(8);
         {
             let (a, b) = (&self.a[..n], &self.b[..n]);
             let [g0x, g0y, g0z] = &self.g0;
@@ -434,7 +436,6 @@ impl VertexBatch {
                 nx[i] = if ok { (gx * inv) as f32 } else { 0.0 };
                 ny[i] = if ok { (gy * inv) as f32 } else { 0.0 };
                 nz[i] = if ok { (gz * inv) as f32 } else { 0.0 };
-                zero |= !ok;
                 let (ax, ay, az) = (o[0] + h * lx[i], o[1] + h * ly[i], o[2] + h * lz[i]);
                 let (bx, by, bz) = (
                     o[0] + h * (lx[i] + dx[i]),
@@ -470,11 +471,17 @@ impl VertexBatch {
                 }
             }
         }
+        let n = self.len;
         let [px, py, pz] = &self.out_p;
         let [nx, ny, nz] = &self.out_n;
+        let mut zero = false;
         for (i, (p, q)) in pos[..n].iter_mut().zip(&mut nrm[..n]).enumerate() {
             p.write([px[i], py[i], pz[i]]);
-            q.write([nx[i], ny[i], nz[i]]);
+            let v = [nx[i], ny[i], nz[i]];
+            // A unit normal has a component of at least 1/√3: zero only where the
+            // gradient vanished.
+            zero |= v == [0.0; 3];
+            q.write(v);
         }
         zero
     }
