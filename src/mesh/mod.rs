@@ -4,7 +4,8 @@
 //! * [`isosurface`] (any level set), [`isosurface_dense`]: the φ = iso
 //!   surface of a 3D level set as one welded, outward-oriented [`TriangleMesh`] in world
 //!   coordinates with per-vertex normals from ∇φ, tile by tile in parallel and the same
-//!   bits for any thread count;
+//!   bits for any thread count; with [`MeshOptions::coarsen`] = k, the surface of φ
+//!   sampled at every k-th voxel (about k² fewer triangles, the same guarantees);
 //! * [`isosurface_nd`]: the zero set of a dense φ: Zⁿ → Rᵐ, n ≤ 5, m < n, as a
 //!   [`SimplicialComplex`] of dimension n − m (successive hyperplane cuts, Sec. 4);
 //! * [`TriangleMesh::write`]: binary or ASCII PLY and OBJ, written atomically; mesh checks
