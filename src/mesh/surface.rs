@@ -287,6 +287,31 @@ impl DenseSource<'_> {
     }
 
     fn fill(&self, tile: [i64; 3], values: &mut [f32; BLOCK]) {
+        let lo = tile.map(|t| 4 * t - 2);
+        let o = self.field.origin();
+        let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
+        if (0..3).all(|a| lo[a] >= o[a] && lo[a] + 8 <= o[a] + dims[a] as i64) {
+            // Inside the array: whole rows of 8, ±∞ read as far distances.
+            let data = self.field.data();
+            let (nx, ny) = (dims[0], dims[1]);
+            let at = |y: usize, z: usize| {
+                let r = |a: usize, d: usize| (lo[a] - o[a]) as usize + d;
+                r(0, 0) + nx * (r(1, y) + ny * r(2, z))
+            };
+            for (r, row) in values.chunks_exact_mut(8).enumerate() {
+                let i = at(r % 8, r / 8);
+                for (v, &x) in row.iter_mut().zip(&data[i..i + 8]) {
+                    *v = if x == f32::INFINITY {
+                        self.outside
+                    } else if x == f32::NEG_INFINITY {
+                        self.inside
+                    } else {
+                        x
+                    };
+                }
+            }
+            return;
+        }
         for z in 0..8 {
             for y in 0..8 {
                 for x in 0..8 {
