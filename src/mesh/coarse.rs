@@ -78,34 +78,50 @@ pub(super) fn sample(grid: &TileGrid, k: u32) -> Result<TileGrid, MeshError> {
     let tiles: Vec<Tile> = coords
         .par_iter()
         .map(|t| {
-            // Per axis, the fine voxel of each of the tile's four coarse coordinates.
-            let axis = [t.x, t.y, t.z].map(|c| [0, 1, 2, 3].map(|i| k * (4 * c as i64 + i)));
-            let mut tile = Tile::splat(0.0);
-            // One lookup per fine tile: consecutive samples often share one (k < 4).
-            let mut last: Option<([i64; 3], Option<usize>)> = None;
-            for (l, v) in tile.0.iter_mut().enumerate() {
-                let f = [axis[0][l & 3], axis[1][(l >> 2) & 3], axis[2][l >> 4]];
-                let ft = f.map(|c| c.div_euclid(4));
-                let in_range = f.iter().all(|&c| (i32::MIN as i64..=i32::MAX as i64).contains(&c));
-                let pos = match last {
-                    Some((lt, p)) if lt == ft => p,
-                    _ => {
-                        let p = if in_range {
-                            grid.find_tile(Coord::new(ft[0] as i32, ft[1] as i32, ft[2] as i32))
-                                .ok()
-                        } else {
-                            None
-                        };
-                        last = Some((ft, p));
-                        p
+            // Per axis: the fine voxel of each of the tile's four coarse coordinates, the
+            // distinct fine tiles they fall in (at most four), and which one each uses.
+            let axis = [t.x, t.y, t.z].map(|c| {
+                let f = [0, 1, 2, 3].map(|i| k * (4 * c as i64 + i));
+                let mut tiles = [0i64; 4];
+                let mut which = [0usize; 4];
+                let mut n = 0;
+                for (i, &v) in f.iter().enumerate() {
+                    let ft = v.div_euclid(4);
+                    if n == 0 || tiles[n - 1] != ft {
+                        tiles[n] = ft;
+                        n += 1;
                     }
-                };
-                *v = match pos {
-                    Some(p) => {
+                    which[i] = n - 1;
+                }
+                (f, tiles, which, n)
+            });
+            // One lookup per fine tile: its list position, or the value it reads as
+            // absent (or beyond the representable range).
+            let in_range = |c: i64| (i32::MIN as i64 >> 2..=i32::MAX as i64 >> 2).contains(&c);
+            let mut fine_tiles = [[[Err(0f32); 4]; 4]; 4];
+            for (iz, &tz) in axis[2].1[..axis[2].3].iter().enumerate() {
+                for (iy, &ty) in axis[1].1[..axis[1].3].iter().enumerate() {
+                    for (ix, &tx) in axis[0].1[..axis[0].3].iter().enumerate() {
+                        let ft = [tx, ty, tz];
+                        fine_tiles[iz][iy][ix] = if ft.iter().all(|&c| in_range(c)) {
+                            let c = Coord::new(tx as i32, ty as i32, tz as i32);
+                            grid.find_tile(c).map_err(|_| fine(ft.map(|c| 4 * c)))
+                        } else {
+                            Err(grid.gamma())
+                        };
+                    }
+                }
+            }
+            let mut tile = Tile::splat(0.0);
+            for (l, v) in tile.0.iter_mut().enumerate() {
+                let (ix, iy, iz) = (l & 3, (l >> 2) & 3, l >> 4);
+                let f = [axis[0].0[ix], axis[1].0[iy], axis[2].0[iz]];
+                *v = match fine_tiles[axis[2].2[iz]][axis[1].2[iy]][axis[0].2[ix]] {
+                    Ok(p) => {
                         let fl = f.map(|c| c.rem_euclid(4) as usize);
                         grid.tile(p).0[fl[0] + 4 * fl[1] + 16 * fl[2]]
                     }
-                    None => fine(f),
+                    Err(background) => background,
                 };
             }
             tile
