@@ -819,7 +819,7 @@ fn absent_tiles_next_to_the_surface_are_meshed_like_the_dense_field() {
     assert_eq!(meshes[0], meshes[1], "1 and 2 threads");
     assert_eq!(meshes[0], meshes[2], "1 and 3 threads");
     let m = &meshes[0];
-    assert!(check_as_written(m, "holes", 2) == false);
+    assert!(!check_as_written(m, "holes", 2), "f32 holds this mesh");
     // The dense field of the same values meshes every cell (all tiles stored).
     let (lo, hi) = grid.bounding_box().unwrap();
     let origin = Coord::new(lo.x - 4, lo.y - 4, lo.z - 4);
@@ -911,7 +911,7 @@ fn coarser_meshes_keep_the_surface() {
                 m.num_triangles()
             );
             assert!((0.8..1.25).contains(&ratio), "{name} k = {k}: ratio {ratio}");
-            assert!(check_as_written(&m, &format!("{name}-k{k}"), chi) == false, "{name} k = {k}");
+            assert!(!check_as_written(&m, &format!("{name}-k{k}"), chi), "{name} k = {k}: f64");
             let tol = 2e-3 * (k * k) as f64;
             assert!(da.abs() < tol && dv.abs() < tol, "{name} k = {k}: {da:e} {dv:e} > {tol:e}");
         }
