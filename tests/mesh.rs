@@ -753,3 +753,170 @@ fn bad_input_is_an_error() {
     assert!(bad.write(&tmp("bad.ply"), None).is_err());
     assert!(!tmp("bad.ply").exists());
 }
+
+/// A band with absent tiles next to the surface: sphere tiles that hold a sign change
+/// removed (no two of them neighbours, each reading ±γ with the sign of the absent tiles
+/// around it, or of its centre where it has none, so every cut cell keeps a stored
+/// corner). Cells then start in absent tiles (owned by the first stored
+/// corner's tile) and Kuhn edges start there (vertices no tile owns, welded on their
+/// own): the mesh is still closed, the same for any thread count, and the same
+/// triangles as the dense field of the values the grid reads.
+#[test]
+fn absent_tiles_next_to_the_surface_are_meshed_like_the_dense_field() {
+    use sparse_levelset::tiles::TileGrid;
+    let spec = GridSpec::default();
+    let (c, r) = ([0.6, -0.3, 0.2], 17.3);
+    let phi = |p: [f64; 3]| {
+        ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r
+    };
+    let full = tiles_from_shape(&Shape::Sphere { center: c, radius: r }, spec).unwrap();
+    let coords = full.tile_coords();
+    let stored = |t: Coord| coords.binary_search(&t).is_ok();
+    let neighbours = |t: Coord| {
+        (-1..=1).flat_map(move |z| {
+            (-1..=1).flat_map(move |y| (-1..=1).map(move |x| Coord::new(t.x + x, t.y + y, t.z + z)))
+        })
+    };
+    let crosses = |p: usize| {
+        let v = &full.tile(p).0;
+        v.iter().any(|&x| x < 0.0) && v.iter().any(|&x| x >= 0.0)
+    };
+    let centre = |t: Coord| [t.x, t.y, t.z].map(|v| 4.0 * v as f64 + 1.5);
+    // (tile, inside) of the removed tiles.
+    let removed: Vec<(Coord, bool)> = (0..coords.len())
+        .filter(|&p| {
+            let t = coords[p];
+            t.x % 2 == 0 && t.y % 2 == 0 && t.z % 2 == 0 && crosses(p)
+        })
+        .filter_map(|p| {
+            let t = coords[p];
+            let around: Vec<bool> =
+                neighbours(t).filter(|&n| !stored(n)).map(|n| full.tile_inside(n)).collect();
+            match around.first() {
+                None => Some((t, phi(centre(t)) < 0.0)),
+                Some(&s) if around.iter().all(|&x| x == s) => Some((t, s)),
+                _ => None,
+            }
+        })
+        .collect();
+    assert!(removed.len() > 10, "{} tiles removed", removed.len());
+    let gone = |t: Coord| removed.binary_search_by(|e| e.0.cmp(&t)).ok().map(|i| removed[i].1);
+    let grid = TileGrid::from_sorted_tiles(
+        spec,
+        (0..coords.len())
+            .filter(|&p| gone(coords[p]).is_none())
+            .map(|p| (coords[p], *full.tile(p))),
+        |t| gone(t).unwrap_or_else(|| full.tile_inside(t)),
+    )
+    .unwrap();
+    let meshes: Vec<TriangleMesh> = [1, 2, 3]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+            pool.install(|| mesh_at(&grid, 0.0)).unwrap()
+        })
+        .collect();
+    assert_eq!(meshes[0], meshes[1], "1 and 2 threads");
+    assert_eq!(meshes[0], meshes[2], "1 and 3 threads");
+    let m = &meshes[0];
+    assert!(!check_as_written(m, "holes", 2), "f32 holds this mesh");
+    // The dense field of the same values meshes every cell (all tiles stored).
+    let (lo, hi) = grid.bounding_box().unwrap();
+    let origin = Coord::new(lo.x - 4, lo.y - 4, lo.z - 4);
+    let dims = [hi.x - lo.x + 9, hi.y - lo.y + 9, hi.z - lo.z + 9].map(|d| d as usize);
+    let dense = DenseField::from_fn(origin, dims, |v| grid.value(v)).unwrap();
+    let md = isosurface_dense(&dense, &spec, 0.0).unwrap();
+    assert_eq!(canonical(m), canonical(&md));
+    let normals = |m: &TriangleMesh| {
+        let mut v: Vec<_> = m
+            .positions
+            .iter()
+            .zip(&m.normals)
+            .map(|(p, n)| (p.map(f64::to_bits), n.map(f32::to_bits)))
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(normals(m), normals(&md));
+    // The removed tiles changed the surface, and it still encloses about the ball.
+    let mf = mesh_at(&full, 0.0).unwrap();
+    assert_ne!(canonical(m), canonical(&mf));
+    close("volume", m.enclosed_volume(), 4.0 / 3.0 * PI * r * r * r, 0.1);
+}
+
+/// The same mesh, bit for bit, on 1, 2, 3 and 4 threads, at full resolution and
+/// coarsened.
+#[test]
+fn same_mesh_for_any_thread_count() {
+    let torus = Shape::Torus { center: [0.4, 1.1, -0.3], major_radius: 30.0, minor_radius: 9.0 };
+    let tiles = tiles_from_shape(&torus, GridSpec::default()).unwrap();
+    for coarsen in [1, 3] {
+        let opts = MeshOptions { coarsen, ..Default::default() };
+        let meshes: Vec<TriangleMesh> = [1, 2, 3, 4]
+            .iter()
+            .map(|&n| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+                pool.install(|| isosurface(&tiles, &opts)).unwrap()
+            })
+            .collect();
+        for (k, m) in meshes.iter().enumerate().skip(1) {
+            assert!(*m == meshes[0], "coarsen {coarsen}: {} threads differ from 1", k + 1);
+        }
+        assert!(meshes[0].is_closed_manifold());
+    }
+}
+
+/// `coarsen` = k meshes φ at every k-th voxel: about k² fewer triangles, still a closed
+/// manifold with the same Euler characteristic, and area and volume close to the fine
+/// mesh's (tolerances relative, measured: see `docs/mesh.md`).
+#[test]
+fn coarser_meshes_keep_the_surface() {
+    let spec = GridSpec::default();
+    let (r, big, small) = (60.0, 40.0, 14.0);
+    let cases = [
+        (
+            "sphere",
+            Shape::Sphere { center: [0.3, -0.2, 0.1], radius: r },
+            2,
+            (4.0 * PI * r * r, 4.0 / 3.0 * PI * r * r * r),
+        ),
+        (
+            "torus",
+            Shape::Torus { center: [1.5, -2.25, 0.7], major_radius: big, minor_radius: small },
+            0,
+            (4.0 * PI * PI * big * small, 2.0 * PI * PI * big * small * small),
+        ),
+    ];
+    for (name, shape, chi, exact) in cases {
+        let tiles = tiles_from_shape(&shape, spec).unwrap();
+        let fine = mesh_at(&tiles, 0.0).unwrap();
+        println!(
+            "{name} full: {} triangles, area {:+.2e}, volume {:+.2e} relative to the exact shape",
+            fine.num_triangles(),
+            fine.area() / exact.0 - 1.0,
+            fine.enclosed_volume() / exact.1 - 1.0
+        );
+        let one = isosurface(&tiles, &MeshOptions { coarsen: 1, ..Default::default() }).unwrap();
+        assert_eq!(one, fine, "{name}: coarsen 1 is the full mesh");
+        for k in [2u32, 3, 4] {
+            let m = isosurface(&tiles, &MeshOptions { coarsen: k, ..Default::default() }).unwrap();
+            let ratio = fine.num_triangles() as f64 / m.num_triangles() as f64 / (k * k) as f64;
+            let (da, dv) =
+                (m.area() / fine.area() - 1.0, m.enclosed_volume() / fine.enclosed_volume() - 1.0);
+            let (ea, ev) = (m.area() / exact.0 - 1.0, m.enclosed_volume() / exact.1 - 1.0);
+            println!(
+                "{name} coarsen {k}: {} triangles (fine/k² ratio {ratio:.3}), area {da:+.2e}, \
+                 volume {dv:+.2e} relative to the fine mesh ({ea:+.2e}, {ev:+.2e} to the \
+                 exact shape)",
+                m.num_triangles()
+            );
+            assert!((0.8..1.25).contains(&ratio), "{name} k = {k}: ratio {ratio}");
+            assert!(!check_as_written(&m, &format!("{name}-k{k}"), chi), "{name} k = {k}: f64");
+            let tol = 2e-3 * (k * k) as f64;
+            assert!(da.abs() < tol && dv.abs() < tol, "{name} k = {k}: {da:e} {dv:e} > {tol:e}");
+        }
+    }
+    let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
+    let err = isosurface(&tiles, &MeshOptions { coarsen: 0, ..Default::default() }).unwrap_err();
+    assert!(matches!(err, MeshError::InvalidParameter(_)), "{err}");
+}

@@ -155,8 +155,9 @@ fn best_of<T>(reps: usize, mut f: impl FnMut() -> Result<T, String>) -> Result<(
 }
 
 /// Fast marching (both orders, both grids; sequential by nature) and isosurfacing (tiles,
-/// every thread) of the sphere scenario's initial band (radius 100·N/256 voxels, γ = 3).
-fn run_tools(
+/// every thread) of the sphere scenario's initial band (radius 100·N/256 voxels, γ = 3):
+/// the report's operators section, also alone (`levelset-speedup --tools`).
+pub fn run_tools(
     cfg: &SpeedupConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ToolBench>, String> {

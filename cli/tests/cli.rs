@@ -685,6 +685,32 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     fails(&["mesh", "--center", "1,2", "-o", ply.to_str().unwrap()], "three comma-separated");
     let s = ok(&["mesh", "--center", "-5.5,2,-3", "--radius", "6", "-o", out.to_str().unwrap()]);
     assert!(s.contains("closed manifold: yes"), "{s}");
+    // A coarser mesh: every second voxel, a quarter of the triangles, from a shape and
+    // from a field.
+    let triangles = |s: &str| -> usize {
+        let w: Vec<&str> = s.split_whitespace().collect();
+        let i = w.iter().position(|&x| x == "triangles,").unwrap();
+        w[i - 1].parse().unwrap()
+    };
+    let args = ["mesh", "--radius", "20", "-o", out.to_str().unwrap(), "--quiet"];
+    let full = triangles(&ok(&args));
+    let s = ok(&[&args[..], &["--coarsen", "2"]].concat());
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
+    let ratio = full as f64 / triangles(&s) as f64;
+    assert!((3.2..4.8).contains(&ratio), "{s}: {ratio}");
+    let s = ok(&[
+        "mesh",
+        npy.to_str().unwrap(),
+        "--voxel-size",
+        "0.5",
+        "--coarsen",
+        "2",
+        "-o",
+        ply.to_str().unwrap(),
+    ]);
+    assert!(s.contains("closed manifold: yes") && s.contains("Euler characteristic 2"), "{s}");
+    let o = levelset(&["mesh", "--coarsen", "0", "-o", ply.to_str().unwrap()]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--coarsen"));
     // The failed runs left the earlier file alone.
     assert_eq!(std::fs::read(&ply).unwrap().len() as u64, std::fs::metadata(&ply).unwrap().len());
 }

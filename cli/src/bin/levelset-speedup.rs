@@ -53,6 +53,10 @@ struct BenchArgs {
     /// `--threads`: seconds of stepping and the error against the analytic answer.
     #[arg(long, conflicts_with_all = ["kernels", "storage"])]
     solution: bool,
+    /// Only the operators section: fast marching and isosurfacing of the sphere
+    /// benchmark's initial band (isosurfacing on `--threads`).
+    #[arg(long, conflicts_with_all = ["kernels", "storage", "solution"])]
+    tools: bool,
     /// Time to solution: Enright's test at this size [default: the scenario's, 128].
     #[arg(long, value_name = "N", allow_hyphen_values = true,
           conflicts_with_all = ["kernels", "storage"],
@@ -214,6 +218,17 @@ fn speedup(a: &BenchArgs) -> Result<(), String> {
         SpeedupConfig { pin: a.pin, full: a.full, quick: a.quick, reps, ..Default::default() };
     if let Some(t) = a.threads {
         cfg.threads = t as usize;
+    }
+    if a.tools {
+        let bar = progress::spinner(false);
+        let tools = levelset_cli::speedup::run_tools(&cfg, |m| bar.set_message(m.to_string()))?;
+        bar.finish_and_clear();
+        let report = SpeedupReport { tools, ..SpeedupReport::new(&cfg) };
+        out!("{}", report.to_text());
+        if let Some(path) = &a.json {
+            write_json(path, &report)?;
+        }
+        return Ok(());
     }
     let (mut report, kernels) = if a.solution {
         (SpeedupReport::new(&cfg), None)
