@@ -305,7 +305,11 @@ def info_section(meta):
             f" | {b['values']:,} | {b['indices']:,} | {b['flags']:,} | {total:,}"
             f" | {g['bytes_per_band_voxel']:.2f} |"
         )
-    out += ["", f"Tiles / DT-Grid bytes: {d['tiles_over_dtgrid_bytes']:.2f}."]
+    line = f"Tiles / DT-Grid bytes: {d['tiles_over_dtgrid_bytes']:.2f}."
+    if "hrle_over_dtgrid_bytes" in d:
+        line += (f" H-RLE / DT-Grid bytes: {d['hrle_over_dtgrid_bytes']:.3f}."
+                 f" The `.sls` file: {d['sls_bytes']:,} bytes.")
+    out += ["", line]
     return out
 
 

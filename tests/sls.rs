@@ -1,5 +1,7 @@
 //! The `.sls` format: round trips bit for bit between every grid, atomic writes, refusals.
 
+mod common;
+use common::crc32;
 use sparse_levelset::build::{dtgrid_from, tiles_from, tiles_from_shape};
 use sparse_levelset::hrle::{FieldData, HrleGrid};
 use sparse_levelset::shapes::Shape;
@@ -91,18 +93,6 @@ fn hostile(values: u64, runs: [u64; 3]) -> Vec<u8> {
     let crc = crc32(&b);
     b.extend_from_slice(&crc.to_le_bytes());
     b
-}
-
-fn crc32(b: &[u8]) -> u32 {
-    // Bitwise CRC-32 (IEEE), independent of the crate the library uses.
-    let mut c = !0u32;
-    for &x in b {
-        c ^= x as u32;
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-    }
-    !c
 }
 
 #[test]

@@ -4,6 +4,8 @@
 //! allocation much larger than the file (a counting allocator watches; this binary has
 //! one test, so nothing else allocates meanwhile).
 
+mod common;
+use common::crc32;
 use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::shapes::Shape;
@@ -29,17 +31,6 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static A: Counting = Counting;
-
-fn crc32(b: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &x in b {
-        c ^= x as u32;
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-    }
-    !c
-}
 
 #[test]
 fn mutated_files_are_refused_or_valid_never_a_panic_or_a_huge_allocation() {

@@ -6,9 +6,11 @@ use sparse_levelset::build::{
     dtgrid_from, dtgrid_from_dense, tiles_from, tiles_from_dense, tiles_from_shape,
 };
 use sparse_levelset::dense::DenseField;
+use sparse_levelset::dtgrid::DtGrid;
 use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
 use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::shapes::Shape;
+use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::LevelSet;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -228,22 +230,45 @@ pub fn info_from_shape(name: &str, shape: &Shape, spec: GridSpec) -> Result<Info
     if tiles.is_empty() {
         warnings.push("the shape has no voxel within the band: both grids are empty".into());
     }
-    let (hrle, h, sls_bytes) = hrle_info(&tiles)?;
-    Ok(assemble(Parts {
-        source: name.to_string(),
-        shape: Some(shape.clone()),
-        dense_dims: None,
-        spec,
-        grids: [
-            grid_info("dtgrid", &dt, 0, t_dt),
-            grid_info("tiles", &tiles, tiles.len(), t_tiles),
-            h,
-        ],
-        hrle,
-        sls_bytes,
-        header: None,
-        warnings,
-    }))
+    let built = Built { tiles: &tiles, t_tiles, dt: &dt, t_dt };
+    built.report(name, Some(shape.clone()), None, spec, warnings)
+}
+
+/// The tiles and DT-Grid built from a shape or a dense field, with their build times.
+struct Built<'a> {
+    tiles: &'a TileGrid,
+    t_tiles: f64,
+    dt: &'a DtGrid,
+    t_dt: f64,
+}
+
+impl Built<'_> {
+    /// The report of both grids and of the H-RLE converted from the tiles.
+    fn report(
+        &self,
+        source: &str,
+        shape: Option<Shape>,
+        dense_dims: Option<[usize; 3]>,
+        spec: GridSpec,
+        warnings: Vec<String>,
+    ) -> Result<InfoReport, GridError> {
+        let (hrle, h, sls_bytes) = hrle_info(self.tiles)?;
+        Ok(assemble(Parts {
+            source: source.to_string(),
+            shape,
+            dense_dims,
+            spec,
+            grids: [
+                grid_info("dtgrid", self.dt, 0, self.t_dt),
+                grid_info("tiles", self.tiles, self.tiles.len(), self.t_tiles),
+                h,
+            ],
+            hrle,
+            sls_bytes,
+            header: None,
+            warnings,
+        }))
+    }
 }
 
 /// Builds both grids of a dense field and reports them. The field is expected to have
@@ -274,22 +299,8 @@ pub fn info_from_dense(
     if tiles.is_empty() {
         warnings.push(format!("no voxel has |φ| < γ = {g}: both grids are empty"));
     }
-    let (hrle, h, sls_bytes) = hrle_info(&tiles)?;
-    Ok(assemble(Parts {
-        source: source.to_string(),
-        shape: None,
-        dense_dims: Some(field.dims()),
-        spec,
-        grids: [
-            grid_info("dtgrid", &dt, 0, t_dt),
-            grid_info("tiles", &tiles, tiles.len(), t_tiles),
-            h,
-        ],
-        hrle,
-        sls_bytes,
-        header: None,
-        warnings,
-    }))
+    let built = Built { tiles: &tiles, t_tiles, dt: &dt, t_dt };
+    built.report(source, None, Some(field.dims()), spec, warnings)
 }
 
 /// Bytes for people: B, KiB, MiB or GiB.

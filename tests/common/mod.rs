@@ -29,3 +29,16 @@ pub fn npy(name: &str, field: &DenseField) -> PathBuf {
     sparse_levelset::npy::write_npy(&path, field).unwrap();
     path
 }
+
+/// Bitwise CRC-32 (IEEE 802.3, zlib's), independent of the crate the library uses: the
+/// `.sls` tests re-seal mutated files with it.
+pub fn crc32(b: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &x in b {
+        c ^= x as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    !c
+}
