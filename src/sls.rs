@@ -26,7 +26,7 @@
 
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
-use crate::hrle::{Block, Field, FieldData, HrleGrid, NEG, POS};
+use crate::hrle::{Block, FieldData, HrleGrid, NEG, POS};
 use crate::levelset::LevelSet;
 use std::io::Write;
 use std::path::Path;
@@ -480,19 +480,4 @@ pub fn load(path: &Path) -> Result<(HrleGrid, Header), SlsError> {
         .map_err(|e| SlsError::from(e).at(path))?;
     let bytes = std::fs::read(path).map_err(io)?;
     decode(&bytes).map_err(|e| e.at(path))
-}
-
-/// The header of a `.sls` file (`levelset info`), after the whole file was verified.
-pub fn inspect(path: &Path) -> Result<Header, SlsError> {
-    load(path).map(|(_, h)| h)
-}
-
-impl Field {
-    /// Entries as raw `f32` (for size reports).
-    pub fn floats(&self) -> usize {
-        match &self.data {
-            FieldData::Scalar(v) => v.len(),
-            FieldData::Vector(v) => 3 * v.len(),
-        }
-    }
 }

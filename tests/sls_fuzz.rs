@@ -103,7 +103,6 @@ fn mutated_files_are_refused_or_valid_never_a_panic_or_a_huge_allocation() {
             Err(e) => panic!("unexpected error kind: {e}"),
         };
         *counts.entry(kind).or_default() += 1;
-        let _ = resealed;
     }
     eprintln!("sls fuzz, {rounds} mutants: {counts:?}");
     assert!(counts.get("refused: corrupt structure").copied().unwrap_or(0) > rounds / 10);
