@@ -384,6 +384,9 @@ type Orphan = ([i64; 3], u8);
 /// What the counting pass finds in one chunk of slots besides the per-slot results.
 #[derive(Default)]
 struct ChunkCount {
+    /// The slots with vertices or triangles and their neighbours (pass 2 needs no list
+    /// walk then).
+    active: Vec<Neighbours>,
     orphans: Vec<Orphan>,
     /// Bounds of the voxels at the ends of the chunk's cut edges.
     bounds: Option<([i64; 3], [i64; 3])>,
@@ -502,6 +505,9 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
                         }
                     });
                     tri_count[k] = tris;
+                    if tris > 0 || edges != [0; 7] {
+                        out.active.push(nb);
+                    }
                 }
                 Ok(out)
             },
@@ -509,11 +515,13 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
         .collect::<Result<_, Cancelled>>()?;
     let mut bounds = None;
     let mut orphans = Vec::new();
+    let mut active = Vec::with_capacity(chunks.len());
     for c in chunks {
         if let Some(b) = c.bounds {
             bounds = union(bounds, b);
         }
         orphans.extend(c.orphans);
+        active.push(c.active);
     }
     orphans.sort_unstable();
     orphans.dedup();
@@ -549,7 +557,7 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
         t += c as usize;
     }
     tri_start.push(t);
-    let counted = Counted { info, tri_count, tri_start, orphans, slot_verts };
+    let counted = Counted { info, tri_start, orphans, slot_verts, active };
 
     let placer = Placer::new(src.spec(), vmin, vmax)?;
     // The precision is decided once, outside the loops.
@@ -562,7 +570,8 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
 /// The results of pass 1 with the numbering of vertices and triangles.
 struct Counted {
     info: Vec<SlotInfo>,
-    tri_count: Vec<u32>,
+    /// Per chunk of [`CHUNK`] slots, its slots with work and their neighbours.
+    active: Vec<Vec<Neighbours>>,
     /// Index of each slot's first triangle, and the number of triangles at the end.
     tri_start: Vec<usize>,
     orphans: Vec<Orphan>,
@@ -624,11 +633,8 @@ fn fill<S: Source, const F32: bool>(
                 ticker.check()?;
                 let mut missing = false;
                 let (v0, t0) = (vstart(start), tri_start[start]);
-                for nb in NeighbourCursor::new(coords, start, end) {
+                for nb in &c.active[start / CHUNK] {
                     let me = &info[nb.pos];
-                    if me.edges == [0; 7] && c.tri_count[nb.pos] == 0 {
-                        continue;
-                    }
                     let stored = src.gather(&nb, values);
                     let s = signs(values, below);
                     // Vertices, by direction then voxel (the rank order of `SlotInfo`).
