@@ -54,14 +54,16 @@
 //!
 //! # Speed
 //! On the r = 100 sphere (753 990 band voxels, 563 606 vertices, 1 127 208 triangles;
-//! `cargo bench --bench mesh`, 2-core AMD EPYC, other jobs running, minima of
-//! alternated runs): one thread 29 ms of CPU where the allocator reuses memory and
-//! about 38 ms where it hands out fresh pages (the 34 MB of output fault in; see
-//! [`advise_huge_pages`]), against about 190 ms for the previous construction (every
-//! tile computing all vertices of its cells, the copies merged by a parallel sort on
-//! the edge key). Measured and dropped: computing the signs of pass 1 while gathering
-//! only the rows it reads (no gain); a block gather driven by a table of rows (the
-//! compiler turned it into AVX-512 gathers, 25 % slower).
+//! `cargo bench --bench mesh`, 2-core AMD EPYC with AVX-512, quiet moment): 41 ms on one
+//! thread and 21 ms on two (18 and 35 M band voxels/s), against 181 ms and 130 ms for
+//! the previous construction (every tile computing all vertices of its cells, the copies
+//! merged by a parallel sort on the edge key) and OpenVDB 10's `volumeToMesh` at 59 ms
+//! and 31 ms on the same band. Of the 41 ms, about 28 ms is the meshing itself (CPU time
+//! where the allocator reuses memory); the rest is the 34 MB of fresh output paging in
+//! and out (see [`advise_huge_pages`]). Measured and dropped: computing the signs of
+//! pass 1 while gathering only the rows it reads (no gain); a block gather driven by a
+//! table of rows (the compiler turned it into AVX-512 gathers, 25 % slower); chunks of
+//! 128 tiles instead of 64 (within noise).
 //!
 //! # Exact zeros: vertices kept off the voxels
 //! A value exactly equal to iso counts as outside (the ε rule of Sec. 3): the mesh is
