@@ -24,6 +24,7 @@ fn mesh(c: &mut Criterion) {
     g.sample_size(10);
     g.throughput(Throughput::Elements(tiles.band_voxels() as u64));
     let mut counts = vec![1, 2, rayon::current_num_threads()];
+    counts.sort_unstable();
     counts.dedup();
     for threads in counts {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();

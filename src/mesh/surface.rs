@@ -54,14 +54,16 @@
 //!
 //! # Speed
 //! On the r = 100 sphere (753 990 band voxels, 563 606 vertices, 1 127 208 triangles;
-//! `cargo bench --bench mesh`, 2-core AMD EPYC, other jobs running, minima of
-//! alternated runs): one thread 29 ms of CPU where the allocator reuses memory and
-//! about 38 ms where it hands out fresh pages (the 34 MB of output fault in; see
-//! [`advise_huge_pages`]), against about 190 ms for the previous construction (every
-//! tile computing all vertices of its cells, the copies merged by a parallel sort on
-//! the edge key). Measured and dropped: computing the signs of pass 1 while gathering
-//! only the rows it reads (no gain); a block gather driven by a table of rows (the
-//! compiler turned it into AVX-512 gathers, 25 % slower).
+//! `cargo bench --bench mesh`, 2-core AMD EPYC with AVX-512, quiet moment): 41 ms on one
+//! thread and 21 ms on two (18 and 35 M band voxels/s), against 181 ms and 130 ms for
+//! the previous construction (every tile computing all vertices of its cells, the copies
+//! merged by a parallel sort on the edge key) and OpenVDB 10's `volumeToMesh` at 59 ms
+//! and 31 ms on the same band. Of the 41 ms, about 28 ms is the meshing itself (CPU time
+//! where the allocator reuses memory); the rest is the 34 MB of fresh output paging in
+//! and out (see [`advise_huge_pages`]). Measured and dropped: computing the signs of
+//! pass 1 while gathering only the rows it reads (no gain); a block gather driven by a
+//! table of rows (the compiler turned it into AVX-512 gathers, 25 % slower); chunks of
+//! 128 tiles instead of 64 (within noise).
 //!
 //! # Exact zeros: vertices kept off the voxels
 //! A value exactly equal to iso counts as outside (the ε rule of Sec. 3): the mesh is
@@ -384,6 +386,9 @@ type Orphan = ([i64; 3], u8);
 /// What the counting pass finds in one chunk of slots besides the per-slot results.
 #[derive(Default)]
 struct ChunkCount {
+    /// The slots with vertices or triangles and their neighbours (pass 2 needs no list
+    /// walk then).
+    active: Vec<Neighbours>,
     orphans: Vec<Orphan>,
     /// Bounds of the voxels at the ends of the chunk's cut edges.
     bounds: Option<([i64; 3], [i64; 3])>,
@@ -502,6 +507,9 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
                         }
                     });
                     tri_count[k] = tris;
+                    if tris > 0 || edges != [0; 7] {
+                        out.active.push(nb);
+                    }
                 }
                 Ok(out)
             },
@@ -509,11 +517,13 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
         .collect::<Result<_, Cancelled>>()?;
     let mut bounds = None;
     let mut orphans = Vec::new();
+    let mut active = Vec::with_capacity(chunks.len());
     for c in chunks {
         if let Some(b) = c.bounds {
             bounds = union(bounds, b);
         }
         orphans.extend(c.orphans);
+        active.push(c.active);
     }
     orphans.sort_unstable();
     orphans.dedup();
@@ -549,7 +559,7 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
         t += c as usize;
     }
     tri_start.push(t);
-    let counted = Counted { info, tri_count, tri_start, orphans, slot_verts };
+    let counted = Counted { info, tri_start, orphans, slot_verts, active };
 
     let placer = Placer::new(src.spec(), vmin, vmax)?;
     // The precision is decided once, outside the loops.
@@ -562,12 +572,20 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
 /// The results of pass 1 with the numbering of vertices and triangles.
 struct Counted {
     info: Vec<SlotInfo>,
-    tri_count: Vec<u32>,
+    /// Per chunk of [`CHUNK`] slots, its slots with work and their neighbours.
+    active: Vec<Vec<Neighbours>>,
     /// Index of each slot's first triangle, and the number of triangles at the end.
     tri_start: Vec<usize>,
     orphans: Vec<Orphan>,
     /// Vertices of the slots (the orphans follow them).
     slot_verts: usize,
+}
+
+impl Counted {
+    /// Triangles of slot `s`.
+    fn tri_count(&self, s: usize) -> usize {
+        self.tri_start[s + 1] - self.tri_start[s]
+    }
 }
 
 /// Pass 2: every slot writes its vertices and triangles into its own ranges of the mesh,
@@ -587,7 +605,9 @@ fn fill<S: Source, const F32: bool>(
     let verts = slot_verts + c.orphans.len();
     let tris = tri_start[n];
     // Every element is written exactly once below (checked before the lengths are set),
-    // so the buffers are not zeroed first.
+    // so the buffers are not zeroed first: zeroing cost 1 ms of 28 (one thread, r = 100
+    // sphere, where the allocator reuses memory; three alternated runs of 15, minima).
+    // The buffers are fresh, so huge pages are asked for before the first write.
     let mut positions: Vec<[f64; 3]> = Vec::with_capacity(verts);
     let mut normals: Vec<[f32; 3]> = Vec::with_capacity(verts);
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tris);
@@ -624,12 +644,10 @@ fn fill<S: Source, const F32: bool>(
                 ticker.check()?;
                 let mut missing = false;
                 let (v0, t0) = (vstart(start), tri_start[start]);
-                for nb in NeighbourCursor::new(coords, start, end) {
+                let (mut wrote_v, mut wrote_t) = (0, 0);
+                for nb in &c.active[start / CHUNK] {
                     let me = &info[nb.pos];
-                    if me.edges == [0; 7] && c.tri_count[nb.pos] == 0 {
-                        continue;
-                    }
-                    let stored = src.gather(&nb, values);
+                    let stored = src.gather(nb, values);
                     let s = signs(values, below);
                     // Vertices, by direction then voxel (the rank order of `SlotInfo`).
                     let w = me.base[0] as usize - v0;
@@ -657,6 +675,7 @@ fn fill<S: Source, const F32: bool>(
                         &mut nrm[w - batch.len()..],
                     );
                     assert_eq!(w, vstart(nb.pos + 1) - v0, "every vertex written once");
+                    wrote_v += batch.len();
                     // Triangles of the owned cut cells.
                     let nbr: [Option<&SlotInfo>; 27] =
                         std::array::from_fn(|k| nb.get(k).map(|p| &info[p]));
@@ -683,7 +702,11 @@ fn fill<S: Source, const F32: bool>(
                         }
                     });
                     assert_eq!(w, tri_start[nb.pos + 1] - t0, "every triangle written once");
+                    wrote_t += c.tri_count(nb.pos);
                 }
+                // The slots' ranges are disjoint and each was written to its end, so
+                // these totals mean the chunk's ranges are written whole.
+                assert!(wrote_v == pos.len() && wrote_t == tri.len(), "a slot with work skipped");
                 ticker.advance((end - start) as u64)?;
                 Ok(missing)
             },
@@ -704,10 +727,10 @@ fn fill<S: Source, const F32: bool>(
             batch.finish::<F32>(&placer.placement(), &mut orphan_pos[at..], &mut orphan_nrm[at..]);
     }
     // SAFETY: the chunks partition `0..slot_verts` and `0..tris` (ranges from the
-    // counts of pass 1), and each chunk wrote its ranges front to back, one element per
-    // vertex and triangle, with the asserts above checking that it reached the end of
-    // every slot's range: so every element below the new lengths is initialised; the
-    // orphan loop wrote `slot_verts..verts`.
+    // counts of pass 1); within a chunk every slot with work wrote its own disjoint range
+    // front to back to its end, and the written totals equal the chunk's range lengths
+    // (all asserted above, in release builds too), so every element below the new
+    // lengths is initialised; the orphan loop wrote `slot_verts..verts`.
     unsafe {
         positions.set_len(verts);
         normals.set_len(verts);
@@ -935,6 +958,35 @@ pub fn isosurface_dense(
 mod tests {
     use super::super::cells::KUHN;
     use super::super::tables::pieces;
+    use super::*;
+
+    /// The gather's shortcut for absent neighbours (the border flags of the nearest tile
+    /// of the row among the neighbours) reads what random access reads, for every absent
+    /// neighbour of every tile of bands with holes in their rows.
+    #[test]
+    fn absent_neighbours_read_as_random_access_does() {
+        use crate::shapes::Shape;
+        let spec = GridSpec::default();
+        for shape in [
+            Shape::Torus { center: [0.5, -1.0, 2.0], major_radius: 14.0, minor_radius: 4.5 },
+            Shape::Sphere { center: [-3.0, 2.0, 0.5], radius: 11.0 },
+        ] {
+            let grid = crate::build::tiles_from_shape(&shape, spec).unwrap();
+            let src = GridSource::new(&grid);
+            let coords = grid.tile_coords();
+            let mut checked = 0;
+            for nb in NeighbourCursor::new(coords, 0, coords.len()) {
+                for n in (0..27).filter(|&n| nb.get(n).is_none()) {
+                    let o = NEIGHBOURHOOD[n];
+                    let t = nb.coord.wrapping_add(o);
+                    let v = grid.value(Coord::new(4 * t.x, 4 * t.y, 4 * t.z));
+                    assert_eq!(src.absent_inside(&nb, n), v < 0.0, "{shape:?}: {t:?}");
+                    checked += 1;
+                }
+            }
+            assert!(checked > 1000, "{checked}");
+        }
+    }
 
     /// The bounds the module docs rely on, at h = 1 for every Kuhn tetrahedron, sign
     /// pattern and piece, with edge parameters at every combination of δ and 1 − δ and at
