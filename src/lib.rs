@@ -33,6 +33,7 @@ pub mod fmm;
 pub mod fsutil;
 pub mod grid;
 pub mod hrle;
+pub mod image;
 pub mod input;
 pub mod levelset;
 pub mod measure;
