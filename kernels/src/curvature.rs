@@ -99,3 +99,23 @@ pub fn curvature_speed_and_norm<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> (L, L
     let ks = (L::splat(0.5) * inv_h * inv_h) * n / big_g.max(g_min);
     (ks, big_g.sqrt() * (L::splat(0.5) * inv_h))
 }
+
+/// κ∇ on a lattice with spacing `sₐ` per axis (`inv_spacing[a]` = 1/sₐ): the divided
+/// differences of each axis, gₐ/sₐ, d2ₐ/sₐ² and mixed m_ab/(sₐ s_b), put into eq. (4)
+/// as rewritten for [`curvature_speed`] with h = 1 (the formula is the same in divided
+/// differences). An axis with `inv_spacing` 0 drops out: on a 2D image (one slice) this is
+/// ½ the curvature of the curve in the slice (κ = ½∇·n counts the missing principal
+/// curvature as 0), so a caller that wants the curve's curvature doubles the weight.
+/// With `inv_spacing` all `1/h` it equals [`curvature_speed`] up to rounding.
+#[inline(always)]
+pub fn curvature_speed_aniso<L: Lane, W: Window<L>>(w: &W, inv_spacing: [L; 3]) -> L {
+    let d = central_diffs(w);
+    let [ix, iy, iz] = inv_spacing;
+    let scaled = CentralDiffs {
+        g: [d.g[0] * ix, d.g[1] * iy, d.g[2] * iz],
+        d2: [d.d2[0] * (ix * ix), d.d2[1] * (iy * iy), d.d2[2] * (iz * iz)],
+        m: [d.m[0] * (ix * iy), d.m[1] * (ix * iz), d.m[2] * (iy * iz)],
+    };
+    let (n, big_g) = numerator(&scaled);
+    L::splat(0.5) * n / big_g.max(L::splat(4.0 * GRAD2_MIN))
+}

@@ -106,6 +106,25 @@ pub fn cfl_rate_advection(max_abs_sum: f32, h: f32) -> f32 {
     max_abs_sum.abs() / h
 }
 
+/// The rate of [`crate::ImageRate`] on a lattice with spacing sₐ (`inv_spacing[a]` =
+/// 1/sₐ, 0 for an axis without derivatives): with n = √(Σ 1/sₐ²) (√3/h when isotropic),
+/// (max|F| + |w|) n + max|E| Σ 1/sₐ² + max(|u|+|v|+|w|) max(1/sₐ). The isotropic
+/// rates of [`cfl_rate_eq3`] and [`cfl_rate_advection`] with each h replaced by the
+/// spacings (the advection bound is the conservative one with the smallest spacing).
+pub fn cfl_rate_image(
+    max_abs_speed: f32,
+    max_abs_curvature: f32,
+    rescale_weight: f32,
+    max_abs_sum: f32,
+    inv_spacing: [f32; 3],
+) -> f32 {
+    let sum2: f32 = inv_spacing.iter().map(|i| i * i).sum();
+    let max_inv = inv_spacing.iter().fold(0.0f32, |m, i| m.max(i.abs()));
+    (max_abs_speed.abs() + rescale_weight.abs()) * sum2.sqrt()
+        + max_abs_curvature.abs() * sum2
+        + max_abs_sum.abs() * max_inv
+}
+
 fn limit(numerator: f32, rate: f32) -> f32 {
     if rate > 0.0 {
         numerator / rate

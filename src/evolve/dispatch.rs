@@ -15,10 +15,10 @@
 //! (the tile sweep then picks the lane type, the DT-Grid sweep its point window).
 
 use super::rep::dtgrid::PointWindow;
-use super::{EvolveError, SpatialScheme};
+use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
-    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, InterfaceAnchor, RenormRate, Rk3,
-    ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
+    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, ImageRate, InterfaceAnchor, RenormRate,
+    Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -46,6 +46,11 @@ pub(crate) struct StageParams<'a> {
     /// φⁿ per voxel (flat order), read in stages 2 and 3 (empty in stage 1); set by the
     /// representation, which keeps φⁿ.
     pub phi_n: &'a [f32],
+    /// ε Z(x) per voxel (flat order), if the flow has a curvature field (then `eps` is
+    /// unused).
+    pub curvature: Option<&'a [f32]>,
+    /// The anisotropic lattice, if any ([`super::Settings::lattice`]).
+    pub lattice: Option<Lattice>,
 }
 
 /// A sweep that runs kernels of any type over a representation: the visitor the dispatch
@@ -85,6 +90,9 @@ fn inputs<'a, S: Scheme, const R: usize, V: Sweep>(
 where
     Halo<R>: PointWindow,
 {
+    if p.lattice.is_some() || p.curvature.is_some() {
+        return image::<S, R, V>(p, sweep);
+    }
     let (h, eps, w) = (p.h, p.eps, p.rescale);
     let speed: &'a [f32] = p.speed;
     let scale = p.velocity_scale;
@@ -106,6 +114,64 @@ where
             Sum(Eq3Rate::<S, &'a [f32]>::new(h, &speed[r.clone()], eps, w), advection(u, r))
         }),
     }
+}
+
+/// Level 2 on a lattice or with a curvature field: [`ImageRate`] with F and ε Z each
+/// uniform or per voxel, with or without advection.
+fn image<'a, S: Scheme, const R: usize, V: Sweep>(
+    p: &StageParams<'a>,
+    sweep: V,
+) -> Result<(), EvolveError>
+where
+    Halo<R>: PointWindow,
+{
+    let (inv, sign_width, factor) = match p.lattice {
+        Some(l) => (l.inv_spacing(), l.min_spacing(), l.curvature_factor()),
+        None => ([1.0 / p.h; 3], p.h, 1.0),
+    };
+    // A per-voxel ε Z carries the factor already (see `Inputs::fill_curvature`).
+    let eps = p.eps * factor;
+    let speed = p.speed;
+    match (p.uniform_speed, p.curvature) {
+        (Some(f), None) => image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |_| (f, eps)),
+        (Some(f), Some(e)) => {
+            image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |r| (f, &e[r]))
+        }
+        (None, None) => {
+            image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |r| (&speed[r], eps))
+        }
+        (None, Some(e)) => image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |r| {
+            (&speed[r.clone()], &e[r])
+        }),
+    }
+}
+
+/// [`ImageRate`] with the (F, ε Z) that `fe` gives for a block's voxels, into the stage.
+fn image_rate<'a, S, const R: usize, F, E, V>(
+    p: &StageParams<'a>,
+    sweep: V,
+    inv: [f32; 3],
+    sign_width: f32,
+    fe: impl Fn(Range<usize>) -> (F, E) + Sync + 'a,
+) -> Result<(), EvolveError>
+where
+    S: Scheme,
+    F: ScalarField + 'a,
+    E: ScalarField + 'a,
+    V: Sweep,
+    Halo<R>: PointWindow,
+{
+    let w = p.rescale;
+    let scale = p.velocity_scale;
+    let velocity = p.velocity;
+    stage::<R, _, _, V>(p, sweep, move |r: Range<usize>| {
+        let u = velocity.map(|u| ScaledVelocity {
+            components: [&u[0][r.clone()], &u[1][r.clone()], &u[2][r.clone()]],
+            scale,
+        });
+        let (f, e) = fe(r);
+        ImageRate::<S, F, E, ScaledVelocity<'a>>::new(f, e, u, w, inv, sign_width)
+    })
 }
 
 /// Level 3: the TVD-RK3 stage around the rate (stage 1 is forward Euler), handed to the

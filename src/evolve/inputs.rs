@@ -31,6 +31,9 @@ pub(crate) struct Inputs {
     static_spec: Option<GridSpec>,
     /// The previous samples while the new ones are assembled (swapped with `velocity`).
     spare: [Vec<f32>; 3],
+    /// ε Z(x) per voxel ([`Flow::curvature_field`]), times the lattice's curvature factor;
+    /// empty without one.
+    curvature: Vec<f32>,
 }
 
 /// What [`Inputs::fill_velocity`] wrote.
@@ -54,6 +57,7 @@ impl Default for Inputs {
             static_keys: Vec::new(),
             static_spec: None,
             spare: Default::default(),
+            curvature: Vec::new(),
         }
     }
 }
@@ -65,6 +69,7 @@ impl Inputs {
             + vec_bytes(&self.base)
             + self.velocity.iter().chain(&self.spare).map(vec_bytes).sum::<usize>()
             + vec_bytes(&self.static_keys)
+            + vec_bytes(&self.curvature)
     }
 
     /// Bytes the inputs of `flow` have to allocate for `n` voxels.
@@ -75,6 +80,9 @@ impl Inputs {
         }
         if flow.velocity.is_some() {
             b += self.velocity.iter().map(|c| growth_bytes(c, n)).sum::<u64>();
+        }
+        if flow.curvature_field.is_some() {
+            b += growth_bytes(&self.curvature, n);
         }
         if let Some(Velocity::Field(f)) = &flow.velocity {
             if f.time_scale(0.0).is_some() {
@@ -107,6 +115,8 @@ impl Inputs {
         let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
         self.fill_speed(rep, &flow.speed, pool, t, first, add);
         let written = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
+        let factor = settings.lattice.map_or(1.0, |l| l.curvature_factor());
+        let curvature_ok = self.fill_curvature(rep, flow, factor, pool, t, first);
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
@@ -118,7 +128,7 @@ impl Inputs {
                 Written::Checked(ok) => ok,
             };
         let speed_ok = self.uniform_speed.map_or_else(|| finite(&self.speed), f32::is_finite);
-        if !speed_ok || !velocity_ok {
+        if !speed_ok || !velocity_ok || !curvature_ok {
             return Err(EvolveError::NonFiniteField { step, time: t });
         }
         Ok(kappa_bar)
@@ -167,6 +177,37 @@ impl Inputs {
                 }
             }
         }
+    }
+
+    /// ε Z(x) per voxel, times the lattice's curvature `factor`, when the flow has a
+    /// curvature field (sampled in stage 1, and in every stage when it depends on time);
+    /// returns whether every sample is finite and ≥ 0.
+    fn fill_curvature(
+        &mut self,
+        rep: &dyn Representation,
+        flow: &Flow,
+        factor: f32,
+        pool: &Option<Arc<rayon::ThreadPool>>,
+        t: f64,
+        first: bool,
+    ) -> bool {
+        let Some(z) = &flow.curvature_field else {
+            self.curvature.clear();
+            return true;
+        };
+        if !(first || z.time_dependent()) {
+            return true;
+        }
+        resize_exact(&mut self.curvature, rep.flat().len(), 0.0);
+        let out = &mut self.curvature;
+        in_pool(pool, || rep.fill_scalar(z.as_ref(), t, out));
+        let eps = flow.curvature * factor;
+        let mut ok = true;
+        for v in &mut self.curvature {
+            ok &= v.is_finite() && *v >= 0.0;
+            *v *= eps;
+        }
+        ok
     }
 
     /// Advection velocity u; returns what was written (and how it is to be checked).
@@ -255,12 +296,37 @@ impl Inputs {
         Written::Checked(ok)
     }
 
-    /// max |F|, max (|u|+|v|+|w|) and the same of the unscaled samples (u(x, 0) of a
-    /// time-separable field; equal otherwise) over the band voxels of `flat` (the set
+    /// max |F|, max (|u|+|v|+|w|), the same of the unscaled samples (u(x, 0) of a
+    /// time-separable field; equal otherwise) and the largest curvature weight (ε, or
+    /// max ε Z(x) with a curvature field) over the band voxels of `flat` (the set
     /// every representation holds, so every representation takes the same Δt). In
     /// parallel chunks (call it in the pool): a maximum of finite values does not depend on
     /// how it is grouped, so neither do the bits.
-    pub fn band_maxima(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
+    pub fn band_maxima(
+        &self,
+        flat: &[f32],
+        g: f32,
+        advects: bool,
+        eps: f32,
+    ) -> (f32, f32, f32, f32) {
+        let (f, u, u0) = self.band_maxima_fu(flat, g, advects);
+        (f, u, u0, self.band_max_curvature(flat, g, eps))
+    }
+
+    /// The largest curvature weight over the band voxels: max ε Z(x) with a curvature
+    /// field, else ε.
+    fn band_max_curvature(&self, flat: &[f32], g: f32, eps: f32) -> f32 {
+        if self.curvature.is_empty() {
+            return eps;
+        }
+        flat.iter()
+            .zip(&self.curvature)
+            .filter(|(v, _)| v.abs() < g)
+            .fold(0.0f32, |m, (_, &e)| m.max(e))
+    }
+
+    /// max |F|, max (|u|+|v|+|w|) and max of the unscaled u; see [`Inputs::band_maxima`].
+    fn band_maxima_fu(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
         use rayon::prelude::*;
         /// Voxels per parallel task (64 tiles).
         const CHUNK: usize = 4096;
@@ -328,6 +394,8 @@ impl Inputs {
                 .map(|_| [&self.velocity[0][..], &self.velocity[1][..], &self.velocity[2][..]]),
             velocity_scale: self.velocity_scale,
             phi_n: &[],
+            curvature: (!self.curvature.is_empty()).then_some(&self.curvature[..]),
+            lattice: None,
         }
     }
 }

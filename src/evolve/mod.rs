@@ -157,7 +157,7 @@ impl GridKind {
 }
 
 /// The terms of the PDE (see the [module docs](self)).
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct Flow {
     /// F of eq. (3): φ_t = −F|∇φ| (F > 0 moves the interface outward).
     pub speed: Speed,
@@ -167,6 +167,22 @@ pub struct Flow {
     pub volume_conserving: bool,
     /// u of the advection term −u·∇φ.
     pub velocity: Option<Velocity>,
+    /// Z(x), a factor of the curvature weight that varies in space: the curvature term is
+    /// then ε Z(x) κ|∇φ| (ITK's curvature term; a geodesic active contour's Z is the
+    /// edge potential g). `None`: Z = 1. Sampled like F; must be finite and ≥ 0.
+    pub curvature_field: Option<Arc<dyn ScalarFn>>,
+}
+
+impl std::fmt::Debug for Flow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Flow")
+            .field("speed", &self.speed)
+            .field("curvature", &self.curvature)
+            .field("volume_conserving", &self.volume_conserving)
+            .field("velocity", &self.velocity)
+            .field("curvature_field", &self.curvature_field.as_ref().map(|_| ".."))
+            .finish()
+    }
 }
 
 impl Flow {
@@ -177,6 +193,7 @@ impl Flow {
             curvature: 0.0,
             volume_conserving: false,
             velocity: None,
+            curvature_field: None,
         }
     }
 
@@ -220,6 +237,13 @@ impl Flow {
     /// The same flow with an advection velocity.
     pub fn with_velocity(mut self, velocity: Velocity) -> Flow {
         self.velocity = Some(velocity);
+        self
+    }
+
+    /// The same flow with a curvature weight ε Z(x) that varies in space.
+    pub fn with_curvature_field(mut self, eps: f32, z: Arc<dyn ScalarFn>) -> Flow {
+        self.curvature = eps;
+        self.curvature_field = Some(z);
         self
     }
 
@@ -286,6 +310,77 @@ pub struct Settings {
     /// scratch grids and freed when refused. The dense box never grows. `None`: every
     /// growth must fit in what the machine can give ([`crate::memory::limit`]).
     pub memory_limit: Option<u64>,
+    /// A lattice with a spacing of its own per axis (an image's voxels, segmentation):
+    /// every derivative along axis a is divided by its spacing sₐ instead of the grid's
+    /// voxel size ([`levelset_kernels::ImageRate`]), which then only sets the band's
+    /// half-width γ (give it the largest spacing) and the δ width. `None`: the grid's
+    /// voxel size along every axis. See [`Lattice`] for what it allows.
+    pub lattice: Option<Lattice>,
+}
+
+/// An anisotropic lattice ([`Settings::lattice`]): voxel spacing per axis, or a 2D image.
+///
+/// On a lattice, φ is kept a distance by the coupled rescaling term
+/// ([`Renormalization::Coupled`] or [`Renormalization::Off`]; the renormalisation sweeps
+/// and fast-marching reinitialisation are isotropic and refused), the flow may not be
+/// volume-conserving, and [`Measures::area`] is not computed (NaN).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Lattice {
+    /// World units per voxel along x, y, z (finite, > 0).
+    pub spacing: [f32; 3],
+    /// A 2D image laid in the slice z = const: no derivative along z, and the curvature
+    /// term uses the curvature of the curve in the slice (κ = ∇·n in 2D, twice the ½∇·n
+    /// of a cylinder's surface).
+    pub planar: bool,
+}
+
+impl Lattice {
+    /// 1/sₐ per axis, 0 along z for a planar lattice.
+    pub fn inv_spacing(&self) -> [f32; 3] {
+        let [x, y, z] = self.spacing.map(|s| 1.0 / s);
+        [x, y, if self.planar { 0.0 } else { z }]
+    }
+
+    /// The factor of the curvature weight: 2 on a planar lattice (see [`Lattice::planar`]).
+    pub fn curvature_factor(&self) -> f32 {
+        if self.planar {
+            2.0
+        } else {
+            1.0
+        }
+    }
+
+    /// The smallest spacing of the axes with derivatives (the smoothed sign's width).
+    pub fn min_spacing(&self) -> f32 {
+        let axes = if self.planar { 2 } else { 3 };
+        self.spacing[..axes].iter().fold(f32::INFINITY, |m, &s| m.min(s))
+    }
+
+    /// World volume of one voxel (area of a pixel times the z spacing when planar).
+    pub fn voxel_volume(&self) -> f64 {
+        self.spacing.iter().map(|&s| s as f64).product()
+    }
+
+    fn validate(&self, settings: &Settings, flow: &Flow) -> Result<(), EvolveError> {
+        let invalid = |m: String| Err(EvolveError::InvalidParameter(m));
+        if let Some(s) = self.spacing.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return invalid(format!("lattice spacing must be finite and > 0, got {s}"));
+        }
+        if matches!(settings.renormalization, Renormalization::Sweeps(_)) {
+            return invalid(
+                "renormalisation sweeps are isotropic: on a lattice use the coupled rescaling \
+                 term (Renormalization::Coupled) or none"
+                    .into(),
+            );
+        }
+        if settings.reinit.is_some() {
+            return invalid("fast-marching reinitialisation is isotropic: not on a lattice".into());
+        }
+        if flow.volume_conserving {
+            return invalid("volume-conserving flow is not available on a lattice".into());
+        }
+        Ok(())
+    }
 }
 
 /// Periodic reinitialisation by fast marching.
@@ -415,6 +510,7 @@ impl Default for Settings {
             pool: None,
             reinit: None,
             memory_limit: None,
+            lattice: None,
         }
     }
 }
@@ -455,8 +551,11 @@ impl Settings {
         }
     }
 
-    fn validate(&self) -> Result<(), EvolveError> {
+    fn validate(&self, flow: &Flow) -> Result<(), EvolveError> {
         self.renormalization.validate()?;
+        if let Some(l) = &self.lattice {
+            l.validate(self, flow)?;
+        }
         match self.time_step {
             TimeStep::Cfl(c) if !(c > 0.0 && c <= 1.0) => {
                 Err(EvolveError::InvalidParameter(format!("CFL number must be in (0, 1], got {c}")))
@@ -548,9 +647,11 @@ pub struct Measures {
     /// Tiles (tile engine), points (DT-Grid) or voxels (dense) stored.
     pub stored: usize,
     /// Enclosed volume, world units: h³ Σ clamp(½ − φ/h, 0, 1) over stored voxels plus h³
-    /// per interior voxel that is not stored.
+    /// per interior voxel that is not stored (on a [`Lattice`], its voxel volume instead
+    /// of h³ and its smallest spacing as h).
     pub volume: f64,
-    /// Interface area, world units: h³ Σ δ(φ)|∇φ| with the δ of eq. (7).
+    /// Interface area, world units: h³ Σ δ(φ)|∇φ| with the δ of eq. (7) (NaN on a
+    /// [`Lattice`]).
     pub area: f64,
     /// Bytes of the representation's data (unused array capacity excluded).
     pub bytes: usize,

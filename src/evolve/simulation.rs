@@ -15,7 +15,7 @@ use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
 use crate::shapes::Shape;
 use crate::tiles::TileGrid;
-use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3};
+use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3, cfl_rate_image};
 
 /// A level set evolving under a [`Flow`] on one representation.
 ///
@@ -125,7 +125,7 @@ impl Simulation {
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
         flow.validate()?;
-        settings.validate()?;
+        settings.validate(&flow)?;
         if settings.reinit.is_some() && kind == GridKind::Dense {
             return Err(EvolveError::InvalidParameter(
                 "reinitialisation by fast marching runs on the sparse grids (tiles, DT-Grid), \
@@ -235,6 +235,11 @@ impl Simulation {
     /// `sweeps.every` is ignored. Atomic: on an error nothing changes.
     pub fn renormalize(&mut self, sweeps: &Sweeps) -> Result<(), EvolveError> {
         super::Renormalization::Sweeps(Sweeps { every: 1, ..*sweeps }).validate()?;
+        if self.settings.lattice.is_some() {
+            return Err(EvolveError::InvalidParameter(
+                "renormalisation sweeps are isotropic: not on a lattice".into(),
+            ));
+        }
         if self.collapsed {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
         }
@@ -394,7 +399,8 @@ impl Simulation {
     pub fn measure(&self) -> Result<Measures, EvolveError> {
         let rep = self.rep.get();
         let spec = self.spec();
-        let h = spec.voxel_size;
+        let lattice = self.settings.lattice;
+        let h = lattice.map_or(spec.voxel_size, |l| l.min_spacing());
         let g = spec.gamma();
         let width = self.settings.delta_width * h;
         let mut flat_inside = ExactSum::default();
@@ -404,26 +410,37 @@ impl Simulation {
             band += (v.abs() < g) as usize;
         }
         let unstored = rep.unstored_inside();
-        let (_, den) = in_pool(&self.settings.pool, || rep.kappa_bar_sums(width))?;
-        let h3 = (h as f64).powi(3);
+        let h3 = lattice.map_or((h as f64).powi(3), |l| l.voxel_volume());
+        let area = match lattice {
+            // The δ integral's gradient is isotropic.
+            Some(_) => f64::NAN,
+            None => {
+                let (_, den) = in_pool(&self.settings.pool, || rep.kappa_bar_sums(width))?;
+                // The sums hold δ|∇φ|·h (see `KappaBarTerm`): area = h³ Σ δ|∇φ| = h² Σ den.
+                h3 / h as f64 * den.value()
+            }
+        };
         Ok(Measures {
             band_voxels: band,
             stored: rep.units(),
             volume: h3 * (flat_inside.value() + unstored as f64),
-            // The sums hold δ|∇φ|·h (see `KappaBarTerm`): area = h³ Σ δ|∇φ| = h² Σ den.
-            area: h3 / h as f64 * den.value(),
+            area,
             bytes: rep.bytes(),
             work_bytes: rep.work_bytes() + self.inputs.bytes(),
         })
     }
 
-    /// The largest stable Δt for the current state (CFL number 1), given the largest |F|
-    /// and |u|₁ over the band voxels: the rates of eq. (3) and of advection add up
-    /// (see [`levelset_kernels::rk`]).
-    fn stability_limit(&self, max_f: f32, max_u: f32) -> f32 {
+    /// The largest stable Δt for the current state (CFL number 1), given the largest |F|,
+    /// |u|₁ and curvature weight over the band voxels: the rates of eq. (3) and of
+    /// advection add up (see [`levelset_kernels::rk`]; on a lattice
+    /// [`levelset_kernels::rk::cfl_rate_image`]).
+    fn stability_limit(&self, max_f: f32, max_u: f32, eps: f32) -> f32 {
         let h = self.spec().voxel_size;
         let w = self.settings.renormalization.coupled_weight();
-        let rate = cfl_rate_eq3(max_f, self.flow.curvature, w, h) + cfl_rate_advection(max_u, h);
+        let rate = match &self.settings.lattice {
+            Some(l) => cfl_rate_image(max_f, eps, w, max_u, l.inv_spacing()),
+            None => cfl_rate_eq3(max_f, eps, w, h) + cfl_rate_advection(max_u, h),
+        };
         if rate > 0.0 {
             1.0 / rate
         } else {
@@ -530,9 +547,10 @@ impl Simulation {
         let g = self.spec().gamma();
         let advects = self.flow.velocity.is_some();
         let (inputs, flat) = (&self.inputs, self.rep.get().flat());
-        let (max_f, max_u, max_u0) =
-            in_pool(&self.settings.pool, || inputs.band_maxima(flat, g, advects));
-        let mut limit = self.stability_limit(max_f, max_u);
+        let eps = self.flow.curvature * self.settings.lattice.map_or(1.0, |l| l.curvature_factor());
+        let (max_f, max_u, max_u0, max_e) =
+            in_pool(&self.settings.pool, || inputs.band_maxima(flat, g, advects, eps));
+        let mut limit = self.stability_limit(max_f, max_u, max_e);
         let rest = (until - self.time) as f32;
         // A time-separable velocity s(t) u(x, 0) is read at the later stages' times too
         // (t + Δt and t + Δt/2 in TVD-RK3): the limit holds there as well. (Where s
@@ -553,7 +571,7 @@ impl Simulation {
                         .map(|t| f.time_scale(t).unwrap_or(0.0).abs() * max_u0)
                         .into_iter()
                         .fold(max_u, f32::max);
-                    let l = self.stability_limit(max_f, later);
+                    let l = self.stability_limit(max_f, later, max_e);
                     if l >= limit {
                         break;
                     }
@@ -623,6 +641,7 @@ impl Simulation {
             }
             let p = StageParams {
                 rescale: self.settings.renormalization.coupled_weight(),
+                lattice: self.settings.lattice,
                 ..self.inputs.params(stage, dt, &spec, &self.flow)
             };
             let last = si + 1 == stages.len();
