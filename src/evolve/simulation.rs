@@ -375,6 +375,21 @@ impl Simulation {
         self.rep.get().for_each_band_voxel(&mut f)
     }
 
+    /// Visits every voxel with φ ≤ 0 — the stored ones one at a time, the interior the
+    /// representation does not store as x-runs — as `(first voxel, run length)`, in no
+    /// particular order: region integrals over the inside (a segmentation's region means)
+    /// in O(stored voxels + interior runs).
+    pub fn for_each_inside_run(&self, mut f: impl FnMut(Coord, u32)) {
+        let rep = self.rep.get();
+        rep.any_voxel(&mut |c, v| {
+            if v <= 0.0 {
+                f(c, 1);
+            }
+            false
+        });
+        rep.for_each_unstored_inside_run(&mut f);
+    }
+
     /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
     /// band contents give equal checksums, whatever the representation.
     pub fn checksum(&self) -> u64 {

@@ -231,9 +231,7 @@ impl Representation for DenseRep {
         Ok((num, den))
     }
 
-    fn unstored_inside(&self) -> u64 {
-        0
-    }
+    fn for_each_unstored_inside_run(&self, _f: &mut dyn FnMut(Coord, u32)) {}
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
         let g = self.spec.gamma();

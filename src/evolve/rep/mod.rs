@@ -96,8 +96,15 @@ pub(crate) trait Representation: Send + Sync {
     fn commit_step(&mut self);
     /// (Σ κδ|∇φ|, Σ δ|∇φ|) over the current values (eq. (6) without the h³ that cancels).
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError>;
+    /// Visits the interior voxels the representation does not store as x-runs
+    /// `(first voxel, length)`, in [`Coord`] order.
+    fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32));
     /// Interior voxels the representation does not store (each counts fully inside).
-    fn unstored_inside(&self) -> u64;
+    fn unstored_inside(&self) -> u64 {
+        let mut n = 0u64;
+        self.for_each_unstored_inside_run(&mut |_, len| n += len as u64);
+        n
+    }
     /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32));
     /// Whether `f` holds for some stored voxel, visited in flat order until it does.

@@ -470,10 +470,9 @@ impl Representation for TilesRep {
         }))
     }
 
-    fn unstored_inside(&self) -> u64 {
+    fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {
         const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
         let coords = self.grid.tile_coords();
-        let mut n = 0u64;
         for p in 1..coords.len() {
             let (a, b) = (coords[p - 1], coords[p]);
             if a.z == b.z
@@ -481,10 +480,14 @@ impl Representation for TilesRep {
                 && b.x > a.x + 1
                 && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
             {
-                n += 64 * (b.x - a.x - 1) as u64;
+                // The tiles strictly between a and b, row by row of voxels.
+                let first = voxel_of(Coord::new(a.x + 1, a.y, a.z), 0);
+                let len = 4 * (b.x - a.x - 1) as u32;
+                for row in 0..16 {
+                    f(Coord::new(first.x, first.y + (row & 3), first.z + (row >> 2)), len);
+                }
             }
         }
-        n
     }
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
