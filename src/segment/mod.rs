@@ -1,0 +1,247 @@
+//! Image segmentation by level sets on the tile engine: threshold-based propagation,
+//! geodesic active contours and Chan–Vese, the flows of ITK's level-set filters, with one
+//! sign convention and defaults taken from the image.
+//!
+//! # Convention
+//! **φ < 0 inside**, in world units (the image's spacing), everywhere: the initial level
+//! sets, the result, the speeds (F > 0 moves the front outward, into the background). A
+//! voxel belongs to the segmentation when φ ≤ 0 at its centre (a centre exactly on the
+//! interface counts as inside). ITK's filters differ among themselves (its threshold
+//! filter's speed is positive inside the intensity window and its examples seed with a
+//! positive-inside level set); here one rule holds for every method.
+//!
+//! # The flows
+//! The level set lives on the image's voxels ([`crate::evolve::Lattice`]: every
+//! derivative divided by that axis's spacing, so anisotropic scans need no resampling; a
+//! 2D image evolves as a curve) and moves by
+//!
+//! ```text
+//! φ_t = −β P(x)|∇φ| + ε Z(x) κ|∇φ| − α A(x)·∇φ + sgn(φ)(1 − |∇φ|)
+//! ```
+//!
+//! (ITK's `SegmentationLevelSetFunction` with propagation, curvature and advection
+//! weights β, ε, α; the last term keeps φ a distance, [`crate::evolve::Renormalization::Coupled`]).
+//! With Ĩ = G_σ ∗ I the smoothed image:
+//!
+//! * [`Method::Threshold`] (ITK's `ThresholdSegmentationLevelSetImageFilter`): P = Ĩ − L
+//!   below the window's midpoint and U − Ĩ above it, divided by the half-width (U − L)/2
+//!   and clamped to [−1, 1]: 1 in the middle of [L, U], 0 at its ends, negative outside;
+//!   Z = 1, no advection.
+//! * [`Method::Gac`] (geodesic active contours, Caselles, Kimmel & Sapiro, IJCV 22 (1997);
+//!   ITK's `GeodesicActiveContourLevelSetImageFilter`): P = Z = g, A = −∇g with the edge
+//!   potential g = 1/(1 + exp((|∇Ĩ| − β)/α)) (the sigmoid form ITK's guide uses, with
+//!   α, β from the gradient statistics) or g = 1/(1 + |∇Ĩ|/K) ([`features::edge_potential`]).
+//! * [`Method::ChanVese`] (Chan & Vese, IEEE TIP 10 (2001)): P the region force
+//!   (λ₂(Ĩ − c₂)² − λ₁(Ĩ − c₁)²)/(c₁ − c₂)² − ν with c₁, c₂ the means of Ĩ inside and
+//!   outside, recomputed before every step from exact integer sums over the whole image;
+//!   Z = 1 (ε is Chan–Vese's μ); grows from seeds.
+//!
+//! Beyond the image the propagation term is −β: the front stays within the image.
+//!
+//! # Stopping
+//! After every step: the RMS over the voxels next to the interface (|φ| < the smallest
+//! spacing) of the change of φ *per unit time* (the adaptive Δt cannot hide motion), and
+//! the relative change of the segmented volume over the last [`Params::window`] steps.
+//! The run stops when the RMS falls below [`Params::rms`] or the volume changed by less
+//! than [`Params::volume_change`] over the window, or after [`Params::max_iterations`]
+//! steps; [`Report::stop`] says which.
+
+pub mod features;
+pub mod metrics;
+pub mod phantom;
+mod run;
+mod speed;
+
+pub use run::{segment, Segmentation};
+
+use crate::evolve::EvolveError;
+use crate::grid::GridError;
+use serde::Serialize;
+use std::sync::Arc;
+
+/// A seed: a ball that starts the segmentation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Seed {
+    /// Centre: voxel indices along the image's x, y, z axes (fractional allowed), or world
+    /// coordinates ([`Init::Seeds`]' `world`).
+    pub center: [f64; 3],
+    /// Radius in voxels of the smallest spacing (world units with `world`).
+    pub radius: f64,
+}
+
+/// Where the segmentation starts.
+#[derive(Clone, Debug)]
+pub enum Init {
+    /// Balls around seed points (their union).
+    Seeds {
+        seeds: Vec<Seed>,
+        /// Centres and radii in the image's world coordinates ([`crate::image::Image::to_world`]).
+        world: bool,
+    },
+    /// A mask of the image's size (x fastest), nonzero inside.
+    Mask(Vec<u8>),
+    /// A level set of the image's size (x fastest, φ < 0 inside, world units).
+    LevelSet(Vec<f32>),
+}
+
+/// A segmentation method and its own parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "name")]
+pub enum Method {
+    /// Propagation where the smoothed intensity lies in `[lower, upper]`.
+    Threshold { lower: f32, upper: f32 },
+    /// Geodesic active contours.
+    Gac,
+    /// Chan–Vese, with its data weights λ₁ (inside), λ₂ (outside) and area term ν.
+    ChanVese { lambda1: f32, lambda2: f32, nu: f32 },
+}
+
+impl Method {
+    /// Chan–Vese with λ₁ = λ₂ = 1, ν = 0.
+    pub fn chan_vese() -> Method {
+        Method::ChanVese { lambda1: 1.0, lambda2: 1.0, nu: 0.0 }
+    }
+
+    /// `"threshold"`, `"gac"` or `"chan-vese"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Threshold { .. } => "threshold",
+            Method::Gac => "gac",
+            Method::ChanVese { .. } => "chan-vese",
+        }
+    }
+}
+
+/// Parameters of a segmentation; `None` takes the default chosen from the image (printed
+/// in [`Report::params`]).
+#[derive(Clone, Debug)]
+pub struct Params {
+    pub method: Method,
+    /// σ of the Gaussian smoothing, world units (0: none). Default: the smallest spacing.
+    pub sigma: Option<f64>,
+    /// β, ITK's `PropagationScaling`. Default 1.
+    pub propagation: Option<f32>,
+    /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: see [`run`].
+    pub curvature: Option<f32>,
+    /// α, ITK's `AdvectionScaling` (GAC only). Default 1.
+    pub advection: Option<f32>,
+    /// K of the rational edge potential g = 1/(1 + |∇Ĩ|/K) (GAC only); when given, it
+    /// replaces the sigmoid.
+    pub edge_scale: Option<f64>,
+    /// (α, β) of the sigmoid edge potential g = 1/(1 + exp((|∇Ĩ| − β)/α)) (GAC only; ITK's
+    /// `SigmoidImageFilter` with a negative α). Default: from the gradient statistics.
+    pub sigmoid: Option<(f64, f64)>,
+    /// Stop when the RMS change of φ per unit time near the interface falls below this
+    /// (world units per unit time).
+    pub rms: f64,
+    /// Stop when the segmented volume changed by less than this fraction over the last
+    /// `window` steps.
+    pub volume_change: f64,
+    /// Steps of the volume criterion's window.
+    pub window: u64,
+    /// At most this many steps.
+    pub max_iterations: u64,
+    /// Threads: the pool the features and the evolution run in (the global pool when
+    /// `None`).
+    pub pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+impl Params {
+    /// The defaults for `method`.
+    pub fn new(method: Method) -> Params {
+        Params {
+            method,
+            sigma: None,
+            propagation: None,
+            curvature: None,
+            advection: None,
+            edge_scale: None,
+            sigmoid: None,
+            rms: 0.01,
+            volume_change: 2e-4,
+            window: 10,
+            max_iterations: 2000,
+            pool: None,
+        }
+    }
+}
+
+/// The parameters a run used, defaults filled in.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Resolved {
+    pub method: Method,
+    pub sigma: f64,
+    pub propagation: f32,
+    pub curvature: f32,
+    pub advection: f32,
+    /// K of the rational edge potential (GAC).
+    pub edge_scale: Option<f64>,
+    /// (α, β) of the sigmoid edge potential (GAC).
+    pub sigmoid: Option<(f64, f64)>,
+    pub spacing: [f64; 3],
+    pub planar: bool,
+}
+
+/// Why a segmentation stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stop {
+    /// The RMS change per unit time fell below [`Params::rms`].
+    Rms,
+    /// The volume changed by less than [`Params::volume_change`] over the window.
+    Volume,
+    /// [`Params::max_iterations`] steps were taken.
+    MaxIterations,
+    /// Nothing is left inside: the segmentation vanished.
+    Vanished,
+    /// The monitor asked to stop.
+    Cancelled,
+}
+
+/// The figures of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub params: Resolved,
+    pub stop: Stop,
+    pub iterations: u64,
+    /// Pseudo-time reached.
+    pub time: f64,
+    /// RMS change of φ per unit time near the interface in the last step.
+    pub rms: f64,
+    /// Voxels segmented and their world volume.
+    pub voxels: u64,
+    pub volume: f64,
+    /// Region means c₁ (inside), c₂ (outside) of the smoothed image at the end (Chan–Vese).
+    pub means: Option<[f64; 2]>,
+    /// Band voxels at the end.
+    pub band_voxels: usize,
+    /// Σ over steps of the stored voxels times the stages (the voxels the kernels updated).
+    pub voxel_updates: f64,
+    /// Seconds for the feature images, the evolution, and in all.
+    pub seconds_features: f64,
+    pub seconds_evolution: f64,
+    pub seconds: f64,
+}
+
+/// What one step reports to a monitor.
+#[derive(Clone, Copy, Debug)]
+pub struct StepInfo {
+    pub iteration: u64,
+    pub max_iterations: u64,
+    pub rms: f64,
+    pub band_voxels: usize,
+    pub voxels: u64,
+}
+
+/// Why a segmentation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SegmentError {
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    #[error("initialisation: {0}")]
+    Init(String),
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Evolve(#[from] EvolveError),
+}
