@@ -50,6 +50,9 @@ pub(super) fn read(path: &Path, spacing: Option<[f64; 3]>) -> Result<LoadedImage
     })?;
     let mut buf = vec![0u8; size];
     let frame = reader.next_frame(&mut buf).map_err(|e| decoding_error(path, e))?;
+    // To the end of the file (IEND), so that a truncated file is refused even when its
+    // pixels are complete.
+    reader.finish().map_err(|e| decoding_error(path, e))?;
     let line = frame.line_size;
     let channels = color.samples();
     let wide = depth == BitDepth::Sixteen;
