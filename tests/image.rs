@@ -683,7 +683,7 @@ fn hostile_sizes_are_refused_without_allocating() {
 fn non_finite_voxels_are_named() {
     let dir = TempDir::new("nan");
     let mut vals: Vec<f32> = (0..12).map(|i| i as f32).collect();
-    vals[2 + 3 * 1] = f32::NAN; // (2, 1, 0)
+    vals[5] = f32::NAN; // (2, 1, 0): 2 + nx · 1
     vals[11] = f32::INFINITY;
     let h = Nii::new(&[3, 2, 2], 16, 32);
     let e = load_err(&dir.file("nan.nii", &h.file(&bytes_of!(vals, false))));
@@ -691,7 +691,7 @@ fn non_finite_voxels_are_named() {
     assert!(e.to_string().contains("(2, 1, 0)") && e.to_string().contains("NaN"), "{e}");
     // f64 beyond the f32 range, in a .npy.
     let mut vals = [0.5f64; 12];
-    vals[7] = 1e300; // (1, 0, 1) of shape (2, 2, 3)? x = 7 % 3 = 1, y = 2 % 2 = 0, z = 1
+    vals[7] = 1e300; // shape (2, 2, 3): x = 7 % 3 = 1, y = (7 / 3) % 2 = 0, z = 7 / 6 = 1
     let e =
         load_err(&dir.file("big.npy", &npy("<f8", false, "(2, 2, 3)", &bytes_of!(vals, false))));
     assert!(

@@ -425,13 +425,6 @@ fn header_of(path: &Path, like: &LoadedImage) -> Result<NiftiHeader, ImageError>
         });
     }
     let ndim = if like.is_2d_source() { 2 } else { 3 };
-    let mut h = NiftiHeader::default();
-    h.dim = [ndim, im.dims[0] as u16, im.dims[1] as u16, im.dims[2] as u16, 1, 1, 1, 1];
-    h.pixdim = [1.0, s[0] as f32, s[1] as f32, s[2] as f32, 0.0, 0.0, 0.0, 0.0];
-    h.xyzt_units = 0; // unknown: the image's world units are whatever its spacing means
-    h.regular = b'r';
-    h.sform_code = XFORM_ALIGNED;
-    [h.srow_x, h.srow_y, h.srow_z] = a.map(|r| r.map(|v| v as f32));
     // The qform when to_world is a rotation (proper or not) and a translation.
     let m: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| im.to_world[r][c]));
     let orthonormal = (0..3).all(|i| {
@@ -440,16 +433,32 @@ fn header_of(path: &Path, like: &LoadedImage) -> Result<NiftiHeader, ImageError>
             (dot - if i == j { 1.0 } else { 0.0 }).abs() < 1e-6
         })
     });
-    h.qform_code = 0;
-    [h.quatern_b, h.quatern_c, h.quatern_d] = [0.0; 3];
-    [h.quatern_x, h.quatern_y, h.quatern_z] = [0.0; 3];
-    if orthonormal {
-        let ([b, c, d], qfac) = quaternion_of(m);
-        h.qform_code = XFORM_ALIGNED;
-        h.pixdim[0] = qfac as f32;
-        [h.quatern_b, h.quatern_c, h.quatern_d] = [b as f32, c as f32, d as f32];
-        [h.quatern_x, h.quatern_y, h.quatern_z] = [a[0][3] as f32, a[1][3] as f32, a[2][3] as f32];
-    }
+    let ([b, c, d], qfac, qform_code) = if orthonormal {
+        let (q, qfac) = quaternion_of(m);
+        (q, qfac, XFORM_ALIGNED)
+    } else {
+        ([0.0; 3], 1.0, 0)
+    };
+    let [srow_x, srow_y, srow_z] = a.map(|r| r.map(|v| v as f32));
+    let mut h = NiftiHeader {
+        dim: [ndim, im.dims[0] as u16, im.dims[1] as u16, im.dims[2] as u16, 1, 1, 1, 1],
+        pixdim: [qfac as f32, s[0] as f32, s[1] as f32, s[2] as f32, 0.0, 0.0, 0.0, 0.0],
+        // Unknown units: the image's world units are whatever its spacing means.
+        xyzt_units: 0,
+        regular: b'r',
+        sform_code: XFORM_ALIGNED,
+        srow_x,
+        srow_y,
+        srow_z,
+        qform_code,
+        quatern_b: b as f32,
+        quatern_c: c as f32,
+        quatern_d: d as f32,
+        quatern_x: if orthonormal { a[0][3] as f32 } else { 0.0 },
+        quatern_y: if orthonormal { a[1][3] as f32 } else { 0.0 },
+        quatern_z: if orthonormal { a[2][3] as f32 } else { 0.0 },
+        ..NiftiHeader::default()
+    };
     h.set_description(&b"sparse-levelset"[..]).expect("short description");
     Ok(h)
 }
@@ -570,19 +579,21 @@ mod tests {
 
     #[test]
     fn header_bytes_round_trip_through_the_crate() {
-        let mut h = NiftiHeader::default();
-        h.dim = [3, 4, 5, 6, 1, 1, 1, 1];
-        h.datatype = 4;
-        h.bitpix = 16;
-        h.pixdim = [-1.0, 0.5, 0.75, 2.0, 0.0, 0.0, 0.0, 0.0];
-        h.srow_x = [1.0, 2.0, 3.0, 4.0];
-        h.srow_z = [-1.0, 0.0, 0.5, 9.0];
-        h.quatern_c = 0.25;
-        h.quatern_z = -7.0;
-        h.magic = *b"n+1\0";
-        h.vox_offset = 352.0;
+        let mut h = NiftiHeader {
+            dim: [3, 4, 5, 6, 1, 1, 1, 1],
+            datatype: 4,
+            bitpix: 16,
+            pixdim: [-1.0, 0.5, 0.75, 2.0, 0.0, 0.0, 0.0, 0.0],
+            srow_x: [1.0, 2.0, 3.0, 4.0],
+            srow_z: [-1.0, 0.0, 0.5, 9.0],
+            quatern_c: 0.25,
+            quatern_z: -7.0,
+            magic: *b"n+1\0",
+            vox_offset: 352.0,
+            endianness: Endianness::Little,
+            ..NiftiHeader::default()
+        };
         h.set_description(&b"hello"[..]).unwrap();
-        h.endianness = Endianness::Little;
         let bytes = header_bytes(&h);
         assert_eq!(&bytes[348..], &[0, 0, 0, 0]);
         let back = NiftiHeader::from_reader(&bytes[..]).unwrap();
@@ -603,8 +614,12 @@ mod tests {
         ];
         for m in cases {
             let ([b, c, d], qfac) = quaternion_of(m);
-            let mut h = NiftiHeader::default();
-            (h.quatern_b, h.quatern_c, h.quatern_d) = (b as f32, c as f32, d as f32);
+            let mut h = NiftiHeader {
+                quatern_b: b as f32,
+                quatern_c: c as f32,
+                quatern_d: d as f32,
+                ..NiftiHeader::default()
+            };
             h.pixdim[0] = qfac as f32;
             let a = qform_affine(&h, [1.0; 3]);
             for r in 0..3 {
