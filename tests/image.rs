@@ -859,6 +859,13 @@ fn mask_as_nifti_keeps_the_input_header() {
             assert_eq!(m.image.spacing, l.image.spacing);
         }
     }
+    // An image no longer matching its header is not written with it.
+    let input = dir.path("in.nii");
+    let mut l = image::load(&input, None).unwrap();
+    l.image.dims = [3, 4, 1];
+    let e = save_mask(&dir.path("cropped.nii"), &[0; 12], &l).unwrap_err();
+    assert!(matches!(e, ImageError::CannotWrite { .. }), "{e}");
+    assert!(!dir.path("cropped.nii").exists());
 }
 
 /// Float volumes and masks written in every format read back; images without a NIfTI

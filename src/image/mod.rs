@@ -48,9 +48,12 @@
 //!   `qform` (quaternion `b, c, d`, offsets, `qfac = pixdim[0]`, spacing
 //!   `|pixdim[1..=3]|`) when `qform_code > 0`, else none (world = lattice position). With
 //!   `A` the 3×4 voxel-index → world matrix so obtained (finite and invertible, else
-//!   [`ImageError::BadTransform`]), `to_world = A · diag(1/sx, 1/sy, 1/sz, 1)`: it maps lattice
-//!   positions, so that
-//!   `image.world([i sx, j sy, k sz])` is `A · (i, j, k, 1)` for any spacing.
+//!   [`ImageError::BadTransform`]), `to_world = A · diag(1/sx, 1/sy, 1/sz, 1)`: it maps
+//!   lattice positions, so that `image.world([i sx, j sy, k sz])` is `A · (i, j, k, 1)`
+//!   whatever the spacing.
+//! * The header's `float32` values are read as the `f64` of their shortest decimal form
+//!   (`0.7f32` is 0.7, not 0.699999988…), so that spacings written from `f64` read back
+//!   as they were, to `float32` precision.
 //! * Not read: extensions (skipped), intent, time units, slice timing, display range; they
 //!   are not needed for segmentation. `.hdr`/`.img` pairs and NIfTI-2 are refused with
 //!   their own messages. The header's `bitpix` is not trusted (the datatype decides).
@@ -77,7 +80,10 @@
 //! spacing in `pixdim`, `A = to_world · diag(sx, sy, sz, 1)` as the `sform` (code 2,
 //! aligned), and as the `qform` too (code 2) when `to_world` is a rotation (possibly
 //! improper) plus a translation, spatial units unknown. A `.npy` output has the input's
-//! 2-D or 3-D shape (2-D for PNG inputs and NIfTI inputs with `dim[0] ≤ 2`).
+//! 2-D or 3-D shape (2-D for PNG inputs and NIfTI inputs with `dim[0] ≤ 2`). An image
+//! whose [`Image::dims`] no longer match its NIfTI header (cropped after loading) is not
+//! written with that header ([`ImageError::CannotWrite`]): make it a
+//! [`LoadedImage::from_image`] first.
 //!
 //! ## World coordinates of NIfTI
 //! NIfTI's world frame (`sform`/`qform` codes 1 to 4) is **RAS+**: x grows to the

@@ -471,7 +471,22 @@ pub(super) fn write(
     data: Payload<'_>,
 ) -> Result<(), ImageError> {
     let mut h = match &like.source {
-        Source::Nifti(n) => (*n.header).clone(),
+        Source::Nifti(n) => {
+            let d = n.header.dim;
+            let dims: [usize; 3] =
+                std::array::from_fn(|a| if a < d[0] as usize { d[a + 1] as usize } else { 1 });
+            if dims != like.image.dims {
+                return Err(ImageError::CannotWrite {
+                    path: path.to_path_buf(),
+                    what: "the image with its input's NIfTI header",
+                    reason: format!(
+                        "the image has {:?} voxels (x, y, z) but the header says {dims:?}",
+                        like.image.dims
+                    ),
+                });
+            }
+            (*n.header).clone()
+        }
         _ => header_of(path, like)?,
     };
     h.sizeof_hdr = HEADER_LEN as i32;
