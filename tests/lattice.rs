@@ -28,7 +28,11 @@ fn lattice_grid(
     let spec = GridSpec::new(h, [0.0; 3], 3.0).unwrap();
     let g = spec.gamma();
     let field = DenseField::from_fn(origin, dims, |c| {
-        let p = [c.x as f64 * spacing[0] as f64, c.y as f64 * spacing[1] as f64, c.z as f64 * spacing[2] as f64];
+        let p = [
+            c.x as f64 * spacing[0] as f64,
+            c.y as f64 * spacing[1] as f64,
+            c.z as f64 * spacing[2] as f64,
+        ];
         (sdf(p) as f32).clamp(-g, g)
     })
     .unwrap();
@@ -59,9 +63,13 @@ fn anisotropic_sphere_shrinks_by_mean_curvature_in_world_units() {
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 20], sphere);
     let lattice = Lattice { spacing, planar: false };
     let settings = Settings { lattice: Some(lattice), ..coupled() };
-    let mut sim =
-        Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), grid, Flow::mean_curvature(1.0), settings)
-            .unwrap();
+    let mut sim = Simulation::from_tile_grid(
+        GridKind::Tiles(Lanes::Simd),
+        grid,
+        Flow::mean_curvature(1.0),
+        settings,
+    )
+    .unwrap();
     let v0 = sim.measure().unwrap().volume;
     let r_start = (3.0 * v0 / (4.0 * PI)).cbrt();
     assert!((r_start - r0).abs() < 0.05 * r0, "start radius {r_start}");
@@ -89,9 +97,13 @@ fn isotropic_lattice_matches_the_exact_radius() {
     };
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [40, 40, 40], sphere);
     let settings = Settings { lattice: Some(Lattice { spacing, planar: false }), ..coupled() };
-    let mut sim =
-        Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), grid, Flow::mean_curvature(1.0), settings)
-            .unwrap();
+    let mut sim = Simulation::from_tile_grid(
+        GridKind::Tiles(Lanes::Simd),
+        grid,
+        Flow::mean_curvature(1.0),
+        settings,
+    )
+    .unwrap();
     let r_start = (3.0 * sim.measure().unwrap().volume / (4.0 * PI)).cbrt();
     sim.run_until(8.0, 10_000, |_, _| {}).unwrap();
     let r = (3.0 * sim.measure().unwrap().volume / (4.0 * PI)).cbrt();
@@ -109,9 +121,13 @@ fn planar_disc_shrinks_by_the_curvature_of_its_circle() {
     let disc = |p: [f64; 3]| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt() - r0;
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 4], disc);
     let settings = Settings { lattice: Some(Lattice { spacing, planar: true }), ..coupled() };
-    let mut sim =
-        Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), grid, Flow::mean_curvature(1.0), settings)
-            .unwrap();
+    let mut sim = Simulation::from_tile_grid(
+        GridKind::Tiles(Lanes::Simd),
+        grid,
+        Flow::mean_curvature(1.0),
+        settings,
+    )
+    .unwrap();
     let area = |sim: &Simulation| {
         let d = sim.to_dense(Coord::new(0, 0, 0), [48, 48, 1]).unwrap();
         d.data().iter().map(|&v| (0.5 - v as f64).clamp(0.0, 1.0)).sum::<f64>()
@@ -121,7 +137,11 @@ fn planar_disc_shrinks_by_the_curvature_of_its_circle() {
     sim.run_until(t_end, 10_000, |_, _| {}).unwrap();
     let r = (area(&sim) / PI).sqrt();
     let exact = (r_start * r_start - 2.0 * t_end).sqrt();
-    assert!((r - exact).abs() < 0.03 * exact, "r = {r}, exact {exact} (cylinder: {})", (r_start * r_start - t_end).sqrt());
+    assert!(
+        (r - exact).abs() < 0.03 * exact,
+        "r = {r}, exact {exact} (cylinder: {})",
+        (r_start * r_start - t_end).sqrt()
+    );
     // Every slice of the layer holds the same disc.
     let d = sim.to_dense(Coord::new(0, 0, 0), [48, 48, 4]).unwrap();
     let n = 48 * 48;
@@ -185,8 +205,13 @@ fn lattice_refuses_isotropic_tools() {
         .err()
         .unwrap();
     assert!(e.to_string().contains("isotropic"), "{e}");
-    let bad = Settings { lattice: Some(Lattice { spacing: [1.0, 0.0, 1.0], planar: false }), ..coupled() };
-    let e = Simulation::from_tile_grid(kind, grid.clone(), Flow::mean_curvature(1.0), bad).err().unwrap();
+    let bad = Settings {
+        lattice: Some(Lattice { spacing: [1.0, 0.0, 1.0], planar: false }),
+        ..coupled()
+    };
+    let e = Simulation::from_tile_grid(kind, grid.clone(), Flow::mean_curvature(1.0), bad)
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("spacing"), "{e}");
     let vc = Settings { lattice, ..coupled() };
     let e = Simulation::from_tile_grid(kind, grid, Flow::volume_conserving(1.0), vc).err().unwrap();

@@ -17,8 +17,8 @@
 use super::rep::dtgrid::PointWindow;
 use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
-    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, ImageRate, InterfaceAnchor, RenormRate,
-    Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
+    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, ImageRate, InterfaceAnchor, RenormRate, Rk3,
+    ScalarField, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -133,7 +133,9 @@ where
     let eps = p.eps * factor;
     let speed = p.speed;
     match (p.uniform_speed, p.curvature) {
-        (Some(f), None) => image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |_| (f, eps)),
+        (Some(f), None) => {
+            image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |_| (f, eps))
+        }
         (Some(f), Some(e)) => {
             image_rate::<S, R, _, _, V>(p, sweep, inv, sign_width, move |r| (f, &e[r]))
         }

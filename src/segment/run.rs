@@ -3,9 +3,7 @@
 
 use super::features;
 use super::speed::{Lookup, RegionForce, VoxelField, VoxelVector};
-use super::{
-    Init, Method, Params, Report, Resolved, SegmentError, Stop, StepInfo,
-};
+use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
 use crate::build::tiles_from_dense;
 use crate::coord::Coord;
 use crate::dense::DenseField;
@@ -77,11 +75,17 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
         return invalid("the volume window must be at least 1 step".into());
     }
     match params.method {
-        Method::Threshold { lower, upper } if !(lower.is_finite() && upper.is_finite() && lower < upper) => {
-            return invalid(format!("thresholds must be finite with lower < upper, got {lower}, {upper}"));
+        Method::Threshold { lower, upper }
+            if !(lower.is_finite() && upper.is_finite() && lower < upper) =>
+        {
+            return invalid(format!(
+                "thresholds must be finite with lower < upper, got {lower}, {upper}"
+            ));
         }
         Method::ChanVese { lambda1, lambda2, nu }
-            if ![lambda1, lambda2, nu].iter().all(|v| v.is_finite()) || lambda1 < 0.0 || lambda2 < 0.0 =>
+            if ![lambda1, lambda2, nu].iter().all(|v| v.is_finite())
+                || lambda1 < 0.0
+                || lambda2 < 0.0 =>
         {
             return invalid(format!("Chan–Vese weights must be finite with λ ≥ 0, got λ₁ {lambda1}, λ₂ {lambda2}, ν {nu}"));
         }
@@ -94,7 +98,10 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
                 return Err(SegmentError::Init("no seed given".into()));
             }
             for s in seeds {
-                if !(s.center.iter().all(|c| c.is_finite()) && s.radius.is_finite() && s.radius > 0.0) {
+                if !(s.center.iter().all(|c| c.is_finite())
+                    && s.radius.is_finite()
+                    && s.radius > 0.0)
+                {
                     return Err(SegmentError::Init(format!(
                         "a seed needs a finite centre and a radius > 0, got {:?} radius {}",
                         s.center, s.radius
@@ -200,13 +207,17 @@ fn segment_in_pool(
             let gg = gradient(&g);
             let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
             let g = Arc::new(g.data);
-            let velocity = gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
+            let velocity =
+                gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
             let z = VoxelField { lookup, data: g, outside: 1.0 };
             let f = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
             let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
                 .with_curvature_field(resolved.curvature, Arc::new(z));
             if alpha > 0.0 {
-                flow = flow.with_velocity(Velocity::Field(Arc::new(VoxelVector { lookup, data: velocity })));
+                flow = flow.with_velocity(Velocity::Field(Arc::new(VoxelVector {
+                    lookup,
+                    data: velocity,
+                })));
             }
             flow
         }
@@ -229,7 +240,9 @@ fn segment_in_pool(
     let tiles = tiles_from_dense(&field, spec)?;
     drop(field);
     if tiles.band_voxels() == 0 {
-        return Err(SegmentError::Init("the initial level set has no interface in the image".into()));
+        return Err(SegmentError::Init(
+            "the initial level set has no interface in the image".into(),
+        ));
     }
     let settings = Settings {
         renormalization: Renormalization::Coupled { weight: 1.0 },
@@ -243,7 +256,7 @@ fn segment_in_pool(
     // order (every representation and thread count gives the same means).
     let sums = region.as_ref().map(|_| FixedPoint::new(&smoothed.data));
     let evolution = Instant::now();
-    let voxel_volume = lattice.voxel_volume() * if image.is_2d() { 1.0 } else { 1.0 };
+    let voxel_volume = lattice.voxel_volume();
     let mut volumes: Vec<u64> = Vec::new();
     let mut updates = 0f64;
     let mut rms = f64::NAN;
@@ -374,7 +387,8 @@ fn gradient(g: &Image) -> [Vec<f32>; 3] {
                     return 0.0;
                 }
                 let k = (i / stride) % n;
-                let (lo, hi) = (if k > 0 { i - stride } else { i }, if k + 1 < n { i + stride } else { i });
+                let (lo, hi) =
+                    (if k > 0 { i - stride } else { i }, if k + 1 < n { i + stride } else { i });
                 let span = (hi - lo) / stride;
                 ((d[hi] as f64 - d[lo] as f64) / (span as f64 * s)) as f32
             })
@@ -395,11 +409,13 @@ struct FixedPoint {
 
 impl FixedPoint {
     fn new(data: &[f32]) -> FixedPoint {
-        let (lo, hi) = data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) =
+            data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
         let range = (hi - lo) as f64;
         let scale = if range > 0.0 { ((1u64 << 31) - 1) as f64 / range } else { 0.0 };
         let min = lo as f64;
-        let q: Vec<u32> = data.par_iter().map(|&v| ((v as f64 - min) * scale).round() as u32).collect();
+        let q: Vec<u32> =
+            data.par_iter().map(|&v| ((v as f64 - min) * scale).round() as u32).collect();
         let total = q.par_chunks(1 << 16).map(|c| c.iter().map(|&v| v as i64).sum::<i64>()).sum();
         FixedPoint { q, min, scale, total }
     }
@@ -420,7 +436,12 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
     let (mut count, mut sum) = (0u64, 0i64);
     sim.for_each_inside_run(|c, len| {
         // A 2D image's level set is extruded over z = 0..3: slice 0 is the image.
-        if c.y < 0 || c.y as usize >= ny || c.z < 0 || c.z as usize >= nz.max(1) || (nz == 1 && c.z != 0) {
+        if c.y < 0
+            || c.y as usize >= ny
+            || c.z < 0
+            || c.z as usize >= nz.max(1)
+            || (nz == 1 && c.z != 0)
+        {
             return;
         }
         let x0 = c.x.max(0) as i64;
@@ -467,7 +488,10 @@ fn initial_field(
                     if *world {
                         (lattice_position(image, sd.center), sd.radius)
                     } else {
-                        ([sd.center[0] * s[0], sd.center[1] * s[1], sd.center[2] * s[2]], sd.radius * h_min)
+                        (
+                            [sd.center[0] * s[0], sd.center[1] * s[1], sd.center[2] * s[2]],
+                            sd.radius * h_min,
+                        )
                     }
                 })
                 .collect();
@@ -489,7 +513,10 @@ fn initial_field(
         }
         Init::Mask(mask) => distance_from_labels(image, |i| mask[i] != 0, gamma, &mut phi),
         Init::LevelSet(values) => {
-            phi[..values.len()].par_iter_mut().zip(values).for_each(|(p, &v)| *p = v.clamp(-gamma, gamma));
+            phi[..values.len()]
+                .par_iter_mut()
+                .zip(values)
+                .for_each(|(p, &v)| *p = v.clamp(-gamma, gamma));
         }
     }
     if image.is_2d() {
@@ -497,7 +524,9 @@ fn initial_field(
         rest.par_chunks_mut(slice).for_each(|c| c.copy_from_slice(first));
     }
     if !phi.iter().any(|&v| v <= 0.0) {
-        return Err(SegmentError::Init("the initial region is empty (nothing inside the image)".into()));
+        return Err(SegmentError::Init(
+            "the initial region is empty (nothing inside the image)".into(),
+        ));
     }
     Ok(DenseField::from_vec(Coord::new(0, 0, 0), [nx, ny, layers], phi)?)
 }
@@ -510,7 +539,8 @@ fn lattice_position(image: &Image, p: [f64; 3]) -> [f64; 3] {
     let b = [p[0] - m[0][3], p[1] - m[1][3], p[2] - m[2][3]];
     // Cramer's rule on the 3×3 part.
     let det = |m: [[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     };
     let d = det(a);
@@ -527,11 +557,22 @@ fn lattice_position(image: &Image, p: [f64; 3]) -> [f64; 3] {
 /// inside and outside: each voxel takes its distance to the nearest midpoint of such a
 /// face within γ (an upper bound of the true distance, by at most half a voxel's
 /// diagonal), negative inside. O(boundary faces × (γ/h)³).
-fn distance_from_labels(image: &Image, inside: impl Fn(usize) -> bool + Sync, gamma: f32, phi: &mut [f32]) {
+fn distance_from_labels(
+    image: &Image,
+    inside: impl Fn(usize) -> bool + Sync,
+    gamma: f32,
+    phi: &mut [f32],
+) {
     let [nx, ny, nz] = image.dims;
     let s = image.spacing;
     let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
-    let reach: [i64; 3] = std::array::from_fn(|a| if image.dims[a] == 1 { 0 } else { (gamma as f64 / s[a]).ceil() as i64 + 1 });
+    let reach: [i64; 3] = std::array::from_fn(|a| {
+        if image.dims[a] == 1 {
+            0
+        } else {
+            (gamma as f64 / s[a]).ceil() as i64 + 1
+        }
+    });
     // Face midpoints between differently labelled neighbours, in lattice positions.
     let mut mids: Vec<[f64; 3]> = Vec::new();
     for z in 0..nz {
@@ -568,7 +609,8 @@ fn distance_from_labels(image: &Image, inside: impl Fn(usize) -> bool + Sync, ga
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
                     let p = [x as f64 * s[0], y as f64 * s[1], z as f64 * s[2]];
-                    let d = ((p[0] - m[0]).powi(2) + (p[1] - m[1]).powi(2) + (p[2] - m[2]).powi(2)).sqrt() as f32;
+                    let d = ((p[0] - m[0]).powi(2) + (p[1] - m[1]).powi(2) + (p[2] - m[2]).powi(2))
+                        .sqrt() as f32;
                     let k = idx(x as usize, y as usize, z as usize);
                     dist[k] = dist[k].min(d);
                 }
