@@ -129,8 +129,8 @@ pub use block::{DenseBlock, TileBlock};
 pub use diff::{Axis, X, Y, Z};
 pub use error::KernelError;
 pub use kernel::{
-    AdvectionRate, BandMasked, BoxMinAbs, Eq3Rate, Euler, ImageRate, Rk3, ScalarField, ScaledVelocity, Scheme,
-    Sum, Upwind1, VectorField, VoxelKernel, Weno5,
+    AdvectionRate, BandMasked, BoxMinAbs, Eq3Rate, Euler, ImageRate, Rk3, ScalarField,
+    ScaledVelocity, Scheme, Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
 pub use renorm::{AnchoredRenormRate, InterfaceAnchor, RenormRate};

@@ -121,7 +121,8 @@ pub struct Params {
     pub sigma: Option<f64>,
     /// β, ITK's `PropagationScaling`. Default 1.
     pub propagation: Option<f32>,
-    /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: see [`run`].
+    /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: the smallest
+    /// spacing for GAC, a fifth of it for the others.
     pub curvature: Option<f32>,
     /// α, ITK's `AdvectionScaling` (GAC only). Default 1.
     pub advection: Option<f32>,
