@@ -7,8 +7,10 @@ mod csg;
 mod distance;
 mod info;
 mod mesh;
+mod phantom;
 mod render;
 mod run;
+mod segment;
 mod source;
 mod voxelize;
 
@@ -53,6 +55,11 @@ enum Command {
     /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
     /// distances, inside/outside by ray votes robust to holes, into a .npy field.
     Voxelize(voxelize::VoxelizeArgs),
+    /// Segment a scan (NIfTI, .npy, PNG) from seeds or a mask by threshold propagation,
+    /// geodesic active contours or Chan–Vese; the mask in the input's format.
+    Segment(segment::SegmentArgs),
+    /// Write a seeded noisy phantom (image, truth mask, seeds) for the segmentation.
+    Phantom(phantom::PhantomArgs),
 }
 
 fn main() -> ExitCode {
@@ -65,6 +72,8 @@ fn main() -> ExitCode {
         Command::Csg(a) => csg::run(&a),
         Command::Convert(a) => convert::run(&a),
         Command::Voxelize(a) => voxelize::run(&a),
+        Command::Segment(a) => segment::run(&a),
+        Command::Phantom(a) => phantom::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
