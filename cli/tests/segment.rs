@@ -1,6 +1,7 @@
 //! `levelset phantom` and `levelset segment` end to end: NIfTI in, mask out with the
 //! input's header, figures as JSON, bad arguments refused before any work.
 
+#[allow(unused_imports)] // the shared helpers re-export more than these tests use
 mod common;
 use common::{levelset, stderr, stdout};
 
