@@ -117,7 +117,8 @@ impl Method {
 #[derive(Clone, Debug)]
 pub struct Params {
     pub method: Method,
-    /// σ of the Gaussian smoothing, world units (0: none). Default: the smallest spacing.
+    /// σ of the Gaussian smoothing, world units, the same along every axis (0: none).
+    /// Default: one voxel along each axis (half a voxel for the threshold method).
     pub sigma: Option<f64>,
     /// β, ITK's `PropagationScaling`. Default 1.
     pub propagation: Option<f32>,
@@ -171,7 +172,8 @@ impl Params {
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Resolved {
     pub method: Method,
-    pub sigma: f64,
+    /// σ of the smoothing per axis, world units.
+    pub sigma: [f64; 3],
     pub propagation: f32,
     pub curvature: f32,
     pub advection: f32,

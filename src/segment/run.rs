@@ -146,12 +146,16 @@ fn segment_in_pool(
     let h_max = lattice.spacing.iter().fold(0.0f32, |m, &s| m.max(s));
     let spec = GridSpec::new(h_max, [0.0; 3], HALF_WIDTH)?;
     let field = initial_field(image, init, &lattice, spec.gamma())?;
-    let sigma = params.sigma.unwrap_or(h_min);
-    // Given: the same σ along every axis; default: one voxel along each axis.
+    // Given: the same σ along every axis; default: one voxel along each axis, half a
+    // voxel for the threshold method (its front stops where Ĩ crosses a threshold, and
+    // smoothing moves that level inward on curved objects by about σ²/r: a σ of one voxel
+    // cost the 5-voxel blobs of a 64³ phantom 2–3 % of Dice).
+    let voxels = if matches!(params.method, Method::Threshold { .. }) { 0.5 } else { 1.0 };
     let sigmas = match params.sigma {
         Some(s) => [s; 3],
-        None => image.spacing,
+        None => image.spacing.map(|h| voxels * h),
     };
+    let sigma = sigmas.iter().fold(0.0f64, |m, &v| m.max(v));
     let smoothed = if sigma > 0.0 {
         let s = if image.is_2d() { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
         features::gaussian(image, s)
@@ -162,7 +166,7 @@ fn segment_in_pool(
     let propagation = params.propagation.unwrap_or(1.0);
     let mut resolved = Resolved {
         method: params.method,
-        sigma,
+        sigma: sigmas,
         propagation,
         curvature: 0.0,
         advection: 0.0,
@@ -188,7 +192,12 @@ fn segment_in_pool(
             Flow::normal_speed(Speed::Field(Arc::new(field))).with_curvature(resolved.curvature)
         }
         Method::Gac => {
-            let grad = features::gradient_magnitude(&smoothed);
+            // Edges per voxel step (a unit spacing): a step between two slices 2.5 mm apart
+            // is as much an edge as one between two pixels; in world units it would read
+            // 2.5× weaker and the front would leak through the poles of a thick-sliced
+            // volume.
+            let grad =
+                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() });
             let g = match (params.edge_scale, params.sigmoid) {
                 (Some(k), _) => {
                     resolved.edge_scale = Some(k);
