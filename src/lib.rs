@@ -43,6 +43,7 @@ pub mod npy;
 pub mod progress;
 pub mod render;
 pub mod sample;
+pub mod segment;
 pub mod shapes;
 pub mod sls;
 pub mod tiles;
