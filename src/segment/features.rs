@@ -104,18 +104,23 @@ fn rows_per_task(nx: usize) -> usize {
 /// Fails with [`GridError::InvalidParameter`] when `sigma` is negative or not finite, or
 /// the radius exceeds [`MAX_RADIUS`].
 pub fn gaussian_kernel(sigma: f64) -> Result<Vec<f64>, GridError> {
+    sampled_gaussian(sigma).map_err(GridError::InvalidParameter)
+}
+
+/// [`gaussian_kernel`], its error a message.
+fn sampled_gaussian(sigma: f64) -> Result<Vec<f64>, String> {
     if !(sigma.is_finite() && sigma >= 0.0) {
-        return Err(GridError::InvalidParameter(format!(
+        return Err(format!(
             "a Gaussian's standard deviation must be finite and >= 0, got {sigma} voxels"
-        )));
+        ));
     }
     let radius = (TRUNCATE * sigma + 0.5).floor();
     if radius > MAX_RADIUS as f64 {
-        return Err(GridError::InvalidParameter(format!(
+        return Err(format!(
             "a Gaussian of standard deviation {sigma} voxels needs a kernel of radius {radius} \
              voxels; at most {MAX_RADIUS} (σ ≤ {} voxels) is supported",
             MAX_RADIUS as f64 / TRUNCATE
-        )));
+        ));
     }
     let r = radius as usize;
     if r == 0 {
@@ -193,6 +198,31 @@ impl Taps {
     }
 }
 
+/// `acc[i] = w[r] · centre[i] + Σ_{k=1..r} w[r + k] · (plus(k)[i] + minus(k)[i])`: the
+/// symmetric kernel `w` applied with its mirrored taps paired (half the multiplications),
+/// in `f64`, vectorised over `i`. `plus(k)` and `minus(k)` are the inputs `k` voxels
+/// ahead and behind.
+#[inline]
+fn symmetric<'a>(
+    acc: &mut [f64],
+    kernel: &[f64],
+    centre: &[f32],
+    plus: impl Fn(usize) -> &'a [f32],
+    minus: impl Fn(usize) -> &'a [f32],
+) {
+    let r = kernel.len() / 2;
+    let wc = kernel[r];
+    for (a, &x) in acc.iter_mut().zip(centre) {
+        *a = wc * x as f64;
+    }
+    for k in 1..=r {
+        let w = kernel[r + k];
+        for ((a, &u), &v) in acc.iter_mut().zip(plus(k)).zip(minus(k)) {
+            *a += w * (u as f64 + v as f64);
+        }
+    }
+}
+
 /// One pass along x: `dst` and `src` hold whole rows of `nx` voxels.
 fn pass_x(src: &[f32], dst: &mut [f32], nx: usize, kernel: &[f64], taps: &Taps) {
     let r = kernel.len() / 2;
@@ -202,16 +232,14 @@ fn pass_x(src: &[f32], dst: &mut [f32], nx: usize, kernel: &[f64], taps: &Taps) 
     dst.par_chunks_mut(nx * rows).zip(src.par_chunks(nx * rows)).for_each(|(dst, src)| {
         let mut acc = vec![0.0f64; hi - lo];
         for (out, row) in dst.chunks_exact_mut(nx).zip(src.chunks_exact(nx)) {
-            acc.fill(0.0);
-            for (t, &w) in kernel.iter().enumerate() {
-                // Outputs lo..hi read inputs lo + t − r .. hi + t − r.
-                let input = &row[lo + t - r..hi + t - r];
-                for (a, &x) in acc.iter_mut().zip(input) {
-                    *a += w * x as f64;
+            if hi > lo {
+                // Outputs lo..hi read inputs lo ± k .. hi ± k.
+                let plus = |k: usize| &row[lo + k..hi + k];
+                let minus = |k: usize| &row[lo - k..hi - k];
+                symmetric(&mut acc, kernel, &row[lo..hi], plus, minus);
+                for (o, &a) in out[lo..hi].iter_mut().zip(&acc) {
+                    *o = a as f32;
                 }
-            }
-            for (o, &a) in out[lo..hi].iter_mut().zip(&acc) {
-                *o = a as f32;
             }
             for i in (0..lo).chain(hi..nx) {
                 let (start, weights) = taps.of(i);
@@ -227,25 +255,37 @@ fn pass_x(src: &[f32], dst: &mut [f32], nx: usize, kernel: &[f64], taps: &Taps) 
 
 /// One pass along y (`axis = 1`) or z (`axis = 2`): each output row is a weighted sum of
 /// whole input rows, vectorised over x.
-fn pass_rows(src: &[f32], dst: &mut [f32], dims: [usize; 3], axis: usize, taps: &Taps) {
+fn pass_rows(
+    src: &[f32],
+    dst: &mut [f32],
+    dims: [usize; 3],
+    axis: usize,
+    kernel: &[f64],
+    taps: &Taps,
+) {
     let [nx, ny, _] = dims;
+    let (n, r) = (dims[axis], kernel.len() / 2);
     let rows = rows_per_task(nx);
     dst.par_chunks_mut(nx * rows).enumerate().for_each(|(c, dst)| {
         let mut acc = vec![0.0f64; nx];
         for (q, out) in dst.chunks_exact_mut(nx).enumerate() {
             let row = c * rows + q;
             let (y, z) = (row % ny, row / ny);
-            let (i, first_row, stride) = if axis == 1 {
-                (y, ny * z, 1)
-            } else {
-                (z, y, ny)
+            // Input row at position j along the axis: first_row + j · stride.
+            let (i, first_row, stride) = if axis == 1 { (y, ny * z, 1) } else { (z, y, ny) };
+            let line = |j: usize| {
+                let base = (first_row + j * stride) * nx;
+                &src[base..base + nx]
             };
-            let (start, weights) = taps.of(i);
-            acc.fill(0.0);
-            for (s, &w) in weights.iter().enumerate() {
-                let base = (first_row + (start + s) * stride) * nx;
-                for (a, &x) in acc.iter_mut().zip(&src[base..base + nx]) {
-                    *a += w * x as f64;
+            if i >= r && i + r < n {
+                symmetric(&mut acc, kernel, line(i), |k| line(i + k), |k| line(i - k));
+            } else {
+                let (start, weights) = taps.of(i);
+                acc.fill(0.0);
+                for (s, &w) in weights.iter().enumerate() {
+                    for (a, &x) in acc.iter_mut().zip(line(start + s)) {
+                        *a += w * x as f64;
+                    }
                 }
             }
             for (o, &a) in out.iter_mut().zip(&acc) {
@@ -283,7 +323,7 @@ pub fn gaussian(image: &Image, sigma: [f64; 3]) -> Result<Image, GridError> {
                 AXES[axis]
             )));
         }
-        let kernel = gaussian_kernel(s / image.spacing[axis]).map_err(|e| {
+        let kernel = sampled_gaussian(s / image.spacing[axis]).map_err(|e| {
             GridError::InvalidParameter(format!(
                 "Gaussian smoothing along {} (sigma {s}, spacing {}): {e}",
                 AXES[axis], image.spacing[axis]
@@ -301,20 +341,20 @@ pub fn gaussian(image: &Image, sigma: [f64; 3]) -> Result<Image, GridError> {
     let len = image.len();
     let buffers = if passes.len() > 1 { 2 } else { 1 };
     check_alloc(buffers * len as u128, 4, "the buffers of a Gaussian smoothing")?;
-    let mut cur = vec![0.0f32; len];
-    let mut next = Vec::new();
-    for (p, (axis, kernel, taps)) in passes.iter().enumerate() {
-        let src: &[f32] = if p == 0 { &image.data } else { &cur };
-        if next.len() != len {
-            next = vec![0.0f32; len];
-        }
+    // Fusing the x and y passes slice by slice (the slice in cache between them) measured
+    // no faster (x and y on 128³, one thread: 4.8 ms both ways): the passes are bound by
+    // the f64 arithmetic, not by memory traffic.
+    let mut result: Option<Vec<f32>> = None;
+    for (axis, kernel, taps) in &passes {
+        let src = result.as_deref().unwrap_or(&image.data);
+        let mut out = vec![0.0f32; len];
         match axis {
-            0 => pass_x(src, &mut next, image.dims[0], kernel, taps),
-            _ => pass_rows(src, &mut next, image.dims, *axis, taps),
+            0 => pass_x(src, &mut out, image.dims[0], kernel, taps),
+            _ => pass_rows(src, &mut out, image.dims, *axis, kernel, taps),
         }
-        std::mem::swap(&mut cur, &mut next);
+        result = Some(out);
     }
-    Ok(with_data(image, cur))
+    Ok(with_data(image, result.unwrap_or_else(|| image.data.clone())))
 }
 
 /// Where a derivative along an axis of `n` voxels at position `i` reads: `(plus, minus,
@@ -476,26 +516,40 @@ pub fn percentile(values: &[f32], q: f64) -> Result<f32, GridError> {
     Ok((lo as f64 + frac * (hi as f64 - lo as f64)) as f32)
 }
 
-/// The quantile of the gradient magnitude that [`edge_scale`] returns.
-pub const EDGE_QUANTILE: f64 = 0.9;
+/// [`edge_scale`] returns this many times the median gradient magnitude.
+pub const EDGE_SCALE_FACTOR: f64 = 2.0;
 
-/// A default K for [`edge_potential`] from the statistics of a gradient magnitude: its
-/// 90th percentile ([`EDGE_QUANTILE`]), Canny's noise estimate that Perona and Malik
-/// (1990, §V) use for the K of their diffusion conductance.
+/// A default K for [`edge_potential`]: twice the median of the gradient magnitude
+/// ([`EDGE_SCALE_FACTOR`]). Pass the gradient of the *smoothed* image, the one the edge
+/// potential is computed from.
 ///
-/// Edges cover a small fraction of a typical volume, so the 90th percentile is a high
-/// quantile of the *noise* gradient: in homogeneous regions 90 % of the voxels get
-/// `g ≥ 1/2` (most well above), while edges, several times steeper than the noise after
-/// smoothing, get `g` well below 1/2. Where more than 90 % of the gradient is exactly 0 (a
-/// noise-free image), the rule falls back to a tenth of the largest gradient (edges then
-/// get `g ≈ 0.1`), and to 1 for a constant image (where any K gives `g ≡ 1`).
+/// The median is a robust estimate of the noise gradient as long as edges cover less than
+/// half of the voxels. In a homogeneous region with white noise, each component of
+/// `∇(G ∗ I)` is Gaussian with one deviation `s`, so `|∇(G ∗ I)|` follows a χ
+/// distribution with 3 degrees of freedom in 3D (median 1.54 s) or 2 in 2D (Rayleigh,
+/// median 1.18 s): K = 2 · median puts `g = 1/2` at the 97th percentile of the noise
+/// gradient in 3D (94th in 2D) and `g = 2/3` at its median. A smoothed edge of contrast
+/// `C` is `C / (σ √(2π))` steep whatever the noise, so its `g` falls as the
+/// signal-to-noise ratio grows.
+///
+/// Measured on the [`crate::segment::phantom`] ball (n = 64, smoothed with σ = 1 voxel;
+/// mean g more than 6 voxels inside the surface, and on the voxels within half a voxel of
+/// it): SNR 2, inside 0.69, edge 0.29; SNR 4, inside 0.69, edge 0.17; SNR 8, inside 0.70,
+/// edge 0.09; with σ = 1.5 voxels at SNR 4, 0.72 and 0.11. A high percentile instead
+/// (Canny's 90 %, used by Perona and Malik 1990 for their K) lands in the edges once they
+/// cover about a tenth of the voxels (σ = 2 at SNR 4 gave K 7.3, inside 0.92, edge 0.28,
+/// no better than at SNR 2); the median does not.
+///
+/// Where half the gradient or more is exactly 0 (a noise-free image), the rule falls back
+/// to a tenth of the largest gradient (edges then get `g ≈ 0.1`), and to 1 for a constant
+/// image (where any K gives `g ≡ 1`).
 ///
 /// Fails as [`percentile`] does.
 pub fn edge_scale(grad_mag: &Image) -> Result<f64, GridError> {
     check_image(grad_mag, "edge scale")?;
-    let p = percentile(&grad_mag.data, EDGE_QUANTILE)?.abs() as f64;
-    if p > 0.0 {
-        return Ok(p);
+    let median = percentile(&grad_mag.data, 0.5)?.abs() as f64;
+    if median > 0.0 {
+        return Ok(EDGE_SCALE_FACTOR * median);
     }
     let max = grad_mag.data.par_iter().map(|v| v.abs()).reduce(|| 0.0, f32::max) as f64;
     Ok(if max > 0.0 { 0.1 * max } else { 1.0 })
