@@ -70,7 +70,8 @@ pub(crate) fn check_image(image: &Image, what: &str) -> Result<(), GridError> {
             image.data.len()
         )));
     }
-    if let Some(axis) = (0..3).find(|&a| !(image.spacing[a].is_finite() && image.spacing[a] > 0.0)) {
+    if let Some(axis) = (0..3).find(|&a| !(image.spacing[a].is_finite() && image.spacing[a] > 0.0))
+    {
         return Err(GridError::InvalidParameter(format!(
             "{what}: the spacing along {} must be finite and > 0, got {}",
             AXES[axis], image.spacing[axis]
@@ -459,7 +460,13 @@ pub fn edge_potential(grad_mag: &Image, k: f64) -> Result<Image, GridError> {
 ///
 /// Fails with [`GridError::InvalidParameter`] on a malformed image, an α that is 0 or not
 /// finite, or a β, min or max that is not finite.
-pub fn sigmoid(image: &Image, alpha: f64, beta: f64, min: f64, max: f64) -> Result<Image, GridError> {
+pub fn sigmoid(
+    image: &Image,
+    alpha: f64,
+    beta: f64,
+    min: f64,
+    max: f64,
+) -> Result<Image, GridError> {
     check_image(image, "sigmoid")?;
     if !(alpha.is_finite() && alpha != 0.0) {
         return Err(GridError::InvalidParameter(format!(

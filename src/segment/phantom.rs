@@ -9,7 +9,9 @@
 //!
 //! The noise is reproducible forever: it comes from [`SplitMix64`], whose sequence is fixed
 //! by this module, one stream per z-slice derived from `(seed, z)`, so a phantom does not
-//! depend on the number of threads that made it.
+//! depend on the number of threads that made it. Within a slice the voxels, x fastest,
+//! take the deviates of [`SplitMix64::normal_pair`] in order (the cosine one, then the
+//! sine one).
 //!
 //! ```
 //! use sparse_levelset::segment::phantom::{phantom, PhantomKind, BACKGROUND};
@@ -187,9 +189,16 @@ const BLOBS: [([f64; 3], f64); 5] = [
 /// An analytic solid in world units (lattice position = voxel index × spacing).
 #[derive(Clone, Copy, Debug)]
 enum Solid {
-    Ball { center: [f64; 3], radius: f64 },
+    Ball {
+        center: [f64; 3],
+        radius: f64,
+    },
     /// About the z axis through `center`.
-    Torus { center: [f64; 3], major: f64, minor: f64 },
+    Torus {
+        center: [f64; 3],
+        major: f64,
+        minor: f64,
+    },
 }
 
 impl Solid {
@@ -295,7 +304,7 @@ fn check_size(n: usize) -> Result<(), GridError> {
 /// (NaN included), and with [`GridError::OutOfMemory`] when the volume does not fit.
 pub fn phantom(kind: PhantomKind, n: usize, snr: f64, seed: u64) -> Result<Phantom, GridError> {
     check_size(n)?;
-    if !(snr > 0.0) {
+    if snr.is_nan() || snr <= 0.0 {
         return Err(GridError::InvalidParameter(format!(
             "a phantom's signal-to-noise ratio must be > 0 (infinity for no noise), got {snr}"
         )));
