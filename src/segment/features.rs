@@ -435,10 +435,12 @@ fn map(image: &Image, f: impl Fn(f64) -> f64 + Sync) -> Image {
 /// value is used, so `g ∈ (0, 1]`. `k` is in the units of `grad_mag` (see [`edge_scale`]
 /// for a default).
 ///
-/// This is neither ITK's sigmoid speed of its geodesic-active-contour examples ([`sigmoid`])
-/// nor the `exp(−|∇I|)` of ITK's `GradientMagnitudeRecursiveGaussian`-based "edge
-/// potential" or the `1/(1 + |∇I|²)` of Caselles, Kimmel and Sapiro (1997): it decays like
-/// `K/|∇I|`, more slowly than either, so that weak edges still slow a front.
+/// This is the stopping function `1/(1 + |∇I|^p)` of Caselles, Kimmel and Sapiro
+/// ("Geodesic active contours", 1997) with `p = 1` and the gradient measured in units of
+/// K. It is not ITK's `EdgePotentialImageFilter` (`exp(−|∇I|)`), nor the sigmoid of ITK's
+/// geodesic-active-contour examples ([`sigmoid`]), nor the common `p = 2`: it decays like
+/// `K/|∇I|`, more slowly than those, so that weak edges still slow a front but strong
+/// edges do not stop it completely (see [`edge_scale`] for the values it reaches).
 ///
 /// Fails with [`GridError::InvalidParameter`] on a malformed image or a `k` that is not
 /// finite and > 0.
