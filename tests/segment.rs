@@ -20,7 +20,7 @@ fn pool(n: usize) -> Option<Arc<rayon::ThreadPool>> {
 
 #[test]
 fn noisy_ball_at_snr_2_with_default_parameters() {
-    let p = phantom(PhantomKind::Ball, 64, 2.0, 1);
+    let p = phantom(PhantomKind::Ball, 64, 2.0, 1).unwrap();
     for (method, min) in [(THRESHOLD, 0.98), (Method::Gac, 0.98), (Method::chan_vese(), 0.98)] {
         let s = run(&p.image, &p.seeds, &Params::new(method));
         let d = dice(&s.mask, &p.truth).unwrap();
@@ -39,7 +39,7 @@ fn noisy_ball_at_snr_2_with_default_parameters() {
 /// 2.5× slice spacing without resampling.
 #[test]
 fn chan_vese_grows_from_seeds_on_an_anisotropic_volume() {
-    let p = phantom(PhantomKind::Anisotropic, 64, 4.0, 2);
+    let p = phantom(PhantomKind::Anisotropic, 64, 4.0, 2).unwrap();
     let s = run(&p.image, &p.seeds, &Params::new(Method::chan_vese()));
     let d = dice(&s.mask, &p.truth).unwrap();
     assert!(d >= 0.98, "Dice {d}");
@@ -53,7 +53,7 @@ fn chan_vese_grows_from_seeds_on_an_anisotropic_volume() {
 
 #[test]
 fn separate_blobs_each_with_its_seed() {
-    let p = phantom(PhantomKind::Blobs, 96, 4.0, 3);
+    let p = phantom(PhantomKind::Blobs, 96, 4.0, 3).unwrap();
     let s = run(&p.image, &p.seeds, &Params::new(Method::chan_vese()));
     let d = dice(&s.mask, &p.truth).unwrap();
     assert!(d >= 0.97, "Dice {d}");
@@ -62,7 +62,7 @@ fn separate_blobs_each_with_its_seed() {
 /// The same mask, iterations and means on 1 and 2 threads, bit for bit.
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let p = phantom(PhantomKind::Torus, 48, 3.0, 4);
+    let p = phantom(PhantomKind::Torus, 48, 3.0, 4).unwrap();
     for method in [THRESHOLD, Method::Gac, Method::chan_vese()] {
         let a = run(&p.image, &p.seeds, &Params { pool: pool(1), ..Params::new(method) });
         let b = run(&p.image, &p.seeds, &Params { pool: pool(2), ..Params::new(method) });
@@ -105,7 +105,7 @@ fn a_2d_image_is_segmented_as_a_curve() {
 
 #[test]
 fn bad_input_is_refused_before_any_work() {
-    let p = phantom(PhantomKind::Ball, 16, 4.0, 5);
+    let p = phantom(PhantomKind::Ball, 16, 4.0, 5).unwrap();
     let err = |init: Init, params: Params| {
         segment(&p.image, &init, &params, &mut |_| true).err().expect("refused").to_string()
     };
@@ -127,7 +127,7 @@ fn bad_input_is_refused_before_any_work() {
 /// An initial mask works like seeds.
 #[test]
 fn a_mask_starts_a_segmentation() {
-    let p = phantom(PhantomKind::Ball, 48, 4.0, 6);
+    let p = phantom(PhantomKind::Ball, 48, 4.0, 6).unwrap();
     let n = p.image.dims[0];
     let mask: Vec<u8> = (0..p.truth.len())
         .map(|i| {

@@ -10,7 +10,7 @@ use crate::dense::DenseField;
 use crate::evolve::{
     Flow, GridKind, Lanes, Lattice, Renormalization, Settings, Simulation, Speed, Velocity,
 };
-use crate::grid::GridSpec;
+use crate::grid::{GridError, GridSpec};
 use crate::image::Image;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -158,7 +158,7 @@ fn segment_in_pool(
     let sigma = sigmas.iter().fold(0.0f64, |m, &v| m.max(v));
     let smoothed = if sigma > 0.0 {
         let s = if image.is_2d() { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
-        features::gaussian(image, s)
+        features::gaussian(image, s)?
     } else {
         image.clone()
     };
@@ -197,17 +197,20 @@ fn segment_in_pool(
             // 2.5× weaker and the front would leak through the poles of a thick-sliced
             // volume.
             let grad =
-                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() });
+                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })?;
             let g = match (params.edge_scale, params.sigmoid) {
                 (Some(k), _) => {
                     resolved.edge_scale = Some(k);
-                    features::edge_potential(&grad, k)
+                    features::edge_potential(&grad, k)?
                 }
                 (None, given) => {
-                    let (alpha, beta) = given.unwrap_or_else(|| default_sigmoid(&grad, &field));
+                    let (alpha, beta) = match given {
+                        Some(g) => g,
+                        None => default_sigmoid(&grad, &field)?,
+                    };
                     resolved.sigmoid = Some((alpha, beta));
                     // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
-                    features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)
+                    features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)?
                 }
             };
             resolved.curvature = params.curvature.unwrap_or(h_min as f32);
@@ -365,7 +368,7 @@ fn segment_in_pool(
 /// object) and K₂ the 99th percentile over the image, at least 3 K₁ (edges are a small
 /// part of a volume; when they are too few to reach the 99th percentile, the noise's tail
 /// is taken as three times the inside's).
-fn default_sigmoid(grad: &Image, initial: &DenseField) -> (f64, f64) {
+fn default_sigmoid(grad: &Image, initial: &DenseField) -> Result<(f64, f64), GridError> {
     let n = grad.data.len();
     let inside: Vec<f32> = grad
         .data
@@ -374,10 +377,10 @@ fn default_sigmoid(grad: &Image, initial: &DenseField) -> (f64, f64) {
         .filter(|(_, &phi)| phi <= 0.0)
         .map(|(&g, _)| g)
         .collect();
-    let k1 = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9) as f64 };
-    let k2 = (features::percentile(&grad.data, 0.99) as f64).max(3.0 * k1);
+    let k1 = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9)? as f64 };
+    let k2 = (features::percentile(&grad.data, 0.99)? as f64).max(3.0 * k1);
     let k2 = if k2 > 0.0 { k2 } else { f64::MIN_POSITIVE };
-    ((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0)
+    Ok(((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0))
 }
 
 /// The world gradient of an image by central differences divided by 2 spacing (one-sided

@@ -37,7 +37,7 @@ pub struct PhantomArgs {
 }
 
 pub fn run(a: &PhantomArgs) -> Result<(), String> {
-    if !(a.snr.is_finite() && a.snr > 0.0) {
+    if !(a.snr > 0.0) {
         return Err(format!("--snr must be finite and > 0, got {}", a.snr));
     }
     check_output_dir(&a.output)?;
@@ -47,7 +47,7 @@ pub fn run(a: &PhantomArgs) -> Result<(), String> {
         KindArg::Blobs => PhantomKind::Blobs,
         KindArg::Anisotropic => PhantomKind::Anisotropic,
     };
-    let p = phantom(kind, a.size as usize, a.snr, a.seed);
+    let p = phantom(kind, a.size as usize, a.snr, a.seed).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
     let name = kind.name();
     let like = LoadedImage::from_image(p.image.clone());

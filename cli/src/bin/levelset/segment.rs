@@ -244,7 +244,7 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
         image::save_f32(ls, phi.data(), &loaded).map_err(|e| e.to_string())?;
     }
     let r = &result.report;
-    let dice = truth.as_ref().and_then(|t| dice(&result.mask, t));
+    let dice = truth.as_ref().and_then(|t| dice(&result.mask, t).ok());
     if a.json {
         let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;
         v["image"] = serde_json::json!(name);
