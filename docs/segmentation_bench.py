@@ -436,7 +436,7 @@ def write_docs(records, meta) -> None:
     head, rest = text.split(TABLE_BEGIN, 1)
     _, tail = rest.split(TABLE_END, 1)
     note = (f"Measured {meta['date']} on {meta['cpu']} ({meta['cores']} cores), SimpleITK"
-            f" {meta['simpleitk']}, phantoms from `{meta['phantom_source']}`; command:"
+            f" {meta['simpleitk']}, phantoms from {meta['phantom_source']}; command:"
             f" `{meta['command']}`.")
     DOC_PAGE.write_text(head + TABLE_BEGIN + "\n" + note + "\n\n" + table(records) + "\n"
                         + TABLE_END + tail)
@@ -506,6 +506,8 @@ def main() -> int:
         "date": datetime.date.today().isoformat(),
         "cpu": cpu_name(),
         "cores": os.cpu_count(),
+        # The machines are shared: the 1/5/15-minute load when the run started.
+        "loadavg_at_start": [round(v, 2) for v in os.getloadavg()],
         "python": platform.python_version(),
         "simpleitk": sitk.Version.VersionString(),
         "numpy": np.__version__,
