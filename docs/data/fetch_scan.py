@@ -78,6 +78,7 @@ def references(out: pathlib.Path):
     import SimpleITK as sitk
 
     image = sitk.ReadImage(str(out), sitk.sitkFloat32)
+    image.SetDirection((1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0))  # see segmentation_bench.py
     sigma = min(image.GetSpacing())
     init = bench.initial_level_set(image, SEEDS)
     f = sitk.ThresholdSegmentationLevelSetImageFilter()
