@@ -32,11 +32,12 @@ distance to the union of the seed balls in world units, negative inside: ITK's c
 for the output of its segmentation level-set filters, with positive propagation expanding
 (verified: the positive-inside initialisation SimpleITK's notebooks use goes with
 `ReverseExpansionDirectionOn()`, which would also flip GAC's advection). The mask is
-`output < 0`.
+`output < 0`. ITK gets the images with the identity direction (see `main`).
 
 Runtime (2 cores, shared): ITK's sparse-field filters are single-threaded (the thread count
-only reaches the feature filters), 5–40 s a run at 128³; ours a few seconds. The full set
-(4 kinds × 2 SNR × [2 ITK methods + 3 ours] × 2 thread counts) takes roughly 15–30 minutes;
+only reaches the feature filters), 10–60 s a run at 128³ (all 32 ITK runs: about 16 minutes);
+ours a few seconds. The full set (4 kinds × 2 SNR × [2 ITK methods + 3 ours] × 2 thread
+counts) takes some 20–30 minutes;
 `--kinds` and `--snr` take subsets, and every finished run is saved at once, so an interrupted
 run keeps its records.
 
