@@ -70,3 +70,44 @@ fn segment_refuses_bad_arguments_before_any_work() {
     assert!(!o.status.success());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Batch mode: every image of a folder with its seeds file, a broken file reported and
+/// skipped, the others written, one summary.
+#[test]
+fn batch_mode_segments_a_folder_and_skips_a_broken_file() {
+    let dir = std::env::temp_dir().join(format!("levelset-segbatch-{}", std::process::id()));
+    let (input, output) = (dir.join("in"), dir.join("out"));
+    let i = input.to_str().unwrap();
+    for kind in ["ball", "torus", "blobs"] {
+        let o = levelset(&["phantom", kind, "--size", "24", "--snr", "4", "-o", i]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    std::fs::write(input.join("broken.nii.gz"), b"not a scan").unwrap();
+    let o = levelset(&[
+        "segment",
+        i,
+        "--method",
+        "threshold",
+        "-o",
+        output.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]);
+    assert!(!o.status.success(), "a failed image makes the exit code nonzero");
+    let text = stdout(&o);
+    assert!(text.contains("broken.nii.gz: FAILED, skipped"), "{text}");
+    assert!(text.contains("4 images, 1 failed"), "{text}");
+    for kind in ["ball", "torus", "blobs"] {
+        assert!(output.join(format!("{kind}-mask.nii.gz")).is_file(), "{kind}");
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(output.join("summary.json")).unwrap())
+            .unwrap();
+    let records = s["records"].as_array().unwrap();
+    assert_eq!(records.len(), 4);
+    for r in records.iter().filter(|r| r.get("error").is_none()) {
+        // The thresholds came from each seeds file; the truths were found beside the images.
+        assert!(r["dice"].as_f64().unwrap() > 0.9, "{r}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

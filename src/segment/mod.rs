@@ -223,6 +223,9 @@ pub struct Report {
     /// Seconds for the feature images, the evolution, and in all.
     pub seconds_features: f64,
     pub seconds_evolution: f64,
+    /// The part of the evolution spent in the level-set steps (the rest: region sums,
+    /// RMS and volume tests).
+    pub seconds_steps: f64,
     pub seconds: f64,
 }
 

@@ -25,7 +25,8 @@ pub enum MethodArg {
 #[derive(Args)]
 pub struct SegmentArgs {
     /// The image: .nii, .nii.gz, .npy (shape (nz, ny, nx) or (ny, nx)) or .png (grey).
-    #[arg(value_name = "IMAGE")]
+    /// A directory: batch mode, every image in it (see --output).
+    #[arg(value_name = "IMAGE|DIR")]
     pub image: PathBuf,
     /// The method.
     #[arg(long, value_enum)]
@@ -85,8 +86,15 @@ pub struct SegmentArgs {
     #[arg(long, value_name = "sx,sy,sz", allow_hyphen_values = true)]
     pub spacing: Option<String>,
     /// The mask out (0/1), in the input's format family by extension: .nii(.gz) (with the
-    /// input's header when it is NIfTI), .npy (uint8), .png (2D images).
-    #[arg(short, long, value_name = "MASK")]
+    /// input's header when it is NIfTI), .npy (uint8), .png (2D images). In batch mode a
+    /// directory: NAME-mask.EXT per image NAME.EXT and summary.json. Batch mode takes
+    /// every image of DIR except NAME-truth.* (a truth: its Dice is reported); without
+    /// --seed, each image's seeds (and thresholds, unless --lower/--upper) come from
+    /// NAME-seeds.json ({"seeds": [{"center": [x, y, z], "radius": r}], "lower", "upper"},
+    /// as `levelset phantom` writes). Images run in parallel (one thread each) when there
+    /// are at least as many as threads, one after another with all threads otherwise; an
+    /// image that fails is reported and skipped.
+    #[arg(short, long, value_name = "MASK|OUTDIR")]
     pub output: PathBuf,
     /// The final level set (φ < 0 inside, world units) as a float32 volume (.nii(.gz) or
     /// .npy), ±γ beyond the band.
@@ -146,61 +154,121 @@ fn load(path: &Path, spacing: Option<[f64; 3]>) -> Result<LoadedImage, String> {
     image::load(path, spacing).map_err(|e| e.to_string())
 }
 
-pub fn run(a: &SegmentArgs) -> Result<(), String> {
-    // Everything is checked before the work starts.
-    let spacing = a.spacing.as_deref().map(parse_spacing).transpose()?;
-    let loaded = load(&a.image, spacing)?;
-    let img = &loaded.image;
-    let method = match a.method {
-        MethodArg::Threshold => match (a.lower, a.upper) {
-            (Some(lower), Some(upper)) => Method::Threshold { lower, upper },
-            _ => return Err("the threshold method needs --lower and --upper".into()),
+/// One image's segmentation: its files and inputs, checked before any work.
+struct Job {
+    name: String,
+    loaded: LoadedImage,
+    output: PathBuf,
+    level_set: Option<PathBuf>,
+    truth: Option<Vec<u8>>,
+    init: Init,
+    method: Method,
+}
+
+/// The method from the flags, the thresholds from `window` when the flags give none.
+fn method_of(a: &SegmentArgs, window: Option<(f32, f32)>) -> Result<Method, String> {
+    Ok(match a.method {
+        MethodArg::Threshold => match (a.lower.zip(a.upper)).or(window) {
+            Some((lower, upper)) => Method::Threshold { lower, upper },
+            None => return Err("the threshold method needs --lower and --upper".into()),
         },
         MethodArg::Gac => Method::Gac,
         MethodArg::ChanVese => {
             Method::ChanVese { lambda1: a.lambda1, lambda2: a.lambda2, nu: a.nu }
         }
+    })
+}
+
+/// A 0/1 mask of `like`'s size from a file.
+fn load_mask(
+    path: &Path,
+    spacing: Option<[f64; 3]>,
+    like: &LoadedImage,
+) -> Result<Vec<u8>, String> {
+    let m = load(path, spacing)?;
+    if m.image.dims != like.image.dims {
+        return Err(format!(
+            "{}: {:?} voxels, the image has {:?}",
+            path.display(),
+            m.image.dims,
+            like.image.dims
+        ));
+    }
+    Ok(m.image.data.iter().map(|&v| (v != 0.0) as u8).collect())
+}
+
+/// Seeds and thresholds of a `NAME-seeds.json` file.
+fn seeds_file(path: &Path) -> Result<(Vec<Seed>, Option<(f32, f32)>), String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let list = v.get("seeds").unwrap_or(&v);
+    let bad = || {
+        format!(
+            "{}: expected {{\"seeds\": [{{\"center\": [x, y, z], \"radius\": r}}]}}",
+            path.display()
+        )
     };
-    let init = match (&a.init_mask, a.seeds.is_empty()) {
-        (Some(_), false) => return Err("give seeds or --init-mask, not both".into()),
-        (None, true) => return Err("give at least one --seed x,y,z[:r] or --init-mask".into()),
-        (Some(m), true) => {
-            let mask = load(m, spacing)?;
-            if mask.image.dims != img.dims {
-                return Err(format!(
-                    "{}: {:?} voxels, the image has {:?}",
-                    m.display(),
-                    mask.image.dims,
-                    img.dims
-                ));
+    let seeds = list
+        .as_array()
+        .ok_or_else(bad)?
+        .iter()
+        .map(|s| {
+            let c = s.get("center").and_then(|c| c.as_array()).ok_or_else(bad)?;
+            let c: Vec<f64> =
+                c.iter().map(|x| x.as_f64().ok_or_else(bad)).collect::<Result<_, _>>()?;
+            let radius = s.get("radius").and_then(|r| r.as_f64()).unwrap_or(3.0);
+            match c[..] {
+                [x, y, z] => Ok(Seed { center: [x, y, z], radius }),
+                _ => Err(bad()),
             }
-            Init::Mask(mask.image.data.iter().map(|&v| (v != 0.0) as u8).collect())
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let f = |k: &str| v.get(k).and_then(|x| x.as_f64()).map(|x| x as f32);
+    Ok((seeds, f("lower").zip(f("upper"))))
+}
+
+/// Loads and checks one image's inputs and outputs.
+fn job(
+    a: &SegmentArgs,
+    image_path: &Path,
+    output: PathBuf,
+    level_set: Option<PathBuf>,
+    truth: Option<&Path>,
+    seeds_json: Option<&Path>,
+) -> Result<Job, String> {
+    let spacing = a.spacing.as_deref().map(parse_spacing).transpose()?;
+    let loaded = load(image_path, spacing)?;
+    let planar = loaded.image.is_2d();
+    let (init, window) = match (&a.init_mask, a.seeds.is_empty(), seeds_json) {
+        (Some(_), false, _) => return Err("give seeds or --init-mask, not both".into()),
+        (Some(m), true, _) => (Init::Mask(load_mask(m, spacing, &loaded)?), None),
+        (None, false, _) => {
+            let seeds = a.seeds.iter().map(|s| parse_seed(s, planar)).collect::<Result<_, _>>()?;
+            (Init::Seeds { seeds, world: a.world }, None)
         }
-        (None, false) => Init::Seeds {
-            seeds: a.seeds.iter().map(|s| parse_seed(s, img.is_2d())).collect::<Result<_, _>>()?,
-            world: a.world,
-        },
-    };
-    let truth = match &a.truth {
-        Some(t) => {
-            let t = load(t, spacing)?;
-            if t.image.dims != img.dims {
-                return Err(format!(
-                    "the truth mask has {:?} voxels, the image {:?}",
-                    t.image.dims, img.dims
-                ));
-            }
-            Some(t.image.data.iter().map(|&v| (v != 0.0) as u8).collect::<Vec<u8>>())
+        (None, true, Some(file)) => {
+            let (seeds, window) = seeds_file(file)?;
+            (Init::Seeds { seeds, world: a.world }, window)
         }
-        None => None,
+        (None, true, None) => {
+            return Err("give at least one --seed x,y,z[:r] or --init-mask".into())
+        }
     };
-    image::check_output(&a.output, &loaded, Output::Mask).map_err(|e| e.to_string())?;
-    check_output(&a.output)?;
-    if let Some(ls) = &a.level_set {
+    let method = method_of(a, window)?;
+    let truth = truth.map(|t| load_mask(t, spacing, &loaded)).transpose()?;
+    image::check_output(&output, &loaded, Output::Mask).map_err(|e| e.to_string())?;
+    check_output(&output)?;
+    if let Some(ls) = &level_set {
         image::check_output(ls, &loaded, Output::Float).map_err(|e| e.to_string())?;
         check_output(ls)?;
     }
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    let name = image_path.display().to_string();
+    Ok(Job { name, loaded, output, level_set, truth, init, method })
+}
+
+/// The parameters from the flags.
+fn params_of(a: &SegmentArgs, method: Method, threads: usize) -> Result<Params, String> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -221,50 +289,184 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
         params.max_iterations = v;
     }
     params.pool = Some(Arc::new(pool));
-    let bar = progress::bar(
-        a.quiet || a.json,
-        params.max_iterations,
-        "{spinner} [{elapsed_precise}] {pos} steps  {msg}",
-    );
+    Ok(params)
+}
+
+/// Runs a job on `threads` threads, writes its outputs, returns its figures.
+fn execute(
+    a: &SegmentArgs,
+    j: &Job,
+    threads: usize,
+    bar: &indicatif::ProgressBar,
+) -> Result<serde_json::Value, String> {
+    let params = params_of(a, j.method, threads)?;
+    bar.set_length(params.max_iterations);
     let mut monitor = |s: &sparse_levelset::segment::StepInfo| {
         bar.set_position(s.iteration);
         bar.set_message(format!("RMS {:.4}  band {}  inside {}", s.rms, s.band_voxels, s.voxels));
         true
     };
-    let name = a.image.display().to_string();
-    let result = segment(img, &init, &params, &mut monitor).map_err(|e| format!("{name}: {e}"))?;
-    bar.finish_and_clear();
-    image::save_mask(&a.output, &result.mask, &loaded).map_err(|e| e.to_string())?;
-    if let Some(ls) = &a.level_set {
-        let [nx, ny, nz] = img.dims;
+    let img = &j.loaded.image;
+    let result =
+        segment(img, &j.init, &params, &mut monitor).map_err(|e| format!("{}: {e}", j.name))?;
+    image::save_mask(&j.output, &result.mask, &j.loaded).map_err(|e| e.to_string())?;
+    if let Some(ls) = &j.level_set {
         let phi = result
             .simulation
-            .to_dense(sparse_levelset::Coord::new(0, 0, 0), [nx, ny, nz])
+            .to_dense(sparse_levelset::Coord::new(0, 0, 0), img.dims)
             .map_err(|e| e.to_string())?;
-        image::save_f32(ls, phi.data(), &loaded).map_err(|e| e.to_string())?;
+        image::save_f32(ls, phi.data(), &j.loaded).map_err(|e| e.to_string())?;
     }
     let r = &result.report;
-    let dice = truth.as_ref().and_then(|t| dice(&result.mask, t).ok());
+    let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;
+    v["image"] = serde_json::json!(j.name);
+    v["output"] = serde_json::json!(j.output.display().to_string());
+    v["dims"] = serde_json::json!(img.dims);
+    v["threads"] = serde_json::json!(threads);
+    v["dice"] = serde_json::json!(j.truth.as_ref().and_then(|t| dice(&result.mask, t).ok()));
+    v["voxel_updates_per_s"] = serde_json::json!(r.voxel_updates / r.seconds_evolution.max(1e-12));
+    Ok(v)
+}
+
+/// One summary line of a finished image.
+fn summary_line(v: &serde_json::Value) -> String {
+    let dice = v["dice"].as_f64().map_or(String::new(), |d| format!(", Dice {d:.4}"));
+    format!(
+        "{}: {} voxels after {} steps ({}), {:.2} s{dice}; wrote {}",
+        v["image"].as_str().unwrap_or("?"),
+        v["voxels"],
+        v["iterations"],
+        v["stop"].as_str().unwrap_or("?"),
+        v["seconds"].as_f64().unwrap_or(0.0),
+        v["output"].as_str().unwrap_or("?"),
+    )
+}
+
+pub fn run(a: &SegmentArgs) -> Result<(), String> {
+    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    if a.image.is_dir() {
+        return batch(a, threads);
+    }
+    // Everything is checked before the work starts.
+    let j = job(a, &a.image, a.output.clone(), a.level_set.clone(), a.truth.as_deref(), None)?;
+    let bar =
+        progress::bar(a.quiet || a.json, 1, "{spinner} [{elapsed_precise}] {pos} steps  {msg}");
+    let v = execute(a, &j, threads, &bar)?;
+    bar.finish_and_clear();
     if a.json {
-        let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;
-        v["image"] = serde_json::json!(name);
-        v["dims"] = serde_json::json!(img.dims);
-        v["threads"] = serde_json::json!(threads);
-        v["dice"] = serde_json::json!(dice);
-        v["voxel_updates_per_s"] =
-            serde_json::json!(r.voxel_updates / r.seconds_evolution.max(1e-12));
         outln!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
     } else {
-        outln!(
-            "{name}: {} voxels ({:.6} world units³) after {} steps ({:?}), {:.2} s{}; wrote {}",
-            r.voxels,
-            r.volume,
-            r.iterations,
-            r.stop,
-            r.seconds,
-            dice.map_or(String::new(), |d| format!(", Dice {d:.4}")),
-            a.output.display()
+        outln!("{}", summary_line(&v));
+    }
+    Ok(())
+}
+
+/// The images of a batch directory: supported extensions, not `*-truth.*`, by name.
+fn batch_images(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let mut out = Vec::new();
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for e in entries {
+        let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("").to_ascii_lowercase();
+        let (stem, ok) = split_ext(&name);
+        if p.is_file() && ok && !stem.ends_with("-truth") {
+            out.push(p);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// `(stem, supported)` of a file name: `.nii.gz` counts as one extension.
+fn split_ext(name: &str) -> (&str, bool) {
+    for ext in [".nii.gz", ".nii", ".npy", ".png"] {
+        if let Some(stem) = name.strip_suffix(ext) {
+            return (stem, true);
+        }
+    }
+    (name, false)
+}
+
+/// Batch mode: every image of `a.image` into the directory `a.output`.
+fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
+    if a.level_set.is_some() || a.truth.is_some() {
+        return Err(
+            "batch mode takes no --level-set or --truth (truths are found as NAME-truth.*)".into(),
         );
+    }
+    levelset_cli::output::check_output_dir(&a.output)?;
+    let images = batch_images(&a.image)?;
+    if images.is_empty() {
+        return Err(format!("{}: no image (.nii, .nii.gz, .npy, .png) in it", a.image.display()));
+    }
+    std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
+    let start = std::time::Instant::now();
+    let one = |p: &PathBuf, threads: usize| -> Result<serde_json::Value, String> {
+        let file = p.file_name().and_then(|n| n.to_str()).unwrap_or("image").to_string();
+        let lower = file.to_ascii_lowercase();
+        let stem_len = split_ext(&lower).0.len();
+        let (stem, ext) = (file[..stem_len].to_string(), file[stem_len..].to_string());
+        let sibling = |suffix: &str| a.image.join(format!("{stem}{suffix}"));
+        let truth = Some(sibling(&format!("-truth{ext}"))).filter(|t| t.is_file());
+        let seeds = Some(sibling("-seeds.json")).filter(|s| s.is_file());
+        let out = a.output.join(format!("{stem}-mask{ext}"));
+        let j = job(a, p, out, None, truth.as_deref(), seeds.as_deref())?;
+        execute(a, &j, threads, &indicatif::ProgressBar::hidden())
+    };
+    let report = |r: &Result<serde_json::Value, String>, p: &PathBuf| match r {
+        Ok(v) => outln!("{}", summary_line(v)),
+        Err(e) => outln!("{}: FAILED, skipped: {e}", p.display()),
+    };
+    let results: Vec<(PathBuf, Result<serde_json::Value, String>)> = if images.len() >= threads {
+        // Many images: one thread each, all cores busy.
+        let outer = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+        use rayon::prelude::*;
+        outer.install(|| {
+            images
+                .par_iter()
+                .map(|p| {
+                    let r = one(p, 1);
+                    report(&r, p);
+                    (p.clone(), r)
+                })
+                .collect()
+        })
+    } else {
+        images
+            .iter()
+            .map(|p| {
+                let r = one(p, threads);
+                report(&r, p);
+                (p.clone(), r)
+            })
+            .collect()
+    };
+    let failed = results.iter().filter(|(_, r)| r.is_err()).count();
+    let seconds = start.elapsed().as_secs_f64();
+    let records: Vec<serde_json::Value> = results
+        .iter()
+        .map(|(p, r)| match r {
+            Ok(v) => v.clone(),
+            Err(e) => serde_json::json!({"image": p.display().to_string(), "error": e}),
+        })
+        .collect();
+    let summary = serde_json::json!({
+        "images": images.len(),
+        "failed": failed,
+        "threads": threads,
+        "wall_seconds": seconds,
+        "records": records,
+    });
+    levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
+    outln!("{} images, {failed} failed, {seconds:.2} s on {threads} threads", images.len());
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
+    }
+    if failed > 0 {
+        return Err(format!("{failed} of {} images failed (see above)", images.len()));
     }
     Ok(())
 }
