@@ -22,6 +22,7 @@ pub mod output;
 pub mod pin;
 pub mod progress;
 pub mod scenario;
+pub mod segbench;
 pub mod solution;
 pub mod speedup;
 pub mod storage;

@@ -106,6 +106,8 @@ pub struct SpeedupReport {
     /// Each scenario run to its end with its own settings: seconds and error
     /// ([`crate::solution::run_time_to_solution`]).
     pub time_to_solution: Vec<SolutionRun>,
+    /// Segmentation of a noisy phantom ([`crate::segbench::run_segmentation`]).
+    pub segmentation: Vec<crate::segbench::SegmentBench>,
 }
 
 impl SpeedupReport {
@@ -121,6 +123,7 @@ impl SpeedupReport {
             scenarios: Vec::new(),
             tools: Vec::new(),
             time_to_solution: Vec::new(),
+            segmentation: Vec::new(),
         }
     }
 }
@@ -449,6 +452,7 @@ impl SpeedupReport {
                  work for every run).\n",
             );
         }
+        s.push_str(&crate::segbench::to_text(&self.segmentation));
         s.push_str(&crate::solution::to_text(&self.time_to_solution));
         s
     }

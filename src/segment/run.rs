@@ -30,6 +30,61 @@ pub struct Segmentation {
     pub report: Report,
 }
 
+impl Segmentation {
+    /// The surface of the segmentation (φ = 0, simplicial isosurfacing of the final level
+    /// set, [`crate::mesh::isosurface`]) in `image`'s world coordinates
+    /// ([`Image::to_world`]): vertices are placed on the lattice and mapped through the
+    /// placement, normals through its inverse transpose. A 2D image has no surface.
+    pub fn mesh(&self, image: &Image) -> Result<crate::mesh::TriangleMesh, SegmentError> {
+        if image.is_2d() {
+            return Err(SegmentError::InvalidParameter(
+                "a 2D image's segmentation is a region, not a surface".into(),
+            ));
+        }
+        let tiles = self.simulation.tiles().ok_or_else(|| {
+            SegmentError::InvalidParameter("the segmentation holds no tile grid".into())
+        })?;
+        let mut mesh = crate::mesh::isosurface(tiles, &crate::mesh::MeshOptions::default())
+            .map_err(|e| SegmentError::InvalidParameter(e.to_string()))?;
+        let h = tiles.spec().voxel_size as f64;
+        let s = image.spacing;
+        let m = &image.to_world;
+        // Lattice position → world is M·diag(s)/h on the grid's world positions.
+        let a: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| m[r][c] * s[c] / h));
+        for p in &mut mesh.positions {
+            let q = *p;
+            *p =
+                std::array::from_fn(|r| a[r][0] * q[0] + a[r][1] * q[1] + a[r][2] * q[2] + m[r][3]);
+        }
+        // Normals: (A⁻¹)ᵀ n, renormalised.
+        let inv = invert3(a);
+        for n in &mut mesh.normals {
+            let q = n.map(|v| v as f64);
+            let t: [f64; 3] =
+                std::array::from_fn(|r| inv[0][r] * q[0] + inv[1][r] * q[1] + inv[2][r] * q[2]);
+            let len = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+            if len > 0.0 {
+                *n = t.map(|v| (v / len) as f32);
+            }
+        }
+        Ok(mesh)
+    }
+}
+
+/// The inverse of a 3×3 matrix (the placement is invertible: NIfTI's sform/qform are).
+fn invert3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    let c =
+        |r0: usize, c0: usize, r1: usize, c1: usize| a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0];
+    [
+        [c(1, 1, 2, 2) / det, -c(0, 1, 2, 2) / det, c(0, 1, 1, 2) / det],
+        [-c(1, 0, 2, 2) / det, c(0, 0, 2, 2) / det, -c(0, 0, 1, 2) / det],
+        [c(1, 0, 2, 1) / det, -c(0, 0, 2, 1) / det, c(0, 0, 1, 1) / det],
+    ]
+}
+
 /// Segments `image` from `init` with `params`; `monitor` sees every step and returns
 /// `false` to stop early (the result so far is returned, [`Stop::Cancelled`]).
 pub fn segment(
@@ -578,22 +633,9 @@ fn initial_field(
 /// of [`Image::to_world`].
 fn lattice_position(image: &Image, p: [f64; 3]) -> [f64; 3] {
     let m = &image.to_world;
-    let a = [[m[0][0], m[0][1], m[0][2]], [m[1][0], m[1][1], m[1][2]], [m[2][0], m[2][1], m[2][2]]];
+    let inv = invert3(std::array::from_fn(|r| [m[r][0], m[r][1], m[r][2]]));
     let b = [p[0] - m[0][3], p[1] - m[1][3], p[2] - m[2][3]];
-    // Cramer's rule on the 3×3 part.
-    let det = |m: [[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(a);
-    std::array::from_fn(|k| {
-        let mut c = a;
-        for r in 0..3 {
-            c[r][k] = b[r];
-        }
-        det(c) / d
-    })
+    std::array::from_fn(|r| inv[r][0] * b[0] + inv[r][1] * b[1] + inv[r][2] * b[2])
 }
 
 /// A signed distance (world units, clamped to ±γ) to the faces between voxels labelled

@@ -236,7 +236,12 @@ fn speedup(a: &BenchArgs) -> Result<(), String> {
         let bar = progress::spinner(false);
         bar.set_message("kernels");
         let kernels = kernel_bench(a.quick)?;
-        let report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+        let mut report = run_speedup(&cfg, &kernels, |m| bar.set_message(m.to_string()))?;
+        let n = if a.quick { 48 } else { 96 };
+        report.segmentation =
+            levelset_cli::segbench::run_segmentation(n, cfg.threads, reps, |m| {
+                bar.set_message(m.to_string())
+            })?;
         bar.finish_and_clear();
         (report, Some(kernels))
     };

@@ -31,9 +31,12 @@ pub struct PhantomArgs {
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output directory: KIND.nii.gz, KIND-truth.nii.gz, KIND-seeds.json.
+    /// Output directory: NAME.nii.gz, NAME-truth.nii.gz, NAME-seeds.json.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// File name stem [default: the kind].
+    #[arg(long)]
+    pub name: Option<String>,
 }
 
 pub fn run(a: &PhantomArgs) -> Result<(), String> {
@@ -49,7 +52,10 @@ pub fn run(a: &PhantomArgs) -> Result<(), String> {
     };
     let p = phantom(kind, a.size as usize, a.snr, a.seed).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
-    let name = kind.name();
+    let name = a.name.as_deref().unwrap_or(kind.name());
+    if name.is_empty() || name.contains(['/', '\\']) {
+        return Err(format!("--name {name:?}: a file name stem, without a directory"));
+    }
     let like = LoadedImage::from_image(p.image.clone());
     let img = a.output.join(format!("{name}.nii.gz"));
     image::save_f32(&img, &p.image.data, &like).map_err(|e| e.to_string())?;

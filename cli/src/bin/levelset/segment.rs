@@ -39,9 +39,13 @@ pub struct SegmentArgs {
     /// Seeds are in the image's world coordinates (NIfTI: scanner millimetres).
     #[arg(long)]
     pub world: bool,
-    /// Start from this mask (same size and format family as the image) instead of seeds.
+    /// Start from this mask (same size as the image, nonzero inside) instead of seeds.
     #[arg(long, value_name = "MASK")]
     pub init_mask: Option<PathBuf>,
+    /// Start from this level set (a float volume of the image's size, φ < 0 inside, world
+    /// units: .nii(.gz) or .npy) instead of seeds.
+    #[arg(long, value_name = "LEVELSET")]
+    pub init_level_set: Option<PathBuf>,
     /// Lower threshold (threshold method).
     #[arg(long, allow_hyphen_values = true)]
     pub lower: Option<f32>,
@@ -100,6 +104,10 @@ pub struct SegmentArgs {
     /// .npy), ±γ beyond the band.
     #[arg(long, value_name = "OUT")]
     pub level_set: Option<PathBuf>,
+    /// The surface (φ = 0) as a triangle mesh in the image's world coordinates (NIfTI:
+    /// scanner millimetres): .ply or .obj.
+    #[arg(long, value_name = "OUT.ply|OUT.obj")]
+    pub mesh: Option<PathBuf>,
     /// A truth mask: its Dice coefficient goes into the figures.
     #[arg(long, value_name = "MASK")]
     pub truth: Option<PathBuf>,
@@ -160,6 +168,7 @@ struct Job {
     loaded: LoadedImage,
     output: PathBuf,
     level_set: Option<PathBuf>,
+    mesh: Option<PathBuf>,
     truth: Option<Vec<u8>>,
     init: Init,
     method: Method,
@@ -240,20 +249,32 @@ fn job(
     let spacing = a.spacing.as_deref().map(parse_spacing).transpose()?;
     let loaded = load(image_path, spacing)?;
     let planar = loaded.image.is_2d();
-    let (init, window) = match (&a.init_mask, a.seeds.is_empty(), seeds_json) {
-        (Some(_), false, _) => return Err("give seeds or --init-mask, not both".into()),
-        (Some(m), true, _) => (Init::Mask(load_mask(m, spacing, &loaded)?), None),
-        (None, false, _) => {
-            let seeds = a.seeds.iter().map(|s| parse_seed(s, planar)).collect::<Result<_, _>>()?;
-            (Init::Seeds { seeds, world: a.world }, None)
+    let starts =
+        a.init_mask.is_some() as u8 + a.init_level_set.is_some() as u8 + !a.seeds.is_empty() as u8;
+    if starts > 1 {
+        return Err("give one of --seed, --init-mask and --init-level-set".into());
+    }
+    let (init, window) = if let Some(m) = &a.init_mask {
+        (Init::Mask(load_mask(m, spacing, &loaded)?), None)
+    } else if let Some(l) = &a.init_level_set {
+        let ls = load(l, spacing)?;
+        if ls.image.dims != loaded.image.dims {
+            return Err(format!(
+                "{}: {:?} voxels, the image has {:?}",
+                l.display(),
+                ls.image.dims,
+                loaded.image.dims
+            ));
         }
-        (None, true, Some(file)) => {
-            let (seeds, window) = seeds_file(file)?;
-            (Init::Seeds { seeds, world: a.world }, window)
-        }
-        (None, true, None) => {
-            return Err("give at least one --seed x,y,z[:r] or --init-mask".into())
-        }
+        (Init::LevelSet(ls.image.data), None)
+    } else if !a.seeds.is_empty() {
+        let seeds = a.seeds.iter().map(|s| parse_seed(s, planar)).collect::<Result<_, _>>()?;
+        (Init::Seeds { seeds, world: a.world }, None)
+    } else if let Some(file) = seeds_json {
+        let (seeds, window) = seeds_file(file)?;
+        (Init::Seeds { seeds, world: a.world }, window)
+    } else {
+        return Err("give at least one --seed x,y,z[:r], --init-mask or --init-level-set".into());
     };
     let method = method_of(a, window)?;
     let truth = truth.map(|t| load_mask(t, spacing, &loaded)).transpose()?;
@@ -263,8 +284,15 @@ fn job(
         image::check_output(ls, &loaded, Output::Float).map_err(|e| e.to_string())?;
         check_output(ls)?;
     }
+    let mesh = a.mesh.clone();
+    if let Some(m) = &mesh {
+        if loaded.image.is_2d() {
+            return Err("--mesh: a 2D image's segmentation has no surface".into());
+        }
+        check_output(m)?;
+    }
     let name = image_path.display().to_string();
-    Ok(Job { name, loaded, output, level_set, truth, init, method })
+    Ok(Job { name, loaded, output, level_set, mesh, truth, init, method })
 }
 
 /// The parameters from the flags.
@@ -316,6 +344,10 @@ fn execute(
             .to_dense(sparse_levelset::Coord::new(0, 0, 0), img.dims)
             .map_err(|e| e.to_string())?;
         image::save_f32(ls, phi.data(), &j.loaded).map_err(|e| e.to_string())?;
+    }
+    if let Some(path) = &j.mesh {
+        let mesh = result.mesh(img).map_err(|e| e.to_string())?;
+        mesh.write(path, None).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     let r = &result.report;
     let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;
