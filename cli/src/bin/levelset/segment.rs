@@ -450,22 +450,25 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
         Err(e) => outln!("{}: FAILED, skipped: {e}", p.display()),
     };
     let results: Vec<(PathBuf, Result<serde_json::Value, String>)> = if images.len() >= threads {
-        // Many images: one thread each, all cores busy.
-        let outer = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-        use rayon::prelude::*;
-        outer.install(|| {
-            images
-                .par_iter()
-                .map(|p| {
+        // Many images: `threads` workers take the next image, each on a one-thread pool
+        // of its own (a rayon parallel loop would let a waiting worker start another
+        // image, running more images at once than threads).
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let done = std::sync::Mutex::new(Vec::new());
+        std::thread::scope(|scope| {
+            for _ in 0..threads {
+                scope.spawn(|| loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(p) = images.get(i) else { break };
                     let r = one(p, 1);
                     report(&r, p);
-                    (p.clone(), r)
-                })
-                .collect()
-        })
+                    done.lock().unwrap_or_else(|e| e.into_inner()).push((i, p.clone(), r));
+                });
+            }
+        });
+        let mut done = done.into_inner().unwrap_or_else(|e| e.into_inner());
+        done.sort_by_key(|(i, _, _)| *i);
+        done.into_iter().map(|(_, p, r)| (p, r)).collect()
     } else {
         images
             .iter()
