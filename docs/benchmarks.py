@@ -40,7 +40,34 @@ RUNS = [
     ("run-expand", LEVELSET + ["run", "expand", "--quiet", "--out", "docs/data/run-expand"]),
     ("run-mcf", LEVELSET + ["run", "sphere", "--size", "64", "--radius", "20", "--time", "100",
                             "--quiet", "--out", "docs/data/run-mcf"]),
+    # 50 noisy 96³ phantoms segmented as a batch on 1 and 2 threads (made first, in target/).
+    ("segment-batch.json", LEVELSET + ["segment", "target/batch50/in", "--method", "gac",
+                                       "-o", "target/batch50/out", "--threads", "N"]),
 ]
+
+BATCH = 50
+
+
+def segment_batch():
+    """Makes the batch's phantoms if missing, runs it on 1 and 2 threads, saves the figures."""
+    src = ROOT / "target/batch50/in"
+    if len(list(src.glob("*-seeds.json"))) != BATCH:
+        for i in range(1, BATCH + 1):
+            subprocess.run(LEVELSET + ["phantom", "ball", "--size", "96", "--snr", "3", "--seed",
+                                       str(i), "--name", f"ball{i:02}", "-o", str(src)],
+                           cwd=ROOT, check=True, capture_output=True)
+    runs = []
+    for threads in (1, 2):
+        out = ROOT / f"target/batch50/out{threads}"
+        subprocess.run(LEVELSET + ["segment", str(src), "--method", "gac", "-o", str(out),
+                                   "--threads", str(threads)],
+                       cwd=ROOT, check=True, capture_output=True)
+        summary = json.loads((out / "summary.json").read_text())
+        dice = [r["dice"] for r in summary["records"]]
+        runs.append({"threads": threads, "images": summary["images"],
+                     "failed": summary["failed"], "wall_seconds": summary["wall_seconds"],
+                     "dice_min": min(dice), "dice_max": max(dice)})
+    (DATA / "segment-batch.json").write_text(json.dumps(runs, indent=2) + "\n")
 
 
 def shown(cmd):
@@ -60,6 +87,9 @@ def collect():
             subprocess.run([sys.executable, str(DOCS / "data/fetch_bunny.py"),
                             str(ROOT / "target/bunny.ply")], check=True)
         print("running:", shown(cmd), file=sys.stderr)
+        if name == "segment-batch.json":
+            segment_batch()
+            continue
         out = subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True).stdout
         if name == "info-sphere.json":
             (DATA / name).write_text(out)
@@ -374,6 +404,47 @@ def evolution_section(meta):
     return out
 
 
+def segmentation_section(meta):
+    runs = [load("speedup-1.json"), load("speedup-2.json")]
+    rows = runs[0]["segmentation"]
+    out = [
+        "## Segmentation",
+        "",
+        f"From the same two runs of `{meta['commands']['speedup-1.json']}` (first / second):"
+        f" `levelset segment`'s methods with their defaults on the {rows[0]['phantom']}"
+        " phantom (`levelset phantom`), the fastest of the runs of each. Mvox/s counts"
+        " stored voxels × RK stages per second of stepping, as the scenarios above; seconds"
+        " are the whole segmentation (feature images, steps, region sums, stopping tests)."
+        " The comparison with SimpleITK is in [segmentation.md](segmentation.md).",
+        "",
+        "| method | threads | steps | seconds | step seconds | Mvox/s | Dice |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for i, r in enumerate(rows):
+        b = runs[1]["segmentation"][i]
+        out.append(
+            f"| {r['method']} | {r['threads']} | {r['steps']} | "
+            f"{pair(r['seconds'], b['seconds'], lambda v: f'{v:.3f}')} | "
+            f"{pair(r['seconds_steps'], b['seconds_steps'], lambda v: f'{v:.3f}')} | "
+            f"{pair(r['voxel_updates_per_s'], b['voxel_updates_per_s'], lambda v: f'{v / 1e6:.1f}')} | "
+            f"{r['dice']:.4f} |"
+        )
+    batch = load("segment-batch.json")
+    out += [
+        "",
+        f"A batch of {batch[0]['images']} noisy 96³ balls (`levelset phantom ball --size 96"
+        " --snr 3 --seed i`), `levelset segment DIR --method gac -o OUT --threads N`: images"
+        " in parallel, one thread each.",
+        "",
+        "| threads | wall seconds | failed | Dice min – max |",
+        "|---|---|---|---|",
+    ]
+    for r in batch:
+        out.append(f"| {r['threads']} | {r['wall_seconds']:.1f} | {r['failed']} |"
+                   f" {r['dice_min']:.4f} – {r['dice_max']:.4f} |")
+    return out
+
+
 def write():
     meta = load("meta.json")
     parts = [
@@ -387,8 +458,8 @@ def write():
         " to compare, and the speed-up report is quoted from two runs.",
         "",
     ]
-    sections = [speedup_section, solution_section, info_section, memory_table_section,
-                storage_section, evolution_section]
+    sections = [speedup_section, segmentation_section, solution_section, info_section,
+                memory_table_section, storage_section, evolution_section]
     for section in sections:
         try:
             parts += section(meta) + [""]
