@@ -40,9 +40,6 @@ pub struct PhantomArgs {
 }
 
 pub fn run(a: &PhantomArgs) -> Result<(), String> {
-    if !(a.snr > 0.0) {
-        return Err(format!("--snr must be finite and > 0, got {}", a.snr));
-    }
     check_output_dir(&a.output)?;
     let kind = match a.kind {
         KindArg::Ball => PhantomKind::Ball,

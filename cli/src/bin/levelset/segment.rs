@@ -206,8 +206,11 @@ fn load_mask(
     Ok(m.image.data.iter().map(|&v| (v != 0.0) as u8).collect())
 }
 
+/// Seeds and the (lower, upper) thresholds if given.
+type SeedsFile = (Vec<Seed>, Option<(f32, f32)>);
+
 /// Seeds and thresholds of a `NAME-seeds.json` file.
-fn seeds_file(path: &Path) -> Result<(Vec<Seed>, Option<(f32, f32)>), String> {
+fn seeds_file(path: &Path) -> Result<SeedsFile, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
