@@ -334,13 +334,13 @@ fn read_exact(r: &mut impl Read, buf: &mut [u8], path: &Path) -> Result<(), NpyE
 
 /// The three entries of a `.npy` header.
 #[derive(Debug, PartialEq)]
-struct Header {
+pub(crate) struct Header {
     /// The dtype string if `descr` is a string, else empty.
-    descr: String,
+    pub descr: String,
     /// `descr` as written, for error messages.
-    descr_text: String,
-    fortran_order: bool,
-    shape: Vec<u64>,
+    pub descr_text: String,
+    pub fortran_order: bool,
+    pub shape: Vec<u64>,
 }
 
 /// A Python literal of the subset that `.npy` headers use.
@@ -355,7 +355,7 @@ enum Value {
 }
 
 /// Parses the header dict `{'descr': ..., 'fortran_order': ..., 'shape': (...)}`.
-fn parse_header(text: &[u8]) -> Result<Header, String> {
+pub(crate) fn parse_header(text: &[u8]) -> Result<Header, String> {
     let mut p = Parser { s: text, i: 0 };
     let start = p.i;
     let v = p.value(0)?;

@@ -43,6 +43,13 @@ fn coupled() -> Settings {
     Settings { renormalization: Renormalization::Coupled { weight: 1.0 }, ..Settings::default() }
 }
 
+/// Mean curvature flow (ε = 1) of `grid` on `lattice`, tiles with SIMD lanes.
+fn curvature_flow(grid: TileGrid, lattice: Lattice) -> Simulation {
+    let settings = Settings { lattice: Some(lattice), ..coupled() };
+    let kind = GridKind::Tiles(Lanes::Simd);
+    Simulation::from_tile_grid(kind, grid, Flow::mean_curvature(1.0), settings).unwrap()
+}
+
 fn band(sim: &Simulation) -> BTreeMap<Coord, u32> {
     let mut m = BTreeMap::new();
     sim.for_each_band_voxel(|c, v| {
@@ -61,15 +68,7 @@ fn anisotropic_sphere_shrinks_by_mean_curvature_in_world_units() {
         ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r0
     };
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 20], sphere);
-    let lattice = Lattice { spacing, planar: false };
-    let settings = Settings { lattice: Some(lattice), ..coupled() };
-    let mut sim = Simulation::from_tile_grid(
-        GridKind::Tiles(Lanes::Simd),
-        grid,
-        Flow::mean_curvature(1.0),
-        settings,
-    )
-    .unwrap();
+    let mut sim = curvature_flow(grid, Lattice { spacing, planar: false });
     let v0 = sim.measure().unwrap().volume;
     let r_start = (3.0 * v0 / (4.0 * PI)).cbrt();
     assert!((r_start - r0).abs() < 0.05 * r0, "start radius {r_start}");
@@ -96,14 +95,7 @@ fn isotropic_lattice_matches_the_exact_radius() {
         ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r0
     };
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [40, 40, 40], sphere);
-    let settings = Settings { lattice: Some(Lattice { spacing, planar: false }), ..coupled() };
-    let mut sim = Simulation::from_tile_grid(
-        GridKind::Tiles(Lanes::Simd),
-        grid,
-        Flow::mean_curvature(1.0),
-        settings,
-    )
-    .unwrap();
+    let mut sim = curvature_flow(grid, Lattice { spacing, planar: false });
     let r_start = (3.0 * sim.measure().unwrap().volume / (4.0 * PI)).cbrt();
     sim.run_until(8.0, 10_000, |_, _| {}).unwrap();
     let r = (3.0 * sim.measure().unwrap().volume / (4.0 * PI)).cbrt();
@@ -120,14 +112,7 @@ fn planar_disc_shrinks_by_the_curvature_of_its_circle() {
     let (r0, c) = (16.0, [24.0, 24.0]);
     let disc = |p: [f64; 3]| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt() - r0;
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 4], disc);
-    let settings = Settings { lattice: Some(Lattice { spacing, planar: true }), ..coupled() };
-    let mut sim = Simulation::from_tile_grid(
-        GridKind::Tiles(Lanes::Simd),
-        grid,
-        Flow::mean_curvature(1.0),
-        settings,
-    )
-    .unwrap();
+    let mut sim = curvature_flow(grid, Lattice { spacing, planar: true });
     let area = |sim: &Simulation| {
         let d = sim.to_dense(Coord::new(0, 0, 0), [48, 48, 1]).unwrap();
         d.data().iter().map(|&v| (0.5 - v as f64).clamp(0.0, 1.0)).sum::<f64>()

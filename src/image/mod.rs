@@ -529,6 +529,24 @@ enum Payload<'a> {
     Float(&'a [f32]),
 }
 
+impl Payload<'_> {
+    /// Writes the voxels: mask bytes as they are, floats little-endian in chunks.
+    fn write_to(&self, w: &mut dyn std::io::Write) -> std::io::Result<()> {
+        match self {
+            Payload::Mask(m) => w.write_all(m),
+            Payload::Float(f) => {
+                let mut buf = Vec::with_capacity(voxels::CHUNK);
+                for chunk in f.chunks(voxels::CHUNK / 4) {
+                    buf.clear();
+                    buf.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
+                    w.write_all(&buf)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
 fn check_length(
     path: &Path,
     what: &'static str,

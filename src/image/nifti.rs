@@ -510,18 +510,7 @@ pub(super) fn write(
     let head = header_bytes(&h);
     let write_all = |w: &mut dyn Write| -> io::Result<()> {
         w.write_all(&head)?;
-        match data {
-            Payload::Mask(m) => w.write_all(m),
-            Payload::Float(f) => {
-                let mut buf = Vec::with_capacity(voxels::CHUNK);
-                for chunk in f.chunks(voxels::CHUNK / 4) {
-                    buf.clear();
-                    buf.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
-                    w.write_all(&buf)?;
-                }
-                Ok(())
-            }
-        }
+        data.write_to(&mut *w)
     };
     crate::fsutil::write_atomic(path, |w| {
         if compressed {

@@ -10,7 +10,7 @@ use super::{
 };
 use npyz::WriterBuilder;
 use std::fs::File;
-use std::io::{self, BufReader, Write};
+use std::io::{self, BufReader};
 use std::path::Path;
 
 const FORMAT: &str = ".npy";
@@ -259,188 +259,20 @@ pub(super) fn write(path: &Path, like: &LoadedImage, data: Payload<'_>) -> Resul
                 .writer(&mut *w)
                 .write_header_only()?,
         };
-        match data {
-            Payload::Mask(m) => w.write_all(m),
-            Payload::Float(f) => {
-                let mut buf = Vec::with_capacity(voxels::CHUNK);
-                for chunk in f.chunks(voxels::CHUNK / 4) {
-                    buf.clear();
-                    buf.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
-                    w.write_all(&buf)?;
-                }
-                Ok(())
-            }
-        }
+        data.write_to(&mut *w)
     })
     .map_err(|source| ImageError::Io { path: path.to_path_buf(), source })
 }
 
-/// Parses the header dict `{'descr': '<f4', 'fortran_order': False, 'shape': (2, 3), }`
-/// (keys in any order, single or double quotes, an optional trailing comma, Python 2's
-/// `L` suffix). Only the three keys, a string `descr` and integer dimensions are
-/// accepted; a structured dtype (a list) is reported as such.
+/// Parses the header dict with the library's `.npy` header parser
+/// ([`crate::npy`]'s: keys in any order, single or double quotes, an optional trailing
+/// comma, Python 2's `L` suffix); a structured dtype (a list) is refused as no image.
 fn parse_header(text: &[u8]) -> Result<Header, String> {
-    let mut p = Parser { s: text, i: 0 };
-    p.expect(b'{')?;
-    let (mut descr, mut fortran, mut shape) = (None, None, None);
-    loop {
-        p.skip_ws();
-        if p.eat(b'}') {
-            break;
-        }
-        let key = p.string()?;
-        p.expect(b':')?;
-        p.skip_ws();
-        match key.as_str() {
-            "descr" if descr.is_none() => {
-                if p.peek() == Some(b'[') {
-                    return Err("a structured dtype (a list of fields) is not an image".into());
-                }
-                descr = Some(p.string()?);
-            }
-            "fortran_order" if fortran.is_none() => fortran = Some(p.boolean()?),
-            "shape" if shape.is_none() => shape = Some(p.tuple()?),
-            "descr" | "fortran_order" | "shape" => {
-                return Err(format!("key '{key}' appears twice"))
-            }
-            other => {
-                return Err(format!(
-                    "unexpected key '{other}' (expected 'descr', 'fortran_order', 'shape')"
-                ))
-            }
-        }
-        p.skip_ws();
-        if !p.eat(b',') {
-            p.expect(b'}')?;
-            break;
-        }
+    let h = crate::npy::parse_header(text)?;
+    if h.descr.is_empty() {
+        return Err(format!("a structured dtype {} is not an image", h.descr_text));
     }
-    // NumPy pads the header with spaces and ends it with a newline.
-    p.skip_ws();
-    if p.i != text.len() {
-        return Err(format!("unexpected {} after the header dict", p.describe()));
-    }
-    Ok(Header {
-        descr: descr.ok_or("missing key 'descr'")?,
-        fortran_order: fortran.ok_or("missing key 'fortran_order'")?,
-        shape: shape.ok_or("missing key 'shape'")?,
-    })
-}
-
-struct Parser<'a> {
-    s: &'a [u8],
-    i: usize,
-}
-
-impl Parser<'_> {
-    fn peek(&self) -> Option<u8> {
-        self.s.get(self.i).copied()
-    }
-
-    fn describe(&self) -> String {
-        match self.peek() {
-            None => "end of header".into(),
-            Some(_) => {
-                let rest = &self.s[self.i..];
-                let shown = String::from_utf8_lossy(&rest[..rest.len().min(40)]).into_owned();
-                format!("text {shown:?} at byte {}", self.i)
-            }
-        }
-    }
-
-    fn skip_ws(&mut self) {
-        while matches!(self.peek(), Some(b' ' | b'\t' | b'\n' | b'\r')) {
-            self.i += 1;
-        }
-    }
-
-    fn eat(&mut self, c: u8) -> bool {
-        self.skip_ws();
-        let hit = self.peek() == Some(c);
-        self.i += hit as usize;
-        hit
-    }
-
-    fn expect(&mut self, c: u8) -> Result<(), String> {
-        if self.eat(c) {
-            Ok(())
-        } else {
-            Err(format!("expected '{}', found {}", c as char, self.describe()))
-        }
-    }
-
-    fn string(&mut self) -> Result<String, String> {
-        self.skip_ws();
-        let q = match self.peek() {
-            Some(q @ (b'\'' | b'"')) => q,
-            _ => return Err(format!("expected a string, found {}", self.describe())),
-        };
-        self.i += 1;
-        let start = self.i;
-        while let Some(c) = self.peek() {
-            if c == q {
-                self.i += 1;
-                return Ok(String::from_utf8_lossy(&self.s[start..self.i - 1]).into_owned());
-            }
-            if c == b'\\' || c == b'\n' {
-                return Err("escapes and line breaks in header strings are not supported".into());
-            }
-            self.i += 1;
-        }
-        Err("unterminated string in the header".into())
-    }
-
-    fn boolean(&mut self) -> Result<bool, String> {
-        for (word, v) in [("True", true), ("False", false)] {
-            if self.s[self.i..].starts_with(word.as_bytes()) {
-                self.i += word.len();
-                return Ok(v);
-            }
-        }
-        Err(format!("'fortran_order' must be True or False, found {}", self.describe()))
-    }
-
-    /// `(d, ...)` or `[d, ...]` of non-negative integers.
-    fn tuple(&mut self) -> Result<Vec<u64>, String> {
-        let close = match self.peek() {
-            Some(b'(') => b')',
-            Some(b'[') => b']',
-            _ => return Err(format!("'shape' must be a tuple, found {}", self.describe())),
-        };
-        self.i += 1;
-        let mut out = Vec::new();
-        loop {
-            if self.eat(close) {
-                return Ok(out);
-            }
-            if out.len() >= 32 {
-                return Err("'shape' has more than 32 dimensions".into());
-            }
-            self.skip_ws();
-            let start = self.i;
-            let mut n: Option<u64> = Some(0);
-            while let Some(d @ b'0'..=b'9') = self.peek() {
-                n = n
-                    .and_then(|n| n.checked_mul(10))
-                    .and_then(|n| n.checked_add((d - b'0') as u64));
-                self.i += 1;
-            }
-            if self.i == start {
-                return Err(format!(
-                    "'shape' must hold non-negative integers, found {}",
-                    self.describe()
-                ));
-            }
-            if self.peek() == Some(b'L') {
-                self.i += 1;
-            }
-            out.push(n.ok_or("a dimension of 'shape' does not fit in 64 bits")?);
-            if !self.eat(b',') {
-                self.expect(close)?;
-                return Ok(out);
-            }
-        }
-    }
+    Ok(Header { descr: h.descr, fortran_order: h.fortran_order, shape: h.shape })
 }
 
 #[cfg(test)]
