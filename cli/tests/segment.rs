@@ -56,6 +56,8 @@ fn segment_refuses_bad_arguments_before_any_work() {
         (vec!["--method", "gac", "--seed", "8,8"], "expected x,y,z"),
         (vec!["--method", "gac", "--seed", "8,8,8:-2"], "expected x,y,z"),
         (vec!["--method", "gac", "--seed", "8,8,8", "--sigma", "nan"], "sigma"),
+        (vec!["--method", "gac", "--seed", "8,8,8", "--add", "snake:1"], "expected METHOD:W"),
+        (vec!["--method", "gac", "--seed", "8,8,8", "--add", "gac:1"], "appears twice"),
     ] {
         let mut a = vec!["segment", img.as_str()];
         a.extend(args);

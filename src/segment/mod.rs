@@ -36,7 +36,9 @@
 //!   outside, recomputed before every step from exact integer sums over the whole image;
 //!   Z = 1 (ε is Chan–Vese's μ); grows from seeds.
 //!
-//! Beyond the image the propagation term is −β: the front stays within the image.
+//! Any weighted sum of the three is a flow too ([`Params::terms`]: e.g. GAC with half a
+//! Chan–Vese region force). Beyond the image the propagation term is −β: the front stays
+//! within the image.
 //!
 //! # Stopping
 //! After every step: the RMS over the voxels next to the interface (|φ| < the smallest
@@ -146,6 +148,11 @@ pub struct Params {
     /// Threads: the pool the features and the evolution run in (the global pool when
     /// `None`).
     pub pool: Option<Arc<rayon::ThreadPool>>,
+    /// More methods added to `method` with these weights: the flow is the weighted sum of
+    /// the methods' terms (their speeds β Pᵢ, curvature weights εᵢ Zᵢ and advection, each
+    /// times its weight; `method` has weight 1), e.g. GAC plus half a Chan–Vese region
+    /// force. Each method at most once; the parameters above apply to each.
+    pub terms: Vec<(Method, f32)>,
 }
 
 impl Params {
@@ -164,14 +171,17 @@ impl Params {
             window: 10,
             max_iterations: 2000,
             pool: None,
+            terms: Vec::new(),
         }
     }
 }
 
 /// The parameters a run used, defaults filled in.
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize)]
 pub struct Resolved {
     pub method: Method,
+    /// The methods added with their weights ([`Params::terms`]).
+    pub terms: Vec<(Method, f32)>,
     /// σ of the smoothing per axis, world units.
     pub sigma: [f64; 3],
     pub propagation: f32,

@@ -2,13 +2,14 @@
 //! engine, the region means and the stopping tests (see the [module docs](super)).
 
 use super::features;
-use super::speed::{Lookup, RegionForce, VoxelField, VoxelVector};
+use super::speed::{CurvatureSum, Lookup, RegionForce, SumField, VoxelField, VoxelVector};
 use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
 use crate::build::tiles_from_dense;
 use crate::coord::Coord;
 use crate::dense::DenseField;
 use crate::evolve::{
-    Flow, GridKind, Lanes, Lattice, Renormalization, Settings, Simulation, Speed, Velocity,
+    Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
+    Velocity,
 };
 use crate::grid::{GridError, GridSpec};
 use crate::image::Image;
@@ -129,22 +130,18 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
     if params.window == 0 {
         return invalid("the volume window must be at least 1 step".into());
     }
-    match params.method {
-        Method::Threshold { lower, upper }
-            if !(lower.is_finite() && upper.is_finite() && lower < upper) =>
-        {
-            return invalid(format!(
-                "thresholds must be finite with lower < upper, got {lower}, {upper}"
-            ));
+    let mut names = vec![params.method.name()];
+    for &(m, w) in &params.terms {
+        if !(w.is_finite() && w >= 0.0) {
+            return invalid(format!("the weight of {} must be finite and >= 0, got {w}", m.name()));
         }
-        Method::ChanVese { lambda1, lambda2, nu }
-            if ![lambda1, lambda2, nu].iter().all(|v| v.is_finite())
-                || lambda1 < 0.0
-                || lambda2 < 0.0 =>
-        {
-            return invalid(format!("Chan–Vese weights must be finite with λ ≥ 0, got λ₁ {lambda1}, λ₂ {lambda2}, ν {nu}"));
+        if names.contains(&m.name()) {
+            return invalid(format!("{} appears twice in the sum of methods", m.name()));
         }
-        _ => {}
+        names.push(m.name());
+    }
+    for method in std::iter::once(params.method).chain(params.terms.iter().map(|t| t.0)) {
+        check_method(method)?;
     }
     let n = image.data.len();
     match init {
@@ -184,6 +181,28 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
     Ok(())
 }
 
+/// The parameters of one method.
+fn check_method(method: Method) -> Result<(), SegmentError> {
+    let invalid = |m: String| Err(SegmentError::InvalidParameter(m));
+    match method {
+        Method::Threshold { lower, upper }
+            if !(lower.is_finite() && upper.is_finite() && lower < upper) =>
+        {
+            invalid(format!("thresholds must be finite with lower < upper, got {lower}, {upper}"))
+        }
+        Method::ChanVese { lambda1, lambda2, nu }
+            if ![lambda1, lambda2, nu].iter().all(|v| v.is_finite())
+                || lambda1 < 0.0
+                || lambda2 < 0.0 =>
+        {
+            invalid(format!(
+                "Chan–Vese weights must be finite with λ ≥ 0, got λ₁ {lambda1}, λ₂ {lambda2}, ν {nu}"
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The lattice of `image`: spacing as f32, planar for one slice.
 fn lattice_of(image: &Image) -> Lattice {
     Lattice { spacing: image.spacing.map(|s| s as f32), planar: image.is_2d() }
@@ -221,6 +240,7 @@ fn segment_in_pool(
     let propagation = params.propagation.unwrap_or(1.0);
     let mut resolved = Resolved {
         method: params.method,
+        terms: params.terms.clone(),
         sigma: sigmas,
         propagation,
         curvature: 0.0,
@@ -230,77 +250,18 @@ fn segment_in_pool(
         spacing: image.spacing,
         planar: image.is_2d(),
     };
-    let mut region: Option<Arc<RegionForce>> = None;
-    let flow = match params.method {
-        Method::Threshold { lower, upper } => {
-            let (mid, half) = (0.5 * (lower + upper), 0.5 * (upper - lower));
-            let speed: Vec<f32> = smoothed
-                .data
-                .par_iter()
-                .map(|&v| {
-                    let p = if v < mid { v - lower } else { upper - v };
-                    propagation * (p / half).clamp(-1.0, 1.0)
-                })
-                .collect();
-            resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
-            let field = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
-            Flow::normal_speed(Speed::Field(Arc::new(field))).with_curvature(resolved.curvature)
+    let inputs = MethodInputs { params, smoothed: &smoothed, initial: &field, lookup, h_min };
+    let (mut flow, mut region) = method_flow(params.method, 1.0, &inputs, &mut resolved)?;
+    if !params.terms.is_empty() {
+        let mut flows = vec![flow];
+        for &(method, weight) in &params.terms {
+            let mut scratch = resolved.clone();
+            let (f, r) = method_flow(method, weight, &inputs, &mut scratch)?;
+            flows.push(f);
+            region = region.or(r);
         }
-        Method::Gac => {
-            // Edges per voxel step (a unit spacing): a step between two slices 2.5 mm apart
-            // is as much an edge as one between two pixels; in world units it would read
-            // 2.5× weaker and the front would leak through the poles of a thick-sliced
-            // volume.
-            let grad =
-                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })?;
-            let g = match (params.edge_scale, params.sigmoid) {
-                (Some(k), _) => {
-                    resolved.edge_scale = Some(k);
-                    features::edge_potential(&grad, k)?
-                }
-                (None, given) => {
-                    let (alpha, beta) = match given {
-                        Some(g) => g,
-                        None => default_sigmoid(&grad, &field)?,
-                    };
-                    resolved.sigmoid = Some((alpha, beta));
-                    // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
-                    features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)?
-                }
-            };
-            resolved.curvature = params.curvature.unwrap_or(h_min as f32);
-            resolved.advection = params.advection.unwrap_or(1.0);
-            let alpha = resolved.advection;
-            let gg = gradient(&g);
-            let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
-            let g = Arc::new(g.data);
-            let velocity =
-                gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
-            let z = VoxelField { lookup, data: g, outside: 1.0 };
-            let f = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
-            let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
-                .with_curvature_field(resolved.curvature, Arc::new(z));
-            if alpha > 0.0 {
-                flow = flow.with_velocity(Velocity::Field(Arc::new(VoxelVector {
-                    lookup,
-                    data: velocity,
-                })));
-            }
-            flow
-        }
-        Method::ChanVese { lambda1, lambda2, nu } => {
-            resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
-            let force = Arc::new(RegionForce::new(
-                lookup,
-                Arc::new(smoothed.data.clone()),
-                lambda1 * propagation,
-                lambda2 * propagation,
-                nu,
-            ));
-            region = Some(force.clone());
-            Flow::normal_speed(Speed::Field(force)).with_curvature(resolved.curvature)
-        }
-    };
+        flow = sum_of_flows(flows);
+    }
     let seconds_features = start.elapsed().as_secs_f64();
 
     // The initial level set on the lattice.
@@ -434,6 +395,120 @@ fn segment_in_pool(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok(Segmentation { mask, simulation: sim, report })
+}
+
+/// What every method's flow is built from.
+struct MethodInputs<'a> {
+    params: &'a Params,
+    smoothed: &'a Image,
+    initial: &'a DenseField,
+    lookup: Lookup,
+    h_min: f64,
+}
+
+/// The flow of one method with its weight (β, ε and α scaled by it), and its region
+/// force (Chan–Vese). `resolved` gets the method's parameters.
+fn method_flow(
+    method: Method,
+    weight: f32,
+    inputs: &MethodInputs<'_>,
+    resolved: &mut Resolved,
+) -> Result<(Flow, Option<Arc<RegionForce>>), SegmentError> {
+    let MethodInputs { params, smoothed, initial: field, lookup, h_min } = *inputs;
+    let propagation = weight * params.propagation.unwrap_or(1.0);
+    let mut region: Option<Arc<RegionForce>> = None;
+    let flow = match method {
+        Method::Threshold { lower, upper } => {
+            let (mid, half) = (0.5 * (lower + upper), 0.5 * (upper - lower));
+            let speed: Vec<f32> = smoothed
+                .data
+                .par_iter()
+                .map(|&v| {
+                    let p = if v < mid { v - lower } else { upper - v };
+                    propagation * (p / half).clamp(-1.0, 1.0)
+                })
+                .collect();
+            resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
+            let field = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
+            Flow::normal_speed(Speed::Field(Arc::new(field)))
+                .with_curvature(weight * resolved.curvature)
+        }
+        Method::Gac => {
+            // Edges per voxel step (a unit spacing): a step between two slices 2.5 mm apart
+            // is as much an edge as one between two pixels; in world units it would read
+            // 2.5× weaker and the front would leak through the poles of a thick-sliced
+            // volume.
+            let grad =
+                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })?;
+            let g = match (params.edge_scale, params.sigmoid) {
+                (Some(k), _) => {
+                    resolved.edge_scale = Some(k);
+                    features::edge_potential(&grad, k)?
+                }
+                (None, given) => {
+                    let (alpha, beta) = match given {
+                        Some(g) => g,
+                        None => default_sigmoid(&grad, &field)?,
+                    };
+                    resolved.sigmoid = Some((alpha, beta));
+                    // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
+                    features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)?
+                }
+            };
+            resolved.curvature = params.curvature.unwrap_or(h_min as f32);
+            resolved.advection = params.advection.unwrap_or(1.0);
+            let alpha = weight * resolved.advection;
+            let gg = gradient(&g);
+            let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
+            let g = Arc::new(g.data);
+            let velocity =
+                gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
+            let z = VoxelField { lookup, data: g, outside: 1.0 };
+            let f = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
+            let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
+                .with_curvature_field(weight * resolved.curvature, Arc::new(z));
+            if alpha > 0.0 {
+                flow = flow.with_velocity(Velocity::Field(Arc::new(VoxelVector {
+                    lookup,
+                    data: velocity,
+                })));
+            }
+            flow
+        }
+        Method::ChanVese { lambda1, lambda2, nu } => {
+            resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
+            let beta = params.propagation.unwrap_or(1.0);
+            let force = Arc::new(RegionForce::new(
+                lookup,
+                Arc::new(smoothed.data.clone()),
+                [lambda1 * beta, lambda2 * beta, nu],
+                weight,
+            ));
+            region = Some(force.clone());
+            Flow::normal_speed(Speed::Field(force)).with_curvature(weight * resolved.curvature)
+        }
+    };
+    Ok((flow, region))
+}
+
+/// The weighted sum of the methods' flows ([`Params::terms`]): their speeds add, their
+/// curvature weights add as one field Σ εᵢ Zᵢ(x), and the one advecting term (GAC) keeps
+/// its velocity.
+fn sum_of_flows(flows: Vec<Flow>) -> Flow {
+    let mut speeds: Vec<Arc<dyn ScalarFn>> = Vec::new();
+    let mut curvatures: Vec<(f32, Option<Arc<dyn ScalarFn>>)> = Vec::new();
+    let mut velocity = None;
+    for f in flows {
+        if let Speed::Field(s) = f.speed {
+            speeds.push(s);
+        }
+        curvatures.push((f.curvature, f.curvature_field));
+        velocity = velocity.or(f.velocity);
+    }
+    let mut flow = Flow::normal_speed(Speed::Field(Arc::new(SumField { terms: speeds })))
+        .with_curvature_field(1.0, Arc::new(CurvatureSum { terms: curvatures }));
+    flow.velocity = velocity;
+    flow
 }
 
 /// The value of a voxel that left the band in a step, whose value before was `old`: the

@@ -90,18 +90,27 @@ pub(crate) struct RegionForce {
     pub lambda1: f32,
     pub lambda2: f32,
     pub nu: f32,
+    /// Its weight in a sum of methods (1 alone), applied after the clamp.
+    pub weight: f32,
     /// c₁ and c₂ as f64 bits.
     means: [AtomicU64; 2],
 }
 
 impl RegionForce {
-    pub fn new(lookup: Lookup, data: Arc<Vec<f32>>, lambda1: f32, lambda2: f32, nu: f32) -> Self {
+    /// The force on `data` with `[λ₁, λ₂, ν]` and a weight.
+    pub fn new(
+        lookup: Lookup,
+        data: Arc<Vec<f32>>,
+        [lambda1, lambda2, nu]: [f32; 3],
+        weight: f32,
+    ) -> Self {
         RegionForce {
             lookup,
             data,
             lambda1,
             lambda2,
             nu,
+            weight,
             means: [AtomicU64::new(0), AtomicU64::new(0)],
         }
     }
@@ -129,10 +138,11 @@ impl ScalarFn for RegionForce {
                 Some(k) => {
                     let v = self.data[k];
                     let (a, b) = (v - c1, v - c2);
-                    ((self.lambda2 * b * b - self.lambda1 * a * a) * scale - self.nu)
-                        .clamp(-1.0, 1.0)
+                    self.weight
+                        * ((self.lambda2 * b * b - self.lambda1 * a * a) * scale - self.nu)
+                            .clamp(-1.0, 1.0)
                 }
-                None => -1.0,
+                None => -self.weight,
             };
         }
     }
@@ -140,5 +150,53 @@ impl ScalarFn for RegionForce {
     /// stage; they stay fixed within a step.
     fn time_dependent(&self) -> bool {
         true
+    }
+}
+
+/// The sum of scalar fields (the speeds of a weighted sum of methods, each already
+/// weighted).
+pub(crate) struct SumField {
+    pub terms: Vec<Arc<dyn ScalarFn>>,
+}
+
+impl ScalarFn for SumField {
+    fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: &mut [f32]) {
+        let mut part = vec![0.0f32; out.len()];
+        for (k, f) in self.terms.iter().enumerate() {
+            if k == 0 {
+                f.fill_run(spec, start, t, out);
+            } else {
+                f.fill_run(spec, start, t, &mut part);
+                out.iter_mut().zip(&part).for_each(|(o, p)| *o += p);
+            }
+        }
+    }
+    fn time_dependent(&self) -> bool {
+        self.terms.iter().any(|f| f.time_dependent())
+    }
+}
+
+/// Σ εᵢ Zᵢ(x) of a weighted sum of methods: each term a weight ε and a field Z (1 when
+/// none).
+pub(crate) struct CurvatureSum {
+    pub terms: Vec<(f32, Option<Arc<dyn ScalarFn>>)>,
+}
+
+impl ScalarFn for CurvatureSum {
+    fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: &mut [f32]) {
+        let mut part = vec![0.0f32; out.len()];
+        out.fill(0.0);
+        for (eps, z) in &self.terms {
+            match z {
+                Some(z) => {
+                    z.fill_run(spec, start, t, &mut part);
+                    out.iter_mut().zip(&part).for_each(|(o, p)| *o += eps * p);
+                }
+                None => out.iter_mut().for_each(|o| *o += eps),
+            }
+        }
+    }
+    fn time_dependent(&self) -> bool {
+        self.terms.iter().any(|(_, z)| z.as_ref().is_some_and(|z| z.time_dependent()))
     }
 }

@@ -31,6 +31,10 @@ pub struct SegmentArgs {
     /// The method.
     #[arg(long, value_enum)]
     pub method: MethodArg,
+    /// Add another method's terms with a weight, `METHOD:W` (threshold, gac, chan-vese;
+    /// repeatable): the flow is the weighted sum, --method with weight 1.
+    #[arg(long = "add", value_name = "METHOD:W")]
+    pub add: Vec<String>,
     /// A seed ball `x,y,z[:r]`: voxel indices along the image's x, y, z axes (fractional
     /// allowed; z may be left out for a 2D image), radius in voxels [default 3];
     /// repeatable. World coordinates and radius with --world.
@@ -172,11 +176,17 @@ struct Job {
     truth: Option<Vec<u8>>,
     init: Init,
     method: Method,
+    /// Methods added with their weights.
+    terms: Vec<(Method, f32)>,
 }
 
 /// The method from the flags, the thresholds from `window` when the flags give none.
-fn method_of(a: &SegmentArgs, window: Option<(f32, f32)>) -> Result<Method, String> {
-    Ok(match a.method {
+fn method_of(
+    a: &SegmentArgs,
+    arg: MethodArg,
+    window: Option<(f32, f32)>,
+) -> Result<Method, String> {
+    Ok(match arg {
         MethodArg::Threshold => match (a.lower.zip(a.upper)).or(window) {
             Some((lower, upper)) => Method::Threshold { lower, upper },
             None => return Err("the threshold method needs --lower and --upper".into()),
@@ -279,7 +289,8 @@ fn job(
     } else {
         return Err("give at least one --seed x,y,z[:r], --init-mask or --init-level-set".into());
     };
-    let method = method_of(a, window)?;
+    let method = method_of(a, a.method, window)?;
+    let terms = added(a, window)?;
     let truth = truth.map(|t| load_mask(t, spacing, &loaded)).transpose()?;
     image::check_output(&output, &loaded, Output::Mask).map_err(|e| e.to_string())?;
     check_output(&output)?;
@@ -295,7 +306,26 @@ fn job(
         check_output(m)?;
     }
     let name = image_path.display().to_string();
-    Ok(Job { name, loaded, output, level_set, mesh, truth, init, method })
+    Ok(Job { name, loaded, output, level_set, mesh, truth, init, method, terms })
+}
+
+/// The methods added with `--add METHOD:W`.
+fn added(a: &SegmentArgs, window: Option<(f32, f32)>) -> Result<Vec<(Method, f32)>, String> {
+    a.add
+        .iter()
+        .map(|t| {
+            let bad = || format!("--add {t:?}: expected METHOD:W with METHOD threshold, gac or chan-vese and W >= 0");
+            let (m, w) = t.split_once(':').ok_or_else(bad)?;
+            let w: f32 = w.trim().parse().map_err(|_| bad())?;
+            let arg = match m.trim() {
+                "threshold" => MethodArg::Threshold,
+                "gac" => MethodArg::Gac,
+                "chan-vese" => MethodArg::ChanVese,
+                _ => return Err(bad()),
+            };
+            Ok((method_of(a, arg, window)?, w))
+        })
+        .collect()
 }
 
 /// The parameters from the flags.
@@ -330,7 +360,7 @@ fn execute(
     threads: usize,
     bar: &indicatif::ProgressBar,
 ) -> Result<serde_json::Value, String> {
-    let params = params_of(a, j.method, threads)?;
+    let params = Params { terms: j.terms.clone(), ..params_of(a, j.method, threads)? };
     bar.set_length(params.max_iterations);
     let mut monitor = |s: &sparse_levelset::segment::StepInfo| {
         bar.set_position(s.iteration);
