@@ -448,7 +448,7 @@ fn method_flow(
                 (None, given) => {
                     let (alpha, beta) = match given {
                         Some(g) => g,
-                        None => default_sigmoid(&grad, &field)?,
+                        None => default_sigmoid(&grad, field)?,
                     };
                     resolved.sigmoid = Some((alpha, beta));
                     // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
