@@ -39,6 +39,11 @@ fn lattice_grid(
     tiles_from_dense(&field, spec).unwrap()
 }
 
+/// The signed distance to the sphere of centre `c` and radius `r`.
+fn sphere_sdf(c: [f64; 3], r: f64) -> impl Fn([f64; 3]) -> f64 + Sync {
+    move |p| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r
+}
+
 fn coupled() -> Settings {
     Settings { renormalization: Renormalization::Coupled { weight: 1.0 }, ..Settings::default() }
 }
@@ -64,9 +69,7 @@ fn band(sim: &Simulation) -> BTreeMap<Coord, u32> {
 fn anisotropic_sphere_shrinks_by_mean_curvature_in_world_units() {
     let spacing = [1.0, 1.0, 2.5];
     let (r0, c) = (14.0, [24.0, 24.0, 25.0]);
-    let sphere = |p: [f64; 3]| {
-        ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r0
-    };
+    let sphere = sphere_sdf(c, r0);
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 20], sphere);
     let mut sim = curvature_flow(grid, Lattice { spacing, planar: false });
     let v0 = sim.measure().unwrap().volume;
@@ -91,9 +94,7 @@ fn anisotropic_sphere_shrinks_by_mean_curvature_in_world_units() {
 fn isotropic_lattice_matches_the_exact_radius() {
     let spacing = [0.5, 0.5, 0.5];
     let (r0, c) = (6.0, [10.0, 10.0, 10.0]);
-    let sphere = |p: [f64; 3]| {
-        ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r0
-    };
+    let sphere = sphere_sdf(c, r0);
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [40, 40, 40], sphere);
     let mut sim = curvature_flow(grid, Lattice { spacing, planar: false });
     let r_start = (3.0 * sim.measure().unwrap().volume / (4.0 * PI)).cbrt();
@@ -141,9 +142,7 @@ fn planar_disc_shrinks_by_the_curvature_of_its_circle() {
 fn every_representation_agrees_on_a_lattice_bit_for_bit() {
     let spacing = [0.8, 1.0, 1.7];
     let c = [14.0, 15.0, 17.0];
-    let sphere = |p: [f64; 3]| {
-        ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - 8.0
-    };
+    let sphere = sphere_sdf(c, 8.0);
     let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [36, 32, 20], sphere);
     let z = Arc::new(sparse_levelset::evolve::ScalarClosure(|p: [f64; 3], _t: f64| {
         (1.0 + 0.5 * (0.3 * p[0]).sin() * (0.2 * p[2]).cos()) as f32

@@ -370,6 +370,32 @@ fn stencil(i: usize, n: usize, h: f64) -> Option<(usize, usize, f64)> {
     }
 }
 
+/// ∇I, one image per axis, with the differences of [`gradient_magnitude`] (central inside,
+/// one-sided on the faces, divided by the axis's spacing; 0 along an axis of one voxel).
+/// GAC's advection velocity is −∇g of its edge potential.
+///
+/// Fails with [`GridError::InvalidParameter`] on a malformed image.
+pub fn gradient(image: &Image) -> Result<[Image; 3], GridError> {
+    check_image(image, "gradient")?;
+    let [nx, ny, _] = image.dims;
+    let src = &image.data;
+    let axis = |a: usize| {
+        let (n, stride, h) = (image.dims[a], [1, nx, nx * ny][a], image.spacing[a]);
+        let mut out = vec![0.0f32; src.len()];
+        out.par_chunks_mut(TASK_VOXELS).enumerate().for_each(|(c, dst)| {
+            for (k, o) in dst.iter_mut().enumerate() {
+                let i = c * TASK_VOXELS + k;
+                let (j, base) = ((i / stride) % n, i - (i / stride) % n * stride);
+                *o = stencil(j, n, h).map_or(0.0, |(p, m, f)| {
+                    ((src[base + p * stride] as f64 - src[base + m * stride] as f64) * f) as f32
+                });
+            }
+        });
+        with_data(image, out)
+    };
+    Ok([axis(0), axis(1), axis(2)])
+}
+
 /// |∇I| in intensity per world unit: central differences `(I[i+1] − I[i−1]) / 2h` inside,
 /// one-sided `(I[1] − I[0]) / h` and `(I[n−1] − I[n−2]) / h` on the faces, with `h` the
 /// spacing of the axis. An axis with one voxel contributes 0 (a 2D image has no z

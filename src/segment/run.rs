@@ -330,7 +330,9 @@ fn segment_in_pool(
             let d = (new - old) as f64 / dt;
             sq += d * d;
         };
+        let mut band_voxels = 0usize;
         sim.for_each_band_voxel(|c, phi| {
+            band_voxels += 1;
             while k < near.len() && near[k].0 < c {
                 diff(near[k].1, sim_value_left(near[k].1, gamma));
                 k += 1;
@@ -354,7 +356,7 @@ fn segment_in_pool(
             iteration: sim.steps(),
             max_iterations: params.max_iterations,
             rms,
-            band_voxels: sim.band_voxels(),
+            band_voxels,
             voxels,
         };
         if !monitor(&info) {
@@ -458,7 +460,7 @@ fn method_flow(
             resolved.curvature = params.curvature.unwrap_or(h_min as f32);
             resolved.advection = params.advection.unwrap_or(1.0);
             let alpha = weight * resolved.advection;
-            let gg = gradient(&g);
+            let gg = features::gradient(&g)?.map(|c| c.data);
             let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
             let g = Arc::new(g.data);
             let velocity =
@@ -542,33 +544,6 @@ fn default_sigmoid(grad: &Image, initial: &DenseField) -> Result<(f64, f64), Gri
     let k2 = (features::percentile(&grad.data, 0.99)? as f64).max(3.0 * k1);
     let k2 = if k2 > 0.0 { k2 } else { f64::MIN_POSITIVE };
     Ok(((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0))
-}
-
-/// The world gradient of an image by central differences divided by 2 spacing (one-sided
-/// at the faces; 0 along z for a 2D image).
-fn gradient(g: &Image) -> [Vec<f32>; 3] {
-    let [nx, ny, nz] = g.dims;
-    let d = &g.data;
-    let axis = |a: usize| -> Vec<f32> {
-        let n = g.dims[a];
-        let stride = [1, nx, nx * ny][a];
-        let s = g.spacing[a];
-        (0..d.len())
-            .into_par_iter()
-            .map(|i| {
-                if n == 1 {
-                    return 0.0;
-                }
-                let k = (i / stride) % n;
-                let (lo, hi) =
-                    (if k > 0 { i - stride } else { i }, if k + 1 < n { i + stride } else { i });
-                let span = (hi - lo) / stride;
-                ((d[hi] as f64 - d[lo] as f64) / (span as f64 * s)) as f32
-            })
-            .collect()
-    };
-    let _ = nz;
-    [axis(0), axis(1), axis(2)]
 }
 
 /// The intensities as integers: q = round((v − min) · scale) < 2³¹, so that sums over any

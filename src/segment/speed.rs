@@ -161,13 +161,19 @@ pub(crate) struct SumField {
 
 impl ScalarFn for SumField {
     fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: &mut [f32]) {
-        let mut part = vec![0.0f32; out.len()];
+        // Terms after the first are added in pieces of a stack buffer (no allocation
+        // per run).
+        let mut part = [0.0f32; PIECE];
         for (k, f) in self.terms.iter().enumerate() {
             if k == 0 {
                 f.fill_run(spec, start, t, out);
-            } else {
-                f.fill_run(spec, start, t, &mut part);
-                out.iter_mut().zip(&part).for_each(|(o, p)| *o += p);
+                continue;
+            }
+            for (i, o) in out.chunks_mut(PIECE).enumerate() {
+                let at = Coord::new(start.x + (i * PIECE) as i32, start.y, start.z);
+                let p = &mut part[..o.len()];
+                f.fill_run(spec, at, t, p);
+                o.iter_mut().zip(p.iter()).for_each(|(o, p)| *o += p);
             }
         }
     }
@@ -175,6 +181,9 @@ impl ScalarFn for SumField {
         self.terms.iter().any(|f| f.time_dependent())
     }
 }
+
+/// Voxels of a sum's stack buffer.
+const PIECE: usize = 64;
 
 /// Σ εᵢ Zᵢ(x) of a weighted sum of methods: each term a weight ε and a field Z (1 when
 /// none).
@@ -184,13 +193,17 @@ pub(crate) struct CurvatureSum {
 
 impl ScalarFn for CurvatureSum {
     fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: &mut [f32]) {
-        let mut part = vec![0.0f32; out.len()];
+        let mut part = [0.0f32; PIECE];
         out.fill(0.0);
         for (eps, z) in &self.terms {
             match z {
                 Some(z) => {
-                    z.fill_run(spec, start, t, &mut part);
-                    out.iter_mut().zip(&part).for_each(|(o, p)| *o += eps * p);
+                    for (i, o) in out.chunks_mut(PIECE).enumerate() {
+                        let at = Coord::new(start.x + (i * PIECE) as i32, start.y, start.z);
+                        let p = &mut part[..o.len()];
+                        z.fill_run(spec, at, t, p);
+                        o.iter_mut().zip(p.iter()).for_each(|(o, p)| *o += eps * p);
+                    }
                 }
                 None => out.iter_mut().for_each(|o| *o += eps),
             }
