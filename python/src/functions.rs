@@ -1,0 +1,226 @@
+//! Functions on dense arrays: `distance` (scikit-fmm's), `isosurface` (scikit-image's
+//! `marching_cubes`), and mesh files.
+
+use crate::arrays::{rows3, to_rows, Volume};
+use crate::watch;
+use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::prelude::*;
+use sparse_levelset::dense::DenseField;
+use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::mesh::{self, TriangleMesh};
+use sparse_levelset::Coord;
+use std::path::PathBuf;
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(distance, m)?)?;
+    m.add_function(wrap_pyfunction!(isosurface, m)?)?;
+    m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(load_mesh, m)?)?;
+    Ok(())
+}
+
+pub(crate) fn fmm_error(e: FmmError) -> PyErr {
+    match e {
+        FmmError::Grid(g) => crate::grid_error(g),
+        FmmError::Cancelled(_) => pyo3::exceptions::PyKeyboardInterrupt::new_err("cancelled"),
+        e => crate::value_error(e),
+    }
+}
+
+pub(crate) fn order_of(order: u8) -> PyResult<Order> {
+    match order {
+        1 => Ok(Order::First),
+        2 => Ok(Order::Second),
+        o => Err(crate::value_error(format!("order must be 1 or 2, got {o}"))),
+    }
+}
+
+/// Signed distance to the zero contour of `phi` by fast marching (see the Python docs).
+#[pyfunction]
+#[pyo3(signature = (phi, dx, order, half_width, progress=None))]
+fn distance<'py>(
+    py: Python<'py>,
+    phi: PyReadonlyArray3<'py, f32>,
+    dx: f32,
+    order: u8,
+    half_width: Option<f32>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let order = order_of(order)?;
+    let vol = Volume::from_array(&phi)?;
+    // Without a narrow band every voxel of the array is marched: the diagonal bounds any
+    // distance inside it.
+    let w = match half_width {
+        Some(w) => w,
+        None => (vol.dims.iter().map(|&d| (d * d) as f64).sum::<f64>().sqrt() + 2.0) as f32,
+    };
+    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, vol.data.clone())
+        .map_err(crate::grid_error)?;
+    let out = watch::run(py, progress.as_ref(), "distance", |w8| {
+        let opts = FmmOptions { order, half_width: Some(w), progress: w8.progress() };
+        fmm::distance_dense(&field, dx, &opts)
+    })?
+    .map_err(fmm_error)?;
+    vol.to_py(py, out.into_data())
+}
+
+/// The isosurface of a 3-D array: vertices in the array's axis order times `spacing`.
+#[pyfunction]
+#[pyo3(signature = (volume, level, spacing, progress=None))]
+#[allow(clippy::type_complexity)]
+fn isosurface<'py>(
+    py: Python<'py>,
+    volume: PyReadonlyArray3<'py, f32>,
+    level: f64,
+    spacing: [f64; 3],
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>)> {
+    if spacing.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(crate::value_error(format!("spacing must be finite and > 0, got {spacing:?}")));
+    }
+    if !level.is_finite() {
+        return Err(crate::value_error(format!("level must be finite, got {level}")));
+    }
+    let vol = Volume::from_array(&volume)?;
+    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, vol.data.clone())
+        .map_err(crate::grid_error)?;
+    let (lo, hi) = field
+        .data()
+        .iter()
+        .filter(|v| !v.is_nan())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v as f64), hi.max(v as f64))
+        });
+    if !(lo < level && level < hi) && field.data().iter().all(|v| !v.is_nan()) {
+        return Err(crate::value_error(format!(
+            "surface level {level} must be strictly within the volume's data range [{lo}, {hi}]"
+        )));
+    }
+    let spec = GridSpec::default();
+    let m = watch::run(py, progress.as_ref(), "isosurface", |_| {
+        mesh::isosurface_dense(&field, &spec, level)
+    })?
+    .map_err(crate::lib_error)?;
+    // Lattice (x, y, z) → array axes; reversing the axes (C order) mirrors the mesh, so the
+    // triangles are reversed to stay counter-clockwise seen from outside.
+    let axis = vol.axis_of();
+    let mut verts = vec![[0f32; 3]; m.positions.len()];
+    let mut normals = vec![[0f32; 3]; m.positions.len()];
+    for (i, (p, n)) in m.positions.iter().zip(&m.normals).enumerate() {
+        let mut q = [0f64; 3];
+        for d in 0..3 {
+            let a = axis[d];
+            verts[i][a] = (p[d] * spacing[a]) as f32;
+            q[a] = n[d] as f64 / spacing[a];
+        }
+        let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+        normals[i] = if len > 0.0 { q.map(|c| (c / len) as f32) } else { [0.0; 3] };
+    }
+    let faces: Vec<[u32; 3]> = if vol.fortran {
+        m.triangles
+    } else {
+        m.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect()
+    };
+    Ok((to_rows(py, &verts)?, to_rows(py, &faces)?, to_rows(py, &normals)?))
+}
+
+/// Area-weighted vertex normals of a triangle mesh (for files written without normals).
+fn vertex_normals(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
+    let mut acc = vec![[0f64; 3]; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        for &i in t {
+            for d in 0..3 {
+                acc[i as usize][d] += n[d];
+            }
+        }
+    }
+    acc.iter()
+        .map(|n| {
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if len > 0.0 {
+                n.map(|c| (c / len) as f32)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
+}
+
+/// A mesh from NumPy arrays, checked: finite vertices, faces indexing them.
+pub(crate) fn mesh_from_arrays(
+    verts: &PyReadonlyArray2<'_, f64>,
+    faces: &PyReadonlyArray2<'_, i64>,
+    normals: Option<&PyReadonlyArray2<'_, f64>>,
+) -> PyResult<TriangleMesh> {
+    let positions = rows3(verts, "verts")?;
+    if let Some(i) = positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(crate::value_error(format!("vertex {i} is not finite: {:?}", positions[i])));
+    }
+    let f = faces.as_array();
+    if f.ncols() != 3 {
+        return Err(crate::value_error(format!(
+            "faces must have shape (m, 3), got {:?}",
+            f.shape()
+        )));
+    }
+    let n = positions.len() as i64;
+    let mut triangles = Vec::with_capacity(f.nrows());
+    for (i, r) in f.rows().into_iter().enumerate() {
+        if r.iter().any(|&v| v < 0 || v >= n) {
+            return Err(crate::value_error(format!(
+                "face {i} = {:?} indexes past the {n} vertices",
+                r.to_vec()
+            )));
+        }
+        triangles.push([r[0] as u32, r[1] as u32, r[2] as u32]);
+    }
+    let normals = match normals {
+        Some(a) => {
+            let rows = rows3(a, "normals")?;
+            if rows.len() != positions.len() {
+                return Err(crate::value_error(format!(
+                    "{} normals for {} vertices",
+                    rows.len(),
+                    positions.len()
+                )));
+            }
+            rows.iter().map(|r| r.map(|c| c as f32)).collect()
+        }
+        None => vertex_normals(&positions, &triangles),
+    };
+    Ok(TriangleMesh { positions, normals, triangles })
+}
+
+/// Writes a triangle mesh (`.ply` binary or `.obj`, by the extension; atomic).
+#[pyfunction]
+#[pyo3(signature = (path, verts, faces, normals=None))]
+fn save_mesh(
+    path: PathBuf,
+    verts: PyReadonlyArray2<'_, f64>,
+    faces: PyReadonlyArray2<'_, i64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+) -> PyResult<()> {
+    let m = mesh_from_arrays(&verts, &faces, normals.as_ref())?;
+    if m.triangles.is_empty() {
+        return Err(crate::value_error("the mesh has no triangles"));
+    }
+    m.write(&path, None).map_err(|e| match e {
+        mesh::MeshError::UnknownFormat(_) => crate::value_error(e),
+        e => crate::os_error(e),
+    })
+}
+
+/// Reads a triangle mesh (`.obj`, `.ply`, `.stl`): `(verts, faces)`.
+#[pyfunction]
+fn load_mesh<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>)> {
+    let m = sparse_levelset::voxelize::read_mesh(&path).map_err(crate::os_error)?;
+    Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?))
+}

@@ -1,0 +1,67 @@
+//! The native part of the `sparse_levelset` Python package (`sparse_levelset._native`).
+//!
+//! The Python layer (`python/sparse_levelset/__init__.py`) takes NumPy arrays in any float
+//! dtype and memory order, checks shapes and names, and calls these functions with
+//! float32 arrays that are C- or Fortran-contiguous; everything here works on the
+//! library's types. Long calls run on a worker thread with the GIL released while the
+//! calling thread watches for Ctrl-C and forwards progress ([`watch`]).
+
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use sparse_levelset::grid::GridError;
+use std::fmt::Display;
+
+mod arrays;
+mod functions;
+mod levelset;
+mod segment;
+mod simulation;
+mod watch;
+
+/// A `ValueError` with the library's message (bad arrays and parameters).
+pub(crate) fn value_error(e: impl Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// An `OSError` with the library's message (files: missing, unreadable, corrupt).
+pub(crate) fn os_error(e: impl Display) -> PyErr {
+    PyOSError::new_err(e.to_string())
+}
+
+/// The exception of a grid error: `MemoryError` when the machine cannot hold the result,
+/// `ValueError` otherwise.
+pub(crate) fn grid_error(e: GridError) -> PyErr {
+    match e {
+        GridError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
+        e => value_error(e),
+    }
+}
+
+/// A message that reads as one: "out of memory" errors of any library type become
+/// `MemoryError`, the rest `ValueError`.
+pub(crate) fn lib_error(e: impl Display) -> PyErr {
+    let msg = e.to_string();
+    if msg.contains("more memory than") || msg.contains("out of memory") {
+        PyMemoryError::new_err(msg)
+    } else {
+        PyValueError::new_err(msg)
+    }
+}
+
+/// A bug: the library panicked (caught on the worker thread, never an abort).
+pub(crate) fn panic_error(what: &str) -> PyErr {
+    PyRuntimeError::new_err(format!(
+        "internal error in sparse_levelset ({what}); please report it with the input"
+    ))
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("SIMD_LANES", if cfg!(feature = "simd") { "simd" } else { "scalar" })?;
+    functions::register(m)?;
+    levelset::register(m)?;
+    simulation::register(m)?;
+    segment::register(m)?;
+    Ok(())
+}

@@ -1,0 +1,327 @@
+//! Images and segmentation: `Image` (`load_image`, or an array with its spacing),
+//! `segment`, and its result `Segmentation`.
+
+use crate::arrays::to_rows;
+use crate::levelset::LevelSet;
+use crate::watch;
+use numpy::ndarray::{Array3, ShapeBuilder};
+use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use sparse_levelset::image::{self, Image as LibImage, ImageError, LoadedImage, IDENTITY};
+use sparse_levelset::segment::{
+    self as seglib, Init, Method, Params, Seed, SegmentError, Segmentation as LibSeg,
+};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Image>()?;
+    m.add_class::<Segmentation>()?;
+    m.add_function(wrap_pyfunction!(load_image, m)?)?;
+    m.add_function(wrap_pyfunction!(segment, m)?)?;
+    Ok(())
+}
+
+fn image_error(e: ImageError) -> PyErr {
+    let msg = e.to_string();
+    if msg.contains("more memory than") {
+        pyo3::exceptions::PyMemoryError::new_err(msg)
+    } else {
+        crate::os_error(msg)
+    }
+}
+
+fn segment_error(e: SegmentError) -> PyErr {
+    match e {
+        SegmentError::Grid(g) => crate::grid_error(g),
+        e => crate::value_error(e),
+    }
+}
+
+/// A 3-D intensity image: voxels indexed `[i, j, k]` along the lattice axes x, y, z,
+/// their spacing, and the placement in world space (a NIfTI file's affine).
+#[pyclass(frozen, module = "sparse_levelset")]
+pub struct Image {
+    pub loaded: Arc<LoadedImage>,
+}
+
+#[pymethods]
+impl Image {
+    /// An image from a Fortran-ordered float32 array `[i, j, k]` and its spacing (world
+    /// units per voxel along each axis); world = index × spacing.
+    #[new]
+    #[pyo3(signature = (array, spacing))]
+    fn new(array: PyReadonlyArray3<'_, f32>, spacing: [f64; 3]) -> PyResult<Image> {
+        if !array.is_fortran_contiguous() {
+            return Err(crate::value_error("the image array must be Fortran-ordered (x fastest)"));
+        }
+        if spacing.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(crate::value_error(format!(
+                "spacing must be finite and > 0, got {spacing:?}"
+            )));
+        }
+        let s = array.shape();
+        let dims = [s[0], s[1], s[2]];
+        if dims.contains(&0) {
+            return Err(crate::value_error(format!("the image is empty: shape {dims:?}")));
+        }
+        let data = array.as_slice().map_err(crate::value_error)?.to_vec();
+        if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+            let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+            return Err(crate::value_error(format!(
+                "the image value at [{x}, {y}, {z}] is {}: intensities must be finite",
+                data[i]
+            )));
+        }
+        let image = LibImage { dims, spacing, data, to_world: IDENTITY };
+        Ok(Image { loaded: Arc::new(LoadedImage::from_image(image)) })
+    }
+
+    /// The voxels, `[i, j, k]` (a Fortran-ordered copy).
+    #[getter]
+    fn array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let im = &self.loaded.image;
+        let [a, b, c] = im.dims;
+        Ok(Array3::from_shape_vec((a, b, c).f(), im.data.clone())
+            .map_err(crate::value_error)?
+            .into_pyarray(py))
+    }
+
+    #[getter]
+    fn shape(&self) -> [usize; 3] {
+        self.loaded.image.dims
+    }
+
+    #[getter]
+    fn spacing(&self) -> [f64; 3] {
+        self.loaded.image.spacing
+    }
+
+    /// Voxel index `(i, j, k, 1)` → world `(x, y, z, 1)`, 4×4 (nibabel's `affine`).
+    #[getter]
+    fn affine(&self) -> [[f64; 4]; 4] {
+        let im = &self.loaded.image;
+        let m = &im.to_world;
+        let s = im.spacing;
+        let mut a = [[0.0; 4]; 4];
+        for r in 0..3 {
+            for c in 0..3 {
+                a[r][c] = m[r][c] * s[c];
+            }
+            a[r][3] = m[r][3];
+        }
+        a[3][3] = 1.0;
+        a
+    }
+
+    fn __repr__(&self) -> String {
+        let im = &self.loaded.image;
+        format!("Image(shape={:?}, spacing={:?})", im.dims, im.spacing)
+    }
+}
+
+/// Reads a NIfTI (`.nii`, `.nii.gz`), `.npy` or grey PNG image.
+#[pyfunction]
+#[pyo3(signature = (path, spacing=None))]
+fn load_image(py: Python<'_>, path: PathBuf, spacing: Option<[f64; 3]>) -> PyResult<Image> {
+    let loaded = py.detach(|| image::load(&path, spacing)).map_err(image_error)?;
+    Ok(Image { loaded: Arc::new(loaded) })
+}
+
+/// The result of `segment`.
+#[pyclass(frozen, module = "sparse_levelset")]
+pub struct Segmentation {
+    seg: LibSeg,
+    image: Arc<LoadedImage>,
+    report_json: String,
+}
+
+#[pymethods]
+impl Segmentation {
+    /// 1 inside, 0 outside, `[i, j, k]` like the image (Fortran-ordered).
+    #[getter]
+    fn mask<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        let [a, b, c] = self.image.image.dims;
+        Ok(Array3::from_shape_vec((a, b, c).f(), self.seg.mask.clone())
+            .map_err(crate::value_error)?
+            .into_pyarray(py))
+    }
+
+    /// The final level set on the image lattice (voxel (i, j, k) is image voxel [i, j, k];
+    /// its voxel size is the largest spacing).
+    #[getter]
+    fn levelset(&self) -> PyResult<LevelSet> {
+        let tiles = self
+            .seg
+            .simulation
+            .tiles()
+            .ok_or_else(|| crate::value_error("the segmentation holds no tile grid"))?;
+        LevelSet::new(tiles.clone())
+    }
+
+    /// The run's figures as JSON (the Python layer returns a dict).
+    #[getter]
+    fn report_json(&self) -> &str {
+        &self.report_json
+    }
+
+    /// The surface in the image's world coordinates: `(verts, faces, normals)`.
+    #[allow(clippy::type_complexity)]
+    fn mesh<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>)>
+    {
+        let m = py.detach(|| self.seg.mesh(&self.image.image)).map_err(segment_error)?;
+        Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?, to_rows(py, &m.normals)?))
+    }
+
+    /// Writes the mask like the image (`.nii`/`.nii.gz` with its header, `.npy`, `.png`).
+    fn save_mask(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| {
+            image::check_output(&path, &self.image, image::Output::Mask)?;
+            image::save_mask(&path, &self.seg.mask, &self.image)
+        })
+        .map_err(image_error)
+    }
+}
+
+fn method_of(
+    name: &str,
+    lower: Option<f32>,
+    upper: Option<f32>,
+    l1: f32,
+    l2: f32,
+    nu: f32,
+) -> PyResult<Method> {
+    match name {
+        "threshold" => match (lower, upper) {
+            (Some(lower), Some(upper)) => Ok(Method::Threshold { lower, upper }),
+            _ => Err(crate::value_error(
+                "the threshold method needs lower_threshold and upper_threshold",
+            )),
+        },
+        "gac" | "geodesic" => Ok(Method::Gac),
+        "chan-vese" | "chan_vese" => Ok(Method::ChanVese { lambda1: l1, lambda2: l2, nu }),
+        m => Err(crate::value_error(format!("unknown method {m:?}: threshold, gac or chan-vese"))),
+    }
+}
+
+/// Segments `image` (see the Python docs for the parameters).
+#[pyfunction]
+#[pyo3(signature = (
+    image, method, seeds, world, init_mask, init_levelset, lower_threshold, upper_threshold,
+    sigma, propagation_scaling, curvature_scaling, advection_scaling, edge_scale, sigmoid,
+    lambda1, lambda2, nu, maximum_rms_error, volume_change, window, number_of_iterations,
+    terms, threads, progress=None
+))]
+#[allow(clippy::too_many_arguments)]
+fn segment(
+    py: Python<'_>,
+    image: &Image,
+    method: &str,
+    seeds: Vec<Vec<f64>>,
+    world: bool,
+    init_mask: Option<PyReadonlyArray3<'_, u8>>,
+    init_levelset: Option<PyReadonlyArray3<'_, f32>>,
+    lower_threshold: Option<f32>,
+    upper_threshold: Option<f32>,
+    sigma: Option<f64>,
+    propagation_scaling: Option<f32>,
+    curvature_scaling: Option<f32>,
+    advection_scaling: Option<f32>,
+    edge_scale: Option<f64>,
+    sigmoid: Option<(f64, f64)>,
+    lambda1: f32,
+    lambda2: f32,
+    nu: f32,
+    maximum_rms_error: f64,
+    volume_change: f64,
+    window: u64,
+    number_of_iterations: u64,
+    terms: Vec<(String, f32)>,
+    threads: Option<usize>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<Segmentation> {
+    let loaded = Arc::clone(&image.loaded);
+    let dims = loaded.image.dims;
+    let same_shape = |what: &str, s: &[usize]| -> PyResult<()> {
+        if s != dims {
+            return Err(crate::value_error(format!("{what} has shape {s:?}, the image {dims:?}")));
+        }
+        Ok(())
+    };
+    let init = if let Some(m) = init_mask {
+        same_shape("init_mask", m.shape())?;
+        if !m.is_fortran_contiguous() {
+            return Err(crate::value_error("init_mask must be Fortran-ordered like the image"));
+        }
+        Init::Mask(m.as_slice().map_err(crate::value_error)?.to_vec())
+    } else if let Some(l) = init_levelset {
+        same_shape("init_levelset", l.shape())?;
+        if !l.is_fortran_contiguous() {
+            return Err(crate::value_error("init_levelset must be Fortran-ordered like the image"));
+        }
+        Init::LevelSet(l.as_slice().map_err(crate::value_error)?.to_vec())
+    } else {
+        let mut list = Vec::with_capacity(seeds.len());
+        for s in &seeds {
+            match s.as_slice() {
+                [i, j, k] => list.push(Seed { center: [*i, *j, *k], radius: 3.0 }),
+                [i, j, k, r] => list.push(Seed { center: [*i, *j, *k], radius: *r }),
+                _ => {
+                    return Err(crate::value_error(format!(
+                        "a seed is (i, j, k) or (i, j, k, radius), got {s:?}"
+                    )))
+                }
+            }
+        }
+        Init::Seeds { seeds: list, world }
+    };
+    let method = method_of(method, lower_threshold, upper_threshold, lambda1, lambda2, nu)?;
+    let mut terms_list = Vec::with_capacity(terms.len());
+    for (name, w) in &terms {
+        terms_list
+            .push((method_of(name, lower_threshold, upper_threshold, lambda1, lambda2, nu)?, *w));
+    }
+    let pool = match threads {
+        None => None,
+        Some(0) => return Err(crate::value_error("threads must be at least 1")),
+        Some(n) => Some(Arc::new(
+            rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(crate::value_error)?,
+        )),
+    };
+    let params = Params {
+        sigma,
+        propagation: propagation_scaling,
+        curvature: curvature_scaling,
+        advection: advection_scaling,
+        edge_scale,
+        sigmoid,
+        rms: maximum_rms_error,
+        volume_change,
+        window,
+        max_iterations: number_of_iterations,
+        pool,
+        terms: terms_list,
+        ..Params::new(method)
+    };
+    let seg = watch::run(py, progress.as_ref(), "segment", |w| {
+        let mut monitor = |s: &seglib::StepInfo| {
+            w.report(vec![
+                ("iteration", s.iteration as f64),
+                ("max_iterations", s.max_iterations as f64),
+                ("rms", s.rms),
+                ("band_voxels", s.band_voxels as f64),
+                ("voxels", s.voxels as f64),
+            ])
+        };
+        seglib::segment(&loaded.image, &init, &params, &mut monitor)
+    })?
+    .map_err(segment_error)?;
+    if seg.report.stop == seglib::Stop::Cancelled {
+        return Err(pyo3::exceptions::PyKeyboardInterrupt::new_err("segmentation cancelled"));
+    }
+    let report_json = serde_json::to_string(&seg.report).map_err(crate::value_error)?;
+    Ok(Segmentation { seg, image: loaded, report_json })
+}

@@ -1,0 +1,107 @@
+//! Long calls: the work runs on a scoped worker thread while the calling thread, with the
+//! GIL released between looks, checks for Ctrl-C (`PyErr_CheckSignals` acts only on the
+//! main thread, so it cannot be called from inside the work) and hands the latest
+//! progress to the user's callback. A signal or an exception in the callback cancels the
+//! work through the library's [`Progress`] (or a monitor's `false`), and the exception is
+//! raised once the worker has stopped: nothing keeps running behind the caller's back.
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use sparse_levelset::progress::Progress;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::Duration;
+
+/// How often the waiting thread looks for signals and progress.
+const TICK: Duration = Duration::from_millis(50);
+
+/// What the work and the waiting thread share: the latest progress report (named numbers)
+/// and the cancel flag.
+#[derive(Default)]
+pub struct Watch {
+    latest: Mutex<Option<Vec<(&'static str, f64)>>>,
+    cancel: AtomicBool,
+}
+
+impl Watch {
+    /// Records a report for the callback; false once the call is cancelled (a monitor's
+    /// answer).
+    pub fn report(&self, values: Vec<(&'static str, f64)>) -> bool {
+        if let Ok(mut l) = self.latest.lock() {
+            *l = Some(values);
+        }
+        !self.cancelled()
+    }
+
+    pub fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+
+    /// A library [`Progress`] reporting `done` and `total` here and stopping on cancel.
+    pub fn progress(self: &Arc<Self>) -> Progress {
+        let w = Arc::clone(self);
+        Progress::new(move |done, total| {
+            w.report(vec![("done", done as f64), ("total", total as f64)])
+        })
+    }
+}
+
+/// Runs `work` on a worker thread and waits for it, forwarding progress to `callback`
+/// (called with a dict of the latest report) and turning Ctrl-C into `KeyboardInterrupt`.
+pub fn run<R: Send>(
+    py: Python<'_>,
+    callback: Option<&Bound<'_, PyAny>>,
+    what: &str,
+    work: impl FnOnce(&Arc<Watch>) -> R + Send,
+) -> PyResult<R> {
+    let watch = Arc::new(Watch::default());
+    let (tx, rx) = mpsc::channel();
+    let rx = Mutex::new(rx);
+    std::thread::scope(|scope| {
+        let w = Arc::clone(&watch);
+        scope.spawn(move || {
+            let _ = tx.send(catch_unwind(AssertUnwindSafe(|| work(&w))));
+        });
+        let mut error: Option<PyErr> = None;
+        loop {
+            match py.detach(|| match rx.lock() {
+                Ok(rx) => rx.recv_timeout(TICK),
+                Err(_) => Err(mpsc::RecvTimeoutError::Disconnected),
+            }) {
+                Ok(Ok(r)) => return error.map_or(Ok(r), Err),
+                Ok(Err(_)) => return Err(crate::panic_error(what)),
+                Err(mpsc::RecvTimeoutError::Disconnected) => return Err(crate::panic_error(what)),
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+            }
+            if error.is_some() {
+                continue;
+            }
+            if let Err(e) = py.check_signals() {
+                error = Some(e);
+            } else if let Some(cb) = callback {
+                let latest = watch.latest.lock().ok().and_then(|mut l| l.take());
+                if let Some(values) = latest {
+                    let call = || -> PyResult<()> {
+                        let d = PyDict::new(py);
+                        for (k, v) in values {
+                            if v.fract() == 0.0 && v.abs() < 9.0e15 {
+                                d.set_item(k, v as i64)?;
+                            } else {
+                                d.set_item(k, v)?;
+                            }
+                        }
+                        cb.call1((d,))?;
+                        Ok(())
+                    };
+                    if let Err(e) = call() {
+                        error = Some(e);
+                    }
+                }
+            }
+            if error.is_some() {
+                watch.cancel.store(true, Ordering::Relaxed);
+            }
+        }
+    })
+}
