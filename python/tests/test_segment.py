@@ -1,0 +1,136 @@
+"""`segment` on phantoms with known truth, and the README's NIfTI script."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import nibabel as nib
+import numpy as np
+import pytest
+import trimesh
+
+import sparse_levelset as sl
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def ball_phantom(n=48, radius=14.0, snr=4.0, seed=3, spacing=(1.0, 1.0, 1.0)):
+    """A bright ball in Gaussian noise, indexed [i, j, k] with the given spacing."""
+    rng = np.random.default_rng(seed)
+    idx = np.indices((n, n, n)).astype(np.float64)
+    c = (n - 1) / 2
+    r = np.sqrt(sum(((idx[a] - c) * spacing[a] / spacing[0]) ** 2 for a in range(3)))
+    truth = r <= radius
+    image = 100.0 + 100.0 * truth + rng.normal(0, 100.0 / snr, truth.shape)
+    return image, truth
+
+
+def dice(a, b):
+    return 2 * np.logical_and(a, b).sum() / (a.sum() + b.sum())
+
+
+@pytest.mark.parametrize("method,kw", [
+    ("threshold", dict(lower_threshold=150.0, upper_threshold=1000.0)),
+    ("gac", {}),
+    ("chan-vese", {}),
+])
+def test_methods_find_the_ball(method, kw):
+    image, truth = ball_phantom()
+    seg = sl.segment(image, method, seeds=[(24, 24, 24, 4)], **kw)
+    assert seg.mask.shape == image.shape and seg.mask.dtype == np.uint8
+    assert dice(seg.mask.astype(bool), truth) > 0.95
+    r = seg.report
+    assert r["stop"] in ("rms", "volume") and r["params"]["method"]["name"] == method
+    mesh = trimesh.Trimesh(*seg.mesh()[:2], process=False)
+    assert mesh.is_watertight
+    assert mesh.volume == pytest.approx(truth.sum(), rel=0.05)
+
+
+def test_array_axes_and_spacing():
+    # A C-ordered array indexed [z, y, x] with thick slices along axis 0: seeds and spacing
+    # follow the array's axes, the mask has its shape.
+    image, truth = ball_phantom(n=40, radius=12.0, spacing=(2.0, 1.0, 1.0))
+    image = np.ascontiguousarray(image)
+    seg = sl.segment(image, "threshold", seeds=[(20, 20, 20, 3)], spacing=(2.0, 1.0, 1.0),
+                     lower_threshold=150.0, upper_threshold=1000.0)
+    assert dice(seg.mask.astype(bool), truth) > 0.93
+    v, f, _ = seg.mesh()
+    # World = index × spacing: the ball's centre at 19.5 × spacing.
+    np.testing.assert_allclose(trimesh.Trimesh(v, f).centroid, [39.0, 19.5, 19.5], atol=0.3)
+
+
+def test_same_mask_for_any_thread_count_and_progress():
+    image, _ = ball_phantom(n=40, radius=11.0)
+    calls = []
+    a = sl.segment(image, "gac", seeds=[(20, 20, 20)], threads=1, progress=calls.append)
+    b = sl.segment(image, "gac", seeds=[(20, 20, 20)], threads=2)
+    np.testing.assert_array_equal(a.mask, b.mask)
+    assert a.levelset.checksum == b.levelset.checksum
+    assert all("iteration" in c and "rms" in c for c in calls)
+
+
+def test_an_exception_in_the_progress_callback_stops_the_run():
+    image, _ = ball_phantom(n=40)
+
+    def boom(info):
+        raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        sl.segment(image, "chan-vese", seeds=[(20, 20, 20)], number_of_iterations=100000,
+                   maximum_rms_error=0.0, volume_change=0.0, progress=boom)
+
+
+def test_nifti_image_with_its_header(tmp_path):
+    image, truth = ball_phantom(n=40, radius=11.0, spacing=(1.0, 1.0, 2.5))
+    affine = np.diag([1.0, 1.0, 2.5, 1.0])
+    affine[:3, 3] = (-20.0, 5.0, 7.0)
+    nib.save(nib.Nifti1Image(image.astype(np.int16), affine), tmp_path / "scan.nii.gz")
+    im = sl.load_image(tmp_path / "scan.nii.gz")
+    assert im.shape == [40, 40, 40] and im.spacing == [1.0, 1.0, 2.5]
+    np.testing.assert_allclose(np.array(im.affine), affine)
+    np.testing.assert_array_equal(im.array, image.astype(np.int16).astype(np.float32))
+    seg = sl.segment(im, "gac", seeds=[(19.5, 19.5, 19.5, 3)])
+    assert dice(seg.mask.astype(bool), truth) > 0.9
+    seg.save_mask(tmp_path / "mask.nii.gz")
+    saved = nib.load(tmp_path / "mask.nii.gz")
+    np.testing.assert_allclose(saved.affine, affine)
+    np.testing.assert_array_equal(np.asarray(saved.dataobj), seg.mask)
+    # The mesh is in the scanner's world: the ball's centre through the affine.
+    v, f, _ = seg.mesh()
+    centre = affine[:3, :3] @ np.full(3, 19.5) + affine[:3, 3]
+    np.testing.assert_allclose(trimesh.Trimesh(v, f).centroid, centre, atol=0.5)
+
+
+def test_readme_script(tmp_path):
+    """The README's Python example runs as printed, on a NIfTI file."""
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"```python\n(.*?)```", text, re.S).group(1)
+    assert len(block.strip().splitlines()) <= 15
+    image, _ = ball_phantom(n=48)
+    nib.save(nib.Nifti1Image(image.astype(np.float32), np.eye(4)), tmp_path / "scan.nii.gz")
+    subprocess.run([sys.executable, "-c", block], cwd=tmp_path, check=True)
+    mesh = trimesh.load(tmp_path / "surface.ply")
+    assert mesh.is_watertight
+
+
+def test_bad_input():
+    image, _ = ball_phantom(n=20, radius=5)
+    with pytest.raises(ValueError, match="seeds"):
+        sl.segment(image, "gac")
+    with pytest.raises(ValueError, match="unknown method"):
+        sl.segment(image, "snakes", seeds=[(10, 10, 10)])
+    with pytest.raises(ValueError, match="lower_threshold"):
+        sl.segment(image, "threshold", seeds=[(10, 10, 10)])
+    with pytest.raises(ValueError, match="seed"):
+        sl.segment(image, "gac", seeds=[(10, 10)])
+    bad = image.copy()
+    bad[1, 2, 3] = np.inf
+    with pytest.raises(ValueError, match="finite"):
+        sl.segment(bad, "gac", seeds=[(10, 10, 10)])
+    with pytest.raises(ValueError, match="spacing"):
+        sl.segment(image, "gac", seeds=[(10, 10, 10)], spacing=(1, -1, 1))
+    with pytest.raises(ValueError, match="shape"):
+        sl.segment(image, "gac", init_mask=np.ones((3, 3, 3)))
+    with pytest.raises(OSError):
+        sl.load_image("/nonexistent/scan.nii.gz")
