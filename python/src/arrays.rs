@@ -8,6 +8,20 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
+/// A triangle mesh as NumPy arrays: vertices, triangles, normals.
+pub type MeshArrays<'py> =
+    (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>);
+
+/// An isosurface of an array: vertices (float32, array axes), triangles, normals.
+pub type IsoArrays<'py> =
+    (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>);
+
+/// A mesh read from a file: vertices and triangles.
+pub type FacesArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
+
+/// Band voxels: coordinates and values.
+pub type Band<'py> = (Bound<'py, PyArray2<i32>>, Bound<'py, numpy::PyArray1<f32>>);
+
 /// A 3-D float32 array's values in x-fastest order with the lattice's dimensions.
 pub struct Volume {
     /// `[nx, ny, nz]` of the lattice.

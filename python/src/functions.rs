@@ -1,9 +1,9 @@
 //! Functions on dense arrays: `distance` (scikit-fmm's), `isosurface` (scikit-image's
 //! `marching_cubes`), and mesh files.
 
-use crate::arrays::{rows3, to_rows, Volume};
+use crate::arrays::{rows3, to_rows, FacesArrays, IsoArrays, Volume};
 use crate::watch;
-use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
@@ -68,14 +68,13 @@ fn distance<'py>(
 /// The isosurface of a 3-D array: vertices in the array's axis order times `spacing`.
 #[pyfunction]
 #[pyo3(signature = (volume, level, spacing, progress=None))]
-#[allow(clippy::type_complexity)]
 fn isosurface<'py>(
     py: Python<'py>,
     volume: PyReadonlyArray3<'py, f32>,
     level: f64,
     spacing: [f64; 3],
     progress: Option<Bound<'py, PyAny>>,
-) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>)> {
+) -> PyResult<IsoArrays<'py>> {
     if spacing.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(crate::value_error(format!("spacing must be finite and > 0, got {spacing:?}")));
     }
@@ -217,10 +216,7 @@ fn save_mesh(
 
 /// Reads a triangle mesh (`.obj`, `.ply`, `.stl`): `(verts, faces)`.
 #[pyfunction]
-fn load_mesh<'py>(
-    py: Python<'py>,
-    path: PathBuf,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>)> {
+fn load_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<FacesArrays<'py>> {
     let m = sparse_levelset::voxelize::read_mesh(&path).map_err(crate::os_error)?;
     Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?))
 }

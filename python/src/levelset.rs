@@ -1,13 +1,12 @@
 //! `LevelSet`: a narrow-band level set held by the Sorted Tile List, with the library's
 //! tools as methods.
 
-use crate::arrays::{rows3, to_rows};
+use crate::arrays::{rows3, to_rows, Band, MeshArrays};
 use crate::functions::{fmm_error, mesh_from_arrays, order_of};
 use crate::watch;
 use numpy::ndarray::Array3;
 use numpy::{
-    IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3,
-    PyUntypedArrayMethods,
+    IntoPyArray, PyArray1, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
@@ -334,15 +333,13 @@ impl LevelSet {
 
     /// The surface φ = level: `(verts (n, 3) world x, y, z, faces (m, 3), normals (n, 3))`.
     #[pyo3(signature = (level=0.0, coarsen=1, progress=None))]
-    #[allow(clippy::type_complexity)]
     fn mesh<'py>(
         &self,
         py: Python<'py>,
         level: f64,
         coarsen: u32,
         progress: Option<Bound<'py, PyAny>>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>)>
-    {
+    ) -> PyResult<MeshArrays<'py>> {
         let m = watch::run(py, progress.as_ref(), "mesh", |w| {
             let opts = MeshOptions { iso: level, coarsen, progress: w.progress() };
             mesh::isosurface(&self.grid, &opts)
@@ -456,10 +453,7 @@ impl LevelSet {
 
     /// The band voxels `(coords (n, 3) int32 x, y, z, values (n,) float32)` in x-y-z order
     /// (z slowest).
-    fn band<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<i32>>, Bound<'py, PyArray1<f32>>)> {
+    fn band<'py>(&self, py: Python<'py>) -> PyResult<Band<'py>> {
         let mut coords = Vec::with_capacity(self.grid.band_voxels());
         let mut values = Vec::with_capacity(self.grid.band_voxels());
         self.grid.for_each_band_voxel(&mut |c, v| {

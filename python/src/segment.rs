@@ -1,11 +1,11 @@
 //! Images and segmentation: `Image` (`load_image`, or an array with its spacing),
 //! `segment`, and its result `Segmentation`.
 
-use crate::arrays::to_rows;
+use crate::arrays::{to_rows, MeshArrays};
 use crate::levelset::LevelSet;
 use crate::watch;
 use numpy::ndarray::{Array3, ShapeBuilder};
-use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use sparse_levelset::image::{self, Image as LibImage, ImageError, LoadedImage, IDENTITY};
 use sparse_levelset::segment::{
@@ -166,12 +166,7 @@ impl Segmentation {
     }
 
     /// The surface in the image's world coordinates: `(verts, faces, normals)`.
-    #[allow(clippy::type_complexity)]
-    fn mesh<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>)>
-    {
+    fn mesh<'py>(&self, py: Python<'py>) -> PyResult<MeshArrays<'py>> {
         let m = py.detach(|| self.seg.mesh(&self.image.image)).map_err(segment_error)?;
         Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?, to_rows(py, &m.normals)?))
     }
