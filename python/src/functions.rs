@@ -48,14 +48,14 @@ fn distance<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     let order = order_of(order)?;
-    let vol = Volume::from_array(&phi)?;
+    let mut vol = Volume::from_array(&phi)?;
     // Without a narrow band every voxel of the array is marched: the diagonal bounds any
     // distance inside it.
     let w = match half_width {
         Some(w) => w,
         None => (vol.dims.iter().map(|&d| (d * d) as f64).sum::<f64>().sqrt() + 2.0) as f32,
     };
-    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, vol.data.clone())
+    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
         .map_err(crate::grid_error)?;
     let out = watch::run(py, progress.as_ref(), "distance", |w8| {
         let opts = FmmOptions { order, half_width: Some(w), progress: w8.progress() };
@@ -81,8 +81,8 @@ fn isosurface<'py>(
     if !level.is_finite() {
         return Err(crate::value_error(format!("level must be finite, got {level}")));
     }
-    let vol = Volume::from_array(&volume)?;
-    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, vol.data.clone())
+    let mut vol = Volume::from_array(&volume)?;
+    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
         .map_err(crate::grid_error)?;
     let (lo, hi) = field
         .data()
