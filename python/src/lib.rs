@@ -48,6 +48,17 @@ pub(crate) fn lib_error(e: impl Display) -> PyErr {
     }
 }
 
+/// A thread pool of `threads` threads (`None`: the global pool).
+pub(crate) fn pool(threads: Option<usize>) -> PyResult<Option<std::sync::Arc<rayon::ThreadPool>>> {
+    match threads {
+        None => Ok(None),
+        Some(0) => Err(value_error("threads must be at least 1")),
+        Some(n) => Ok(Some(std::sync::Arc::new(
+            rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(value_error)?,
+        ))),
+    }
+}
+
 /// A bug: the library panicked (caught on the worker thread, never an abort).
 pub(crate) fn panic_error(what: &str) -> PyErr {
     PyRuntimeError::new_err(format!(

@@ -279,13 +279,6 @@ fn segment(
         terms_list
             .push((method_of(name, lower_threshold, upper_threshold, lambda1, lambda2, nu)?, *w));
     }
-    let pool = match threads {
-        None => None,
-        Some(0) => return Err(crate::value_error("threads must be at least 1")),
-        Some(n) => Some(Arc::new(
-            rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(crate::value_error)?,
-        )),
-    };
     let params = Params {
         sigma,
         propagation: propagation_scaling,
@@ -297,7 +290,7 @@ fn segment(
         volume_change,
         window,
         max_iterations: number_of_iterations,
-        pool,
+        pool: crate::pool(threads)?,
         terms: terms_list,
         ..Params::new(method)
     };

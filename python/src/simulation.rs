@@ -148,16 +148,6 @@ impl Simulation {
                 )))
             }
         };
-        let pool = match threads {
-            None => None,
-            Some(0) => return Err(crate::value_error("threads must be at least 1")),
-            Some(n) => Some(Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(n)
-                    .build()
-                    .map_err(crate::value_error)?,
-            )),
-        };
         let settings = Settings {
             scheme,
             integrator,
@@ -166,7 +156,7 @@ impl Simulation {
                 None => TimeStep::Cfl(cfl),
             },
             renormalization,
-            pool,
+            pool: crate::pool(threads)?,
             ..Settings::default()
         };
         let tiles = levelset.grid.clone();
