@@ -46,3 +46,29 @@ def test_ctrl_c_stops_a_simulation_between_steps():
     # The state is the last completed step: stepping goes on from there.
     sim.step()
     assert sim.steps == steps + 1
+
+
+def test_long_calls_release_the_gil():
+    # Python code keeps running on another thread while a march runs.
+    phi, _ = torus_fields(n=128, R=40.0, r=12.0)
+    phi = phi.astype(np.float32)
+    done = threading.Event()
+    ticks = 0
+
+    def work():
+        sl.distance(phi)
+        done.set()
+
+    t = threading.Thread(target=work)
+    start = time.perf_counter()
+    t.start()
+    time.sleep(0.01)
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    t.join()
+    elapsed = time.perf_counter() - start
+    # A held GIL would let this loop run only at the 50 ms looks for Ctrl-C (about 20 per
+    # second); released, it runs every millisecond or so.
+    assert elapsed > 0.2
+    assert ticks > 100 * elapsed
