@@ -287,11 +287,11 @@ class LevelSet:
         return cls(_native.LevelSet.load(os.fspath(path), float(voxel_size), o, float(half_width)))
 
     def save(
-        self, path: Union[str, os.PathLike], *, margin: int = 2, compression: str = "zip"
+        self, path: Union[str, os.PathLike], *, margin: int = 2, compression: str = "none"
     ) -> None:
         """Writes ``.sls``, ``.vdb`` (a float grid of class level set, background γ,
-        ``compression`` ``"zip"`` or ``"none"``) or ``.npy`` (the band's box grown by
-        ``margin`` voxels, ``[z, y, x]``). Writes are atomic: a failed write leaves an
+        inactive values left out; ``compression="zip"`` deflates the rest, a few percent
+        smaller) or ``.npy`` (the band's box grown by ``margin`` voxels, ``[z, y, x]``). Writes are atomic: a failed write leaves an
         existing file as it was."""
         self._ls.save(os.fspath(path), int(margin), compression)
 
