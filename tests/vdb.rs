@@ -363,7 +363,9 @@ fn sample() -> (TileGrid, Vec<u8>, Vec<u8>) {
         GridSpec::default(),
     )
     .unwrap();
-    let zip = vdb::encode(&tiles, &VdbOptions::default()).unwrap();
+    let zip =
+        vdb::encode(&tiles, &VdbOptions { compression: VdbCompression::Zip, ..Default::default() })
+            .unwrap();
     let raw = vdb::encode(
         &tiles,
         &VdbOptions { compression: VdbCompression::None, ..Default::default() },
