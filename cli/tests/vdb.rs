@@ -54,6 +54,25 @@ fn convert_reads_openvdb_files_into_every_output() {
 }
 
 #[test]
+fn every_tool_reads_vdb() {
+    let src = fixture("sphere_blosc.vdb");
+    let s = src.to_str().unwrap();
+    let o = levelset(&["info", s, "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let band: Vec<u64> =
+        j["grids"].as_array().unwrap().iter().map(|g| g["band_voxels"].as_u64().unwrap()).collect();
+    assert!(band.iter().all(|&n| n == 9360), "{band:?}");
+    let (ply, png) = (tmp("ovdb-mesh.ply"), tmp("ovdb.png"));
+    let o = levelset(&["mesh", s, "-o", ply.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o =
+        levelset(&["render", s, "-o", png.to_str().unwrap(), "--width", "32", "--height", "32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(png.exists() && ply.exists());
+}
+
+#[test]
 fn bad_vdb_inputs_and_options_get_one_clear_message() {
     let bad = tmp("bad.vdb");
     std::fs::write(&bad, b"VDB? not really").unwrap();

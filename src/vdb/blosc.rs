@@ -117,3 +117,58 @@ pub(super) fn decompress(src: &[u8], expected: usize) -> Result<Vec<u8>, String>
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header(flags: u8, nbytes: usize, blocksize: usize, cbytes: usize) -> Vec<u8> {
+        let mut h = vec![2, 1, flags, 4];
+        for v in [nbytes, blocksize, cbytes] {
+            h.extend_from_slice(&(v as u32).to_le_bytes());
+        }
+        h
+    }
+
+    /// A shuffled frame of two blocks: the first split into 4 raw streams (one per byte
+    /// of a float), the second a short leftover block, one stream, unshuffled tail.
+    #[test]
+    fn split_shuffled_blocks_and_leftovers_come_back() {
+        let data: Vec<u8> = (0..1030u32).map(|i| (i * 7 + i / 5) as u8).collect();
+        let (bs, n) = (1024, 256);
+        let mut body = Vec::new();
+        let mut starts = Vec::new();
+        let first = 16 + 8;
+        starts.push(first);
+        for b in 0..4 {
+            body.extend_from_slice(&(n as u32).to_le_bytes());
+            body.extend((0..n).map(|i| data[i * 4 + b]));
+        }
+        starts.push(first + body.len());
+        // The leftover 6 bytes: one element shuffled (4 bytes by position) + 2 tail bytes.
+        body.extend_from_slice(&6u32.to_le_bytes());
+        body.extend_from_slice(&data[1024..1030]);
+        let cbytes = first + body.len();
+        let mut frame = header(DOSHUFFLE | (CODEC_LZ4 << 5), data.len(), bs, cbytes);
+        for s in &starts {
+            frame.extend_from_slice(&(*s as u32).to_le_bytes());
+        }
+        frame.extend_from_slice(&body);
+        assert_eq!(decompress(&frame, data.len()).unwrap(), data);
+        // The wrong expected size, a cut frame, an unknown codec: refused.
+        assert!(decompress(&frame, data.len() - 4).is_err());
+        assert!(decompress(&frame[..frame.len() - 1], data.len()).is_err());
+        let mut zstd = frame.clone();
+        zstd[2] = DOSHUFFLE | (4 << 5);
+        assert!(decompress(&zstd, data.len()).unwrap_err().contains("Zstd"));
+    }
+
+    #[test]
+    fn stored_frames_are_copied() {
+        let data: Vec<u8> = (0..100u8).collect();
+        let mut frame = header(MEMCPYED | DOSHUFFLE | (CODEC_LZ4 << 5), 100, 100, 116);
+        frame.extend_from_slice(&data);
+        assert_eq!(decompress(&frame, 100).unwrap(), data);
+        assert!(decompress(&frame[..115], 100).is_err());
+    }
+}

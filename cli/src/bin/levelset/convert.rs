@@ -3,7 +3,7 @@
 //! chosen by the extensions. Every input goes through the library's one loader; the
 //! output path is checked before any work and written atomically.
 
-use crate::source::is_sls;
+use crate::source::{is_sls, is_vdb};
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
@@ -66,10 +66,6 @@ enum Out {
 
 fn is_npy(p: &Path) -> bool {
     p.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-}
-
-fn is_vdb(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
 }
 
 pub fn run(a: &ConvertArgs) -> Result<(), String> {
