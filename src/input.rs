@@ -20,6 +20,9 @@
 //! 7. **Positions**: the voxels, band included, lie in the `i32` coordinate range. (Meshes
 //!    far from the origin are written with `f64` positions; see [`crate::mesh`].)
 //!
+//! Sparse files (`.sls`: [`load_sls`]; OpenVDB `.vdb`: [`load_vdb`]) carry their own spec
+//! and follow rules 2 and 4, their readers the rest (NaN refused, values within ±γ).
+//!
 //! Shapes ([`check_shape`]) follow rules 2, 4 and 7 and have their parameters checked
 //! ([`Shape::validate`]).
 //!
@@ -118,6 +121,9 @@ pub enum InputError {
     /// The file cannot be read as a `.sls` sparse level set ([`crate::sls`]).
     #[error(transparent)]
     Sls(#[from] crate::sls::SlsError),
+    /// The file cannot be read as an OpenVDB level set ([`crate::vdb`]).
+    #[error(transparent)]
+    Vdb(#[from] crate::vdb::VdbError),
 }
 
 /// Loads a dense level set from a `.npy` file and checks it against `expect` (every rule
@@ -154,6 +160,23 @@ pub fn load_sls(
     crate::memory::check(needed, "the level set with the tool's working copies")
         .map_err(|error| InputError::OutOfMemory { input: name, error })?;
     Ok((grid, header))
+}
+
+/// Loads a level set from an OpenVDB `.vdb` file ([`crate::vdb::load`]: its first `float`
+/// grid of class `level set`; memory and every count checked before anything is sized by
+/// it). Its own voxel size, origin and half-width (background / voxel size) replace
+/// `expect.spec`; the isovalue must lie inside its band.
+pub fn load_vdb(
+    path: &Path,
+    expect: &Expect,
+) -> Result<(crate::tiles::TileGrid, crate::vdb::VdbInfo), InputError> {
+    let (grid, info) = crate::vdb::load(path)?;
+    let name = path.display().to_string();
+    check_iso(&name, &Expect { spec: *grid.spec(), ..*expect })?;
+    let needed = (expect.copies.max(1.0) - 1.0) * grid.memory().used() as f64;
+    crate::memory::check(needed, "the level set with the tool's working copies")
+        .map_err(|error| InputError::OutOfMemory { input: name, error })?;
+    Ok((grid, info))
 }
 
 /// Checks a dense level set against `expect` (rules 3 to 7 of the module docs; `input`
@@ -332,6 +355,31 @@ mod tests {
         assert!(matches!(err, InputError::OutOfMemory { .. }), "{err}");
         let err = load_npy(&dir.join("missing.npy"), &expect()).unwrap_err();
         assert!(matches!(err, InputError::File(NpyError::Io { .. })), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn vdb_files_carry_their_spec_and_name_themselves_in_errors() {
+        let dir = std::env::temp_dir().join(format!("levelset-input-vdb-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("ball.vdb");
+        let spec = GridSpec::new(0.5, [1.0, 2.0, 3.0], 2.5).unwrap();
+        let ball = Shape::Sphere { center: [1.0, 2.0, 3.0], radius: 4.0 };
+        let tiles = crate::build::tiles_from_shape(&ball, spec).unwrap();
+        crate::vdb::save(&path, &tiles, &Default::default()).unwrap();
+        let (grid, info) = load_vdb(&path, &expect()).unwrap();
+        assert_eq!(*grid.spec(), spec, "the file's spec replaces the expected one");
+        assert_eq!(info.half_width, 2.5);
+        // γ = 1.25 here: an isovalue of 2 is outside the file's band.
+        let err = load_vdb(&path, &Expect { iso: 2.0, ..expect() }).unwrap_err();
+        assert!(matches!(err, InputError::IsoOutsideBand { .. }), "{err}");
+        let err = load_vdb(&path, &Expect { copies: 1e15, ..expect() }).unwrap_err();
+        assert!(matches!(err, InputError::OutOfMemory { .. }), "{err}");
+        std::fs::write(&path, b"VDB? no").unwrap();
+        let err = load_vdb(&path, &expect()).unwrap_err();
+        assert!(matches!(err, InputError::Vdb(_)), "{err}");
+        assert!(err.to_string().starts_with(&path.display().to_string()), "{err}");
+        assert!(err.to_string().contains("not an OpenVDB"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

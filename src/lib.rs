@@ -47,6 +47,7 @@ pub mod segment;
 pub mod shapes;
 pub mod sls;
 pub mod tiles;
+pub mod vdb;
 pub mod voxelize;
 
 /// The README's code is compiled and run as a test.

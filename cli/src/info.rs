@@ -174,12 +174,12 @@ fn assemble(p: Parts) -> InfoReport {
     }
 }
 
-/// Reports a sparse level set read from a `.sls` file: its H-RLE encoding and the tile
-/// list and DT-Grid it converts into.
+/// Reports a sparse level set read from a `.sls` file (with its `header`) or a `.vdb` file
+/// (`None`): its H-RLE encoding and the tile list and DT-Grid it converts into.
 pub fn info_from_sparse(
     name: &str,
     grid: &HrleGrid,
-    header: &sparse_levelset::sls::Header,
+    header: Option<&sparse_levelset::sls::Header>,
 ) -> Result<InfoReport, GridError> {
     let t0 = Instant::now();
     let mut tiles = tiles_from(grid);
@@ -210,7 +210,7 @@ pub fn info_from_sparse(
         ],
         hrle,
         sls_bytes,
-        header: Some(header),
+        header,
         warnings,
     }))
 }

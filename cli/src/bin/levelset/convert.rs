@@ -1,10 +1,10 @@
-//! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files and meshes
-//! (read: `.obj`, `.ply`, `.stl`; written: `.ply`, `.obj`),
+//! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files, OpenVDB
+//! `.vdb` level sets and meshes (read: `.obj`, `.ply`, `.stl`; written: `.ply`, `.obj`),
 //! chosen by the extensions. Every input goes through the library's one loader; the
 //! output path is checked before any work and written atomically.
 
-use crate::source::is_sls;
-use clap::Args;
+use crate::source::{is_sls, is_vdb};
+use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
 use sparse_levelset::build::{self, tiles_from_dense};
@@ -13,17 +13,20 @@ use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::input::{self, Expect};
 use sparse_levelset::mesh::{self, MeshFormat};
 use sparse_levelset::sls;
+use sparse_levelset::vdb::{self, VdbCompression, VdbOptions};
 use sparse_levelset::voxelize::{read_mesh, voxelize, MeshFileFormat, VoxelizeOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct ConvertArgs {
-    /// Input: a dense float32 .npy signed distance field, a sparse .sls file, or a mesh
-    /// (.obj, .ply, .stl), voxelised as `levelset voxelize` does.
+    /// Input: a dense float32 .npy signed distance field, a sparse .sls file, an OpenVDB
+    /// .vdb file (its first float grid of class "level set"), or a mesh (.obj, .ply,
+    /// .stl), voxelised as `levelset voxelize` does.
     #[arg(value_name = "IN")]
     pub input: PathBuf,
-    /// Output: .sls (sparse, H-RLE encoded), .npy (dense, the band's box grown by
-    /// --margin, ±γ beyond the band), or a mesh of the zero set (.ply binary, .obj).
+    /// Output: .sls (sparse, H-RLE encoded), .vdb (an OpenVDB level set for Blender,
+    /// Houdini and OpenVDB's tools), .npy (dense, the band's box grown by --margin, ±γ
+    /// beyond the band), or a mesh of the zero set (.ply binary, .obj).
     #[arg(value_name = "OUT")]
     pub output: PathBuf,
     /// Voxel edge length in world units of a .npy input [default: 1] or of a voxelised mesh
@@ -36,13 +39,27 @@ pub struct ConvertArgs {
     /// Voxels of ±γ around the band in a .npy output.
     #[arg(long, default_value_t = 2)]
     pub margin: u32,
+    /// Compression of a .vdb output's values besides leaving out the inactive ones: none
+    /// (fastest to write and read) or zip (zlib: a few percent smaller, slower).
+    #[arg(long, value_enum, default_value_t = VdbCodec::None)]
+    pub vdb_compression: VdbCodec,
+    /// Name of the grid in a .vdb output.
+    #[arg(long, default_value = "level_set")]
+    pub vdb_grid_name: String,
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
 }
 
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum VdbCodec {
+    None,
+    Zip,
+}
+
 enum Out {
     Sls,
+    Vdb,
     Npy,
     Mesh(MeshFormat),
 }
@@ -54,19 +71,34 @@ fn is_npy(p: &Path) -> bool {
 pub fn run(a: &ConvertArgs) -> Result<(), String> {
     let out = if is_sls(&a.output) {
         Out::Sls
+    } else if is_vdb(&a.output) {
+        Out::Vdb
     } else if is_npy(&a.output) {
         Out::Npy
     } else {
         Out::Mesh(MeshFormat::from_path(&a.output, false).map_err(|_| {
-            format!("{}: unknown output type; use .sls, .npy, .ply or .obj", a.output.display())
+            format!(
+                "{}: unknown output type; use .sls, .vdb, .npy, .ply or .obj",
+                a.output.display()
+            )
         })?)
     };
     let is_mesh = MeshFileFormat::from_path(&a.input).is_some();
-    if !(is_sls(&a.input) || is_npy(&a.input) || is_mesh) {
+    if !(is_sls(&a.input) || is_vdb(&a.input) || is_npy(&a.input) || is_mesh) {
         return Err(format!(
-            "{}: unknown input type; use .npy, .sls, .obj, .ply or .stl",
+            "{}: unknown input type; use .npy, .sls, .vdb, .obj, .ply or .stl",
             a.input.display()
         ));
+    }
+    let vdb_opts = VdbOptions {
+        grid_name: a.vdb_grid_name.clone(),
+        compression: match a.vdb_compression {
+            VdbCodec::None => VdbCompression::None,
+            VdbCodec::Zip => VdbCompression::Zip,
+        },
+    };
+    if a.vdb_grid_name.is_empty() || a.vdb_grid_name.contains('\u{1e}') {
+        return Err("--vdb-grid-name: a .vdb grid needs a name (without U+001E)".into());
     }
     let spec = GridSpec::new(a.voxel_size.unwrap_or(1.0), [0.0; 3], a.half_width)
         .map_err(|e| e.to_string())?;
@@ -89,6 +121,9 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
         HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
     } else if is_sls(&a.input) {
         input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?.0
+    } else if is_vdb(&a.input) {
+        let (tiles, _) = input::load_vdb(&a.input, &expect).map_err(|e| e.to_string())?;
+        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
     } else {
         let field = input::load_npy(&a.input, &expect).map_err(|e| e.to_string())?;
         let tiles = tiles_from_dense(&field, spec).map_err(|e| format!("{name}: {e}"))?;
@@ -98,6 +133,10 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     let what = match out {
         Out::Sls => {
             sls::save(&a.output, &grid).map_err(|e| e.to_string())?;
+            format!("{} band voxels", grid.band_voxels())
+        }
+        Out::Vdb => {
+            vdb::save(&a.output, &grid, &vdb_opts).map_err(|e| e.to_string())?;
             format!("{} band voxels", grid.band_voxels())
         }
         Out::Npy => {

@@ -1,5 +1,5 @@
-//! `levelset info`: the grids of a shape, a dense field or a `.sls` file, their voxels and
-//! bytes.
+//! `levelset info`: the grids of a shape, a dense field, a `.sls` or a `.vdb` file, their
+//! voxels and bytes.
 
 use crate::source::{Input, SourceArgs};
 use clap::Args;
@@ -28,7 +28,7 @@ pub fn run(a: &InfoArgs) -> Result<(), String> {
             info_from_shape(&name, &shape, spec).map_err(|e| e.to_string())?
         }
         Input::Sparse { name, grid, header } => {
-            info_from_sparse(&name, &grid, &header).map_err(|e| format!("{name}: {e}"))?
+            info_from_sparse(&name, &grid, header.as_ref()).map_err(|e| format!("{name}: {e}"))?
         }
     };
     if a.json {

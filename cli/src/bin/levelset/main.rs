@@ -46,8 +46,9 @@ enum Command {
     /// Mesh the zero set of a shape or a dense .npy field (simplicial isosurfacing on the
     /// Kuhn triangulation) into a PLY or OBJ file and report its size and checks.
     Mesh(mesh::MeshArgs),
-    /// Convert between dense .npy fields, sparse .sls files and meshes (in: .obj, .ply,
-    /// .stl, voxelised; out: .ply, .obj, meshed), by the files' extensions.
+    /// Convert between dense .npy fields, sparse .sls files, OpenVDB .vdb level sets and
+    /// meshes (in: .obj, .ply, .stl, voxelised; out: .ply, .obj, meshed), by the files'
+    /// extensions.
     Convert(convert::ConvertArgs),
     /// Union, intersection or difference of two dense .npy signed distance fields,
     /// computed on their sparse bands, into a .npy field.

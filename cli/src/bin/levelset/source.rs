@@ -11,6 +11,11 @@ use sparse_levelset::shapes::Shape;
 use sparse_levelset::sls;
 use std::path::{Path, PathBuf};
 
+/// A path with the `.vdb` extension (any case): an OpenVDB level set.
+pub fn is_vdb(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
+}
+
 /// A path with the `.sls` extension (any case).
 pub fn is_sls(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("sls"))
@@ -109,10 +114,10 @@ impl ShapeArgs {
 /// The input level set of `info`, `render` and `mesh`: FIELD or a shape, on a grid.
 #[derive(Args)]
 pub struct SourceArgs {
-    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units), or a
-    /// sparse .sls file (which carries its own voxel size and half-width); without it, the
-    /// shape given by --shape and its flags.
-    #[arg(value_name = "FIELD.npy|FILE.sls", conflicts_with_all = [
+    /// A dense float32 .npy level set (shape (nz, ny, nx), φ < 0 inside, world units), a
+    /// sparse .sls file or an OpenVDB .vdb level set (both carry their own voxel size and
+    /// half-width); without it, the shape given by --shape and its flags.
+    #[arg(value_name = "FIELD.npy|FILE.sls|FILE.vdb", conflicts_with_all = [
         "shape", "radius", "major_radius", "minor_radius", "radii", "half_extents", "depth",
         "turns", "thickness", "center",
     ])]
@@ -129,9 +134,20 @@ pub struct SourceArgs {
 
 /// A loaded and checked input.
 pub enum Input {
-    Field { name: String, field: DenseField },
-    Shape { name: String, shape: Shape },
-    Sparse { name: String, grid: Box<HrleGrid>, header: sls::Header },
+    Field {
+        name: String,
+        field: DenseField,
+    },
+    Shape {
+        name: String,
+        shape: Shape,
+    },
+    /// A `.sls` file (with its header) or a `.vdb` file (without).
+    Sparse {
+        name: String,
+        grid: Box<HrleGrid>,
+        header: Option<sls::Header>,
+    },
 }
 
 impl Input {
@@ -158,7 +174,13 @@ impl SourceArgs {
             if is_sls(path) {
                 let (grid, header) = input::load_sls(path, expect).map_err(|e| e.to_string())?;
                 let name = path.display().to_string();
-                return Ok(Input::Sparse { name, grid: Box::new(grid), header });
+                return Ok(Input::Sparse { name, grid: Box::new(grid), header: Some(header) });
+            }
+            if is_vdb(path) {
+                let (tiles, _) = input::load_vdb(path, expect).map_err(|e| e.to_string())?;
+                let name = path.display().to_string();
+                let grid = HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?;
+                return Ok(Input::Sparse { name, grid: Box::new(grid), header: None });
             }
             let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
             return Ok(Input::Field { name: path.display().to_string(), field });
