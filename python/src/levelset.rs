@@ -24,10 +24,8 @@ use sparse_levelset::mesh::{self, MeshOptions};
 use sparse_levelset::render::{self, RenderOptions};
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::TileGrid;
-#[cfg(vdb_merged)]
-use sparse_levelset::vdb;
 use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
-use sparse_levelset::{sls, Coord};
+use sparse_levelset::{sls, vdb, Coord};
 use std::path::{Path, PathBuf};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -52,7 +50,7 @@ fn input_error(e: input::InputError) -> PyErr {
     use input::InputError as E;
     match e {
         E::OutOfMemory { .. } => pyo3::exceptions::PyMemoryError::new_err(e.to_string()),
-        E::File(_) | E::Sls(_) => crate::os_error(e),
+        E::File(_) | E::Sls(_) | E::Vdb(_) => crate::os_error(e),
         e => crate::value_error(e),
     }
 }
@@ -198,7 +196,6 @@ impl LevelSet {
                     let (h, _) = input::load_sls(&path, &expect).map_err(input_error)?;
                     Ok(build::tiles_from(&h))
                 }
-                #[cfg(vdb_merged)]
                 "vdb" => {
                     let expect = Expect::new(GridSpec::default());
                     Ok(input::load_vdb(&path, &expect).map_err(input_error)?.0)
@@ -227,7 +224,6 @@ impl LevelSet {
         let g = &self.grid;
         py.detach(|| match ext.as_str() {
             "sls" => sls::save(&path, g).map_err(crate::os_error),
-            #[cfg(vdb_merged)]
             "vdb" => {
                 let compression = match compression {
                     "zip" => vdb::VdbCompression::Zip,
