@@ -133,7 +133,7 @@ def test_bad_input(tmp_path):
         s.value([[np.nan, 0, 0]])
     with pytest.raises(ValueError, match=r"\(n, 3\)"):
         s.value(np.zeros((4, 2)))
-    with pytest.raises(ValueError, match="faces"):
+    with pytest.raises(ValueError, match="face 0"):
         sl.LevelSet.from_mesh(np.zeros((3, 3)), [[0, 1, 7]])
     with pytest.raises(TypeError):
         sl.LevelSet(None)
