@@ -4,7 +4,7 @@
 //! dtype and memory order, checks shapes and names, and calls these functions with
 //! float32 arrays that are C- or Fortran-contiguous; everything here works on the
 //! library's types. Long calls run on a worker thread with the GIL released while the
-//! calling thread watches for Ctrl-C and forwards progress ([`watch`]).
+//! calling thread watches for Ctrl-C and forwards progress (the `watch` module).
 
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
