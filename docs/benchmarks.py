@@ -445,6 +445,45 @@ def segmentation_section(meta):
     return out
 
 
+def python_section(meta):
+    runs = [load("python-1.json"), load("python-2.json")]
+    out = [
+        "## Python beside scikit-fmm and scikit-image",
+        "",
+        f"Two runs of `{runs[0]['command']}` (first / second; the fastest of its repeats each):"
+        " `sparse_levelset.distance` against `skfmm.distance` (order 2) on a distorted torus,"
+        " `sparse_levelset.isosurface` against `skimage.measure.marching_cubes` on a sphere;"
+        " errors in voxels (the same in both runs). Tables and conditions:"
+        " [python.md](python.md).",
+        "",
+        "| n³ | narrow | max error ≤ 2.5 voxels: scikit-fmm / ours | seconds: scikit-fmm | seconds: ours | speed-up |",
+        "|---|---|---|---|---|---|",
+    ]
+    for i, r in enumerate(runs[0]["distance"]):
+        b = runs[1]["distance"][i]
+        narrow = "—" if r["narrow"] is None else f"{r['narrow']:g}"
+        out.append(
+            f"| {r['n']} | {narrow} | {r['max_near_skfmm']:.3f} / {r['max_near_ours']:.3f} | "
+            f"{pair(r['t_skfmm'], b['t_skfmm'], lambda v: f'{v:.3f}')} | "
+            f"{pair(r['t_ours'], b['t_ours'], lambda v: f'{v:.3f}')} | "
+            f"{r['t_skfmm'] / r['t_ours']:.1f}× / {b['t_skfmm'] / b['t_ours']:.1f}× |"
+        )
+    out += [
+        "",
+        "| n³ | area error: marching_cubes / ours | seconds: marching_cubes | seconds: ours | speed-up |",
+        "|---|---|---|---|---|",
+    ]
+    for i, r in enumerate(runs[0]["isosurface"]):
+        b = runs[1]["isosurface"][i]
+        out.append(
+            f"| {r['n']} | {100 * r['err_skimage']:+.3f} % / {100 * r['err_ours']:+.3f} % | "
+            f"{pair(r['t_skimage'], b['t_skimage'], lambda v: f'{v:.3f}')} | "
+            f"{pair(r['t_ours'], b['t_ours'], lambda v: f'{v:.3f}')} | "
+            f"{r['t_skimage'] / r['t_ours']:.1f}× / {b['t_skimage'] / b['t_ours']:.1f}× |"
+        )
+    return out
+
+
 def write():
     meta = load("meta.json")
     parts = [
@@ -458,7 +497,7 @@ def write():
         " to compare, and the speed-up report is quoted from two runs.",
         "",
     ]
-    sections = [speedup_section, segmentation_section, solution_section, info_section,
+    sections = [speedup_section, segmentation_section, python_section, solution_section, info_section,
                 memory_table_section, storage_section, evolution_section]
     for section in sections:
         try:

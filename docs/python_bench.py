@@ -4,6 +4,8 @@ problems, in one process (ratios within one run; the machines are shared).
 
     target/py-venv/bin/python docs/python_bench.py               # print the tables
     target/py-venv/bin/python docs/python_bench.py --write-docs  # also fill docs/python.md
+    target/py-venv/bin/python docs/python_bench.py --json docs/data/python-1.json
+                                   # the records, for docs/benchmarks.py's Python section
 
 Needs the package and the references installed (`bash scripts/test.sh` makes
 target/py-venv). Every time is the fastest of --repeat runs.
@@ -21,6 +23,7 @@ target/py-venv). Every time is the fastest of --repeat runs.
 
 import argparse
 import datetime
+import json
 import os
 import platform
 import sys
@@ -145,6 +148,7 @@ def main():
     ap.add_argument("--sizes", type=int, nargs="+", default=[96, 160])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--write-docs", action="store_true", help="fill the table in docs/python.md")
+    ap.add_argument("--json", type=Path, help="also write the records to this JSON file")
     a = ap.parse_args()
     dist = [row for n in a.sizes for row in distance_rows(n, a.repeat)]
     iso = [iso_row(n, a.repeat) for n in a.sizes]
@@ -158,6 +162,11 @@ def main():
         f"{np.__version__}, Python {platform.python_version()})."
     )
     print(note + "\n\n" + body)
+    if a.json:
+        command = f"target/py-venv/bin/python docs/python_bench.py --sizes {' '.join(map(str, a.sizes))} --repeat {a.repeat}"
+        clean = lambda rows: [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()} for r in rows]
+        a.json.write_text(json.dumps({"note": note, "command": command, "distance": clean(dist),
+                                      "isosurface": clean(iso)}, indent=2, default=bool) + "\n")
     if a.write_docs:
         text = DOC_PAGE.read_text()
         if TABLE_BEGIN not in text or TABLE_END not in text:
