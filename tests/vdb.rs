@@ -465,6 +465,29 @@ fn hostile_counts_versions_and_values_are_refused_with_clear_errors() {
         let err = refused(vdb::decode(&b));
         assert!(err.to_string().contains(&format!("announces 4294967295 {what}")), "{err}");
     }
+    // A grid name of 2^32 - 1 bytes, grid offsets past the end, a compressed block of
+    // 2^40 bytes, a NaN or infinite background.
+    let mut b = zip.clone();
+    let name = 8 + 4 + 8 + 1 + 36 + 4 + 4;
+    b[name..name + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    assert!(matches!(refused(vdb::decode(&b)), VdbError::Truncated(_)));
+    let mut b = zip.clone();
+    let end = header_end() - 8;
+    b[end..end + 8].copy_from_slice(&(1i64 << 40).to_le_bytes());
+    let err = refused(vdb::decode(&b));
+    assert!(err.to_string().contains("outside the file"), "{err}");
+    let mut b = zip.clone();
+    let block = i64::from_le_bytes(b[header_end() - 16..header_end() - 8].try_into().unwrap());
+    let size = block as usize + 64 + 1 + if b[block as usize + 64] == 3 { 64 } else { 0 };
+    b[size..size + 8].copy_from_slice(&(1i64 << 40).to_le_bytes());
+    let err = refused(vdb::decode(&b));
+    assert!(err.to_string().contains("announces 1099511627776 compressed bytes"), "{err}");
+    for (v, what) in [(f32::NAN, "NaN"), (f32::INFINITY, "positive")] {
+        let mut b = raw.clone();
+        b[bg..bg + 4].copy_from_slice(&v.to_le_bytes());
+        let err = refused(vdb::decode(&b));
+        assert!(err.to_string().contains(what), "{err}");
+    }
     // A NaN value, in the raw file's first leaf buffer: its active values follow the
     // leaf's mask and the compression byte.
     let (grid, _) = vdb::decode(&raw).unwrap();

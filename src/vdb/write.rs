@@ -215,10 +215,11 @@ pub(super) fn encode<G: LevelSet + ?Sized>(ls: &G, opts: &VdbOptions) -> Result<
     }
     let spec = ls.spec();
     let g = spec.gamma();
-    let bytes = crate::memory::bytes_of(ls.band_voxels() as u128, 2 * 4 + 4);
-    crate::memory::check(bytes, "the OpenVDB leaves")?;
-
-    // Band voxels into 8³ leaves.
+    // Band voxels into 8³ leaves. A leaf takes about 2.2 KB here and again in the file's
+    // bytes; the memory is checked every 4096 leaves, and the rest of the band skipped
+    // once it does not fit.
+    const LEAF_BYTES: f64 = 2.0 * (2048.0 + 64.0 + 64.0);
+    let mut too_big = None;
     let mut index: HashMap<[i32; 3], usize> = HashMap::new();
     let mut leaves: Vec<Leaf> = Vec::new();
     let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
@@ -226,6 +227,16 @@ pub(super) fn encode<G: LevelSet + ?Sized>(ls: &G, opts: &VdbOptions) -> Result<
     ls.for_each_band_voxel(&mut |c, v| {
         let p = [c.x, c.y, c.z];
         let o = node_origin(p, LEAF_TOTAL);
+        if too_big.is_some() {
+            return;
+        }
+        if !index.contains_key(&o) && leaves.len().is_multiple_of(4096) {
+            let need = (leaves.len() + 4096) as f64 * LEAF_BYTES;
+            if let Err(e) = crate::memory::check(need, "the OpenVDB leaves and file") {
+                too_big = Some(e);
+                return;
+            }
+        }
         let k = *index.entry(o).or_insert_with(|| {
             leaves.push(Leaf { origin: o, mask: [0; 8], values: Box::new([f32::NAN; 512]) });
             leaves.len() - 1
@@ -240,6 +251,9 @@ pub(super) fn encode<G: LevelSet + ?Sized>(ls: &G, opts: &VdbOptions) -> Result<
         count += 1;
     });
     drop(index);
+    if let Some(e) = too_big {
+        return Err(e.into());
+    }
     if leaves.is_empty() {
         return Err(VdbError::Empty);
     }
