@@ -24,6 +24,7 @@
 
 pub mod bench;
 pub mod build;
+mod bytes;
 pub mod coord;
 pub mod csg;
 pub mod dense;

@@ -24,6 +24,7 @@
 //! assert!(sls::decode(&bytes[..bytes.len() - 1]).is_err());
 //! ```
 
+use crate::bytes::{ByteReader as Reader, ReadError};
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
 use crate::hrle::{Block, FieldData, HrleGrid, NEG, POS};
@@ -236,62 +237,17 @@ pub fn save<G: LevelSet + ?Sized>(path: &Path, ls: &G) -> Result<(), SlsError> {
 // ---------------------------------------------------------------------------------------
 // Reading
 
-struct Reader<'a> {
-    b: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn left(&self) -> usize {
-        self.b.len() - self.at
-    }
-    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], SlsError> {
-        if self.left() < n {
-            return Err(SlsError::Truncated(what));
-        }
-        let s = &self.b[self.at..self.at + n];
-        self.at += n;
-        Ok(s)
-    }
-    fn u8(&mut self, what: &'static str) -> Result<u8, SlsError> {
-        Ok(self.take(1, what)?[0])
-    }
-    fn u32(&mut self, what: &'static str) -> Result<u32, SlsError> {
-        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
-    }
-    fn u64(&mut self, what: &'static str) -> Result<u64, SlsError> {
-        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
-    }
-    fn f32(&mut self, what: &'static str) -> Result<f32, SlsError> {
-        Ok(f32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
-    }
-    fn f64(&mut self, what: &'static str) -> Result<f64, SlsError> {
-        Ok(f64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
-    }
-    fn varint(&mut self, what: &'static str) -> Result<u64, SlsError> {
-        let mut v = 0u64;
-        for i in 0..10 {
-            let byte = self.u8(what)?;
-            if i == 9 && byte > 1 {
-                break;
-            }
-            v |= ((byte & 0x7f) as u64) << (7 * i);
-            if byte & 0x80 == 0 {
-                return Ok(v);
+impl From<ReadError> for SlsError {
+    fn from(e: ReadError) -> SlsError {
+        match e {
+            ReadError::Truncated(what) => SlsError::Truncated(what),
+            ReadError::TooMany { n, what, left } => SlsError::Corrupt(format!(
+                "the header announces {n} {what}, more than the {left} bytes left can hold"
+            )),
+            ReadError::Overlong(what) => {
+                SlsError::Corrupt(format!("an over-long number in {what}"))
             }
         }
-        Err(SlsError::Corrupt(format!("an over-long number in {what}")))
-    }
-    /// A count of items of at least `min_bytes` bytes each, checked against the bytes
-    /// left before anything is sized by it.
-    fn count(&self, n: u64, min_bytes: u64, what: &'static str) -> Result<usize, SlsError> {
-        if n.checked_mul(min_bytes).is_none_or(|b| b > self.left() as u64) {
-            return Err(SlsError::Corrupt(format!(
-                "the header announces {n} {what}, more than the {} bytes left can hold",
-                self.left()
-            )));
-        }
-        Ok(n as usize)
     }
 }
 

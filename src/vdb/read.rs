@@ -6,6 +6,7 @@ use super::write::{LEAF_LOG2, LEAF_TOTAL, LOWER_LOG2, LOWER_TOTAL, UPPER_LOG2, U
 use super::MIN_FILE_VERSION;
 use super::{blosc, compression_name, spec_from, VdbError, VdbInfo};
 use super::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP, FILE_VERSION, MAGIC};
+use crate::bytes::{ByteReader as Reader, ReadError};
 use crate::coord::Coord;
 use crate::tiles::{voxel_of, Tile, TileGrid};
 use rayon::prelude::*;
@@ -18,65 +19,17 @@ fn corrupt<T>(m: impl Into<String>) -> Res<T> {
     Err(VdbError::Corrupt(m.into()))
 }
 
-struct Reader<'a> {
-    b: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn left(&self) -> usize {
-        self.b.len() - self.at
-    }
-    fn take(&mut self, n: usize, what: &'static str) -> Res<&'a [u8]> {
-        if self.left() < n {
-            return Err(VdbError::Truncated(what));
+impl From<ReadError> for VdbError {
+    fn from(e: ReadError) -> VdbError {
+        match e {
+            ReadError::Truncated(what) => VdbError::Truncated(what),
+            ReadError::TooMany { n, what, left } => VdbError::Corrupt(format!(
+                "the file announces {n} {what}, more than the {left} bytes left can hold"
+            )),
+            ReadError::Overlong(what) => {
+                VdbError::Corrupt(format!("an over-long number in {what}"))
+            }
         }
-        let s = &self.b[self.at..self.at + n];
-        self.at += n;
-        Ok(s)
-    }
-    fn arr<const N: usize>(&mut self, what: &'static str) -> Res<[u8; N]> {
-        Ok(self.take(N, what)?.try_into().expect("N bytes"))
-    }
-    fn u8(&mut self, what: &'static str) -> Res<u8> {
-        Ok(self.take(1, what)?[0])
-    }
-    fn u32(&mut self, what: &'static str) -> Res<u32> {
-        Ok(u32::from_le_bytes(self.arr(what)?))
-    }
-    fn i32(&mut self, what: &'static str) -> Res<i32> {
-        Ok(i32::from_le_bytes(self.arr(what)?))
-    }
-    fn i64(&mut self, what: &'static str) -> Res<i64> {
-        Ok(i64::from_le_bytes(self.arr(what)?))
-    }
-    fn f32(&mut self, what: &'static str) -> Res<f32> {
-        Ok(f32::from_le_bytes(self.arr(what)?))
-    }
-    fn f64(&mut self, what: &'static str) -> Res<f64> {
-        Ok(f64::from_le_bytes(self.arr(what)?))
-    }
-    fn vec3d(&mut self, what: &'static str) -> Res<[f64; 3]> {
-        Ok([self.f64(what)?, self.f64(what)?, self.f64(what)?])
-    }
-    fn string(&mut self, what: &'static str) -> Res<String> {
-        let n = self.u32(what)? as usize;
-        Ok(String::from_utf8_lossy(self.take(n, what)?).into_owned())
-    }
-    /// A count of items of at least `min_bytes` bytes each, checked against the bytes left
-    /// before anything is sized by it.
-    fn count(&self, n: u64, min_bytes: u64, what: &'static str) -> Res<usize> {
-        if n.checked_mul(min_bytes).is_none_or(|b| b > self.left() as u64) {
-            return corrupt(format!(
-                "the file announces {n} {what}, more than the {} bytes left can hold",
-                self.left()
-            ));
-        }
-        Ok(n as usize)
-    }
-    fn mask(&mut self, bits: usize, what: &'static str) -> Res<Vec<u64>> {
-        let raw = self.take(bits / 8, what)?;
-        Ok(raw.chunks_exact(8).map(|c| u64::from_le_bytes(c.try_into().expect("8"))).collect())
     }
 }
 
