@@ -9,18 +9,22 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sparse_levelset::progress::Progress;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc, Mutex};
 use std::time::Duration;
 
 /// How often the waiting thread looks for signals and progress.
 const TICK: Duration = Duration::from_millis(50);
 
-/// What the work and the waiting thread share: the latest progress report (named numbers)
-/// and the cancel flag.
+/// What the work and the waiting thread share: the latest progress report and the cancel
+/// flag. A library [`Progress`] (called for every finished part, from every worker) writes
+/// two atomics; a monitor (once per step) a list of named numbers.
 #[derive(Default)]
 pub struct Watch {
     latest: Mutex<Option<Vec<(&'static str, f64)>>>,
+    done: AtomicU64,
+    total: AtomicU64,
+    counted: AtomicBool,
     cancel: AtomicBool,
 }
 
@@ -42,8 +46,23 @@ impl Watch {
     pub fn progress(self: &Arc<Self>) -> Progress {
         let w = Arc::clone(self);
         Progress::new(move |done, total| {
-            w.report(vec![("done", done as f64), ("total", total as f64)])
+            w.done.fetch_max(done, Ordering::Relaxed);
+            w.total.store(total, Ordering::Relaxed);
+            w.counted.store(true, Ordering::Relaxed);
+            !w.cancelled()
         })
+    }
+
+    /// The report not yet handed to the callback, if any.
+    fn pending(&self) -> Option<Vec<(&'static str, f64)>> {
+        if self.counted.swap(false, Ordering::Relaxed) {
+            let done = self.done.load(Ordering::Relaxed) as f64;
+            return Some(vec![
+                ("done", done),
+                ("total", self.total.load(Ordering::Relaxed) as f64),
+            ]);
+        }
+        self.latest.lock().ok().and_then(|mut l| l.take())
     }
 }
 
@@ -80,8 +99,7 @@ pub fn run<R: Send>(
             if let Err(e) = py.check_signals() {
                 error = Some(e);
             } else if let Some(cb) = callback {
-                let latest = watch.latest.lock().ok().and_then(|mut l| l.take());
-                if let Some(values) = latest {
+                if let Some(values) = watch.pending() {
                     let call = || -> PyResult<()> {
                         let d = PyDict::new(py);
                         for (k, v) in values {

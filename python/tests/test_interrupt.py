@@ -73,3 +73,13 @@ def test_long_calls_release_the_gil():
     # The bound leaves room for a loaded machine.
     assert elapsed > 0.2
     assert ticks > 20 * elapsed
+
+
+def test_progress_reports_done_and_total_in_order():
+    phi, _ = torus_fields(n=160, R=50.0, r=16.0)
+    calls = []
+    sl.distance(phi.astype(np.float32), progress=calls.append)
+    assert calls, "a march of seconds reports at least once"
+    done = [c["done"] for c in calls]
+    assert all(0 <= c["done"] <= c["total"] for c in calls)
+    assert done == sorted(done)
