@@ -28,6 +28,7 @@ mod bytes;
 pub mod coord;
 pub mod csg;
 pub mod dense;
+pub mod distributed;
 pub mod dtgrid;
 pub mod evolve;
 pub mod fmm;

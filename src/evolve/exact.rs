@@ -66,6 +66,16 @@ impl ExactSum {
         ExactSum(self.0 + other.0)
     }
 
+    /// The fixed-point total (units of 2⁻³²): what ranks exchange to add their sums.
+    pub fn to_bits(self) -> i128 {
+        self.0
+    }
+
+    /// A sum from its fixed-point total ([`ExactSum::to_bits`]).
+    pub fn from_bits(bits: i128) -> ExactSum {
+        ExactSum(bits)
+    }
+
     /// The sum as f64.
     pub fn value(self) -> f64 {
         self.0 as f64 / SCALE

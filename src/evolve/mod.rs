@@ -617,6 +617,10 @@ pub enum EvolveError {
     /// unchanged).
     #[error("step {step} was undone: the reinitialisation after it failed: {reason}")]
     ReinitFailed { step: u64, reason: String },
+    /// Another rank of a distributed simulation failed ([`crate::distributed`]): every
+    /// rank keeps its state.
+    #[error("rank {rank} failed: {message}")]
+    OtherRank { rank: usize, message: String },
     /// Writing an output of the run (a mesh or image frame) failed.
     #[error("output: {0}")]
     Output(String),

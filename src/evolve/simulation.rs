@@ -11,11 +11,13 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::dense::DenseField;
+use crate::distributed::{Comm, HaloStats, RankPart, Transport};
 use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
 use crate::shapes::Shape;
 use crate::tiles::TileGrid;
 use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3, cfl_rate_image};
+use std::sync::Arc;
 
 /// A level set evolving under a [`Flow`] on one representation.
 ///
@@ -81,6 +83,69 @@ impl Simulation {
         Simulation::start(rep, kind, flow, settings)
     }
 
+    /// One rank's part of a simulation distributed over the ranks of `transport`
+    /// ([`crate::distributed`]): every rank passes the same whole band `tiles`, keeps the
+    /// z-slabs of tiles the balanced cuts give it (and one ghost slab on either side) and
+    /// runs the tile engine with `lanes` on them. Every rank must call this and then the
+    /// same methods in the same order: steps, [`Simulation::measure`],
+    /// [`Simulation::checksum`], [`Simulation::band_voxels`] and
+    /// [`Simulation::stored_voxels`] are collective and return the whole band's figures
+    /// on every rank, equal to the single-process run's bit for bit. After a step, when
+    /// the largest rank holds more than (1 + `rebalance`) × the smallest rank's tiles,
+    /// the cuts move (`None`: never). Periodic reinitialisation by fast marching
+    /// ([`Settings::reinit`]) is refused: the march is not distributed.
+    pub fn distributed(
+        transport: Arc<dyn Transport>,
+        tiles: TileGrid,
+        lanes: super::Lanes,
+        flow: Flow,
+        settings: Settings,
+        rebalance: Option<f64>,
+    ) -> Result<Simulation, EvolveError> {
+        if settings.reinit.is_some() {
+            return Err(EvolveError::InvalidParameter(
+                "reinitialisation by fast marching is not distributed: use the \
+                 renormalisation sweeps"
+                    .into(),
+            ));
+        }
+        if let Some(r) = rebalance.filter(|r| !(r.is_finite() && *r >= 0.0)) {
+            return Err(EvolveError::InvalidParameter(format!(
+                "the rebalancing threshold must be finite and ≥ 0, got {r}"
+            )));
+        }
+        let comm = Arc::new(Comm::new(transport));
+        let (part, local) = in_pool(&settings.pool, || RankPart::split(comm, &tiles, rebalance))?;
+        drop(tiles);
+        let rep = in_pool(&settings.pool, || TilesRep::distributed(local, lanes, part));
+        Simulation::start(Rep::Tiles(rep), GridKind::Tiles(lanes), flow, settings)
+    }
+
+    /// This rank's exchange statistics when the simulation is distributed.
+    pub fn halo_stats(&self) -> Option<HaloStats> {
+        match &self.rep {
+            Rep::Tiles(t) => t.halo_stats(),
+            _ => None,
+        }
+    }
+
+    /// This rank and the cuts (tile z coordinates: rank r owns `cuts[r] ≤ tz <
+    /// cuts[r + 1]`) when the simulation is distributed.
+    pub fn cuts(&self) -> Option<(usize, Vec<i32>)> {
+        match &self.rep {
+            Rep::Tiles(t) => t.cuts().map(|(r, c)| (r, c.to_vec())),
+            _ => None,
+        }
+    }
+
+    /// The tiles every rank owns, in rank order (collective); one entry when the
+    /// simulation is not distributed.
+    pub fn tiles_per_rank(&self) -> Vec<u64> {
+        let rep = self.rep.get();
+        let n = rep.units() as u64;
+        rep.comm().map_or_else(|| vec![n], |c| c.counts(n))
+    }
+
     /// A simulation starting from a DT-Grid (kept as a DT-Grid).
     pub fn from_dtgrid(
         grid: DtGrid,
@@ -144,7 +209,9 @@ impl Simulation {
             inputs: Inputs::default(),
         };
         let g = sim.spec().gamma();
-        if !sim.rep.get().flat().iter().any(|v| v.abs() < g) {
+        let rep = sim.rep.get();
+        let band = rep.owned_flat().iter().any(|v| v.abs() < g);
+        if !rep.comm().map_or(band, |c| c.any(band)) {
             return Err(EvolveError::EmptyLevelSet);
         }
         // Bring the initial band to the band rule: every voxel within one voxel of the
@@ -246,11 +313,12 @@ impl Simulation {
         let anchors = anchors_stored(sweeps.sweeps);
         let budget = MemoryBudget { keeps_phi_n: true, anchors, ..self.budget() };
         let rep = self.rep.get();
-        budget.admit(
+        let admitted = budget.admit(
             rep.step_bytes(true, anchors),
             self.rep_bytes(),
             "the renormalisation's buffers",
-        )?;
+        );
+        self.agree(admitted.map_err(EvolveError::from))?;
         let p = self.renorm_params(sweeps);
         let pool = self.settings.pool.clone();
         let rep = self.rep.get_mut();
@@ -264,6 +332,9 @@ impl Simulation {
                 Ok(())
             }
             Err(e) => {
+                if let Some(c) = rep.comm() {
+                    c.abort(&format!("renormalisation: {e}"));
+                }
                 rep.undo_step();
                 Err(e)
             }
@@ -283,6 +354,11 @@ impl Simulation {
     /// error (including a second band that [`Settings::memory_limit`] does not admit) the
     /// simulation is unchanged.
     pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
+        if self.rep.get().comm().is_some() {
+            return Err(EvolveError::InvalidParameter(
+                "reinitialisation by fast marching is not distributed".into(),
+            ));
+        }
         self.rep = self.reinitialized(order)?;
         Ok(())
     }
@@ -344,15 +420,35 @@ impl Simulation {
         DenseField::from_fn(origin, dims, |c| self.value(c))
     }
 
-    /// Band voxels (|φ| < γ).
+    /// Band voxels (|φ| < γ); the whole band's when distributed (collective).
     pub fn band_voxels(&self) -> usize {
         let g = self.spec().gamma();
-        self.rep.get().flat().iter().filter(|v| v.abs() < g).count()
+        let rep = self.rep.get();
+        let n = rep.owned_flat().iter().filter(|v| v.abs() < g).count();
+        self.sum_counts([n as u64])[0] as usize
     }
 
-    /// Voxels a stage computes: stored voxels (tile padding included).
+    /// Voxels a stage computes: stored voxels (tile padding included; the ranks' own
+    /// tiles when distributed, collective).
     pub fn stored_voxels(&self) -> usize {
-        self.rep.get().flat().len()
+        self.sum_counts([self.rep.get().owned_flat().len() as u64])[0] as usize
+    }
+
+    /// Counts summed over the ranks (as they are when not distributed).
+    fn sum_counts<const N: usize>(&self, v: [u64; N]) -> [u64; N] {
+        self.rep.get().comm().map_or(v, |c| c.sum_u64(v))
+    }
+
+    /// A result agreed on by every rank (as it is when not distributed): when one rank
+    /// fails, every rank fails, the others with [`EvolveError::OtherRank`].
+    fn agree<T>(&self, r: Result<T, EvolveError>) -> Result<T, EvolveError> {
+        match self.rep.get().comm() {
+            None => r,
+            Some(c) => match c.agree(r) {
+                Ok(r) => r,
+                Err((rank, message)) => Err(EvolveError::OtherRank { rank, message }),
+            },
+        }
     }
 
     /// Inclusive bounding box of the band voxels (`None` when there are none).
@@ -370,7 +466,8 @@ impl Simulation {
         b
     }
 
-    /// Visits the band voxels (|φ| < γ) in [`Coord`] order.
+    /// Visits the band voxels (|φ| < γ) in [`Coord`] order (this rank's own when
+    /// distributed).
     pub fn for_each_band_voxel(&self, mut f: impl FnMut(Coord, f32)) {
         self.rep.get().for_each_band_voxel(&mut f)
     }
@@ -391,26 +488,35 @@ impl Simulation {
     }
 
     /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
-    /// band contents give equal checksums, whatever the representation.
+    /// band contents give equal checksums, whatever the representation. Distributed, the
+    /// ranks hash their parts in turn (rank order is [`Coord`] order), so the checksum is
+    /// the single-process one (collective).
     pub fn checksum(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let mut eat = |bytes: [u8; 4]| {
-            for b in bytes {
-                h ^= b as u64;
-                h = h.wrapping_mul(0x0000_0100_0000_01b3);
-            }
+        let hash = |mut h: u64| {
+            let mut eat = |bytes: [u8; 4]| {
+                for b in bytes {
+                    h ^= b as u64;
+                    h = h.wrapping_mul(0x0000_0100_0000_01b3);
+                }
+            };
+            self.for_each_band_voxel(|c, v| {
+                eat(c.x.to_le_bytes());
+                eat(c.y.to_le_bytes());
+                eat(c.z.to_le_bytes());
+                eat(v.to_bits().to_le_bytes());
+            });
+            h
         };
-        self.for_each_band_voxel(|c, v| {
-            eat(c.x.to_le_bytes());
-            eat(c.y.to_le_bytes());
-            eat(c.z.to_le_bytes());
-            eat(v.to_bits().to_le_bytes());
-        });
-        h
+        const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+        match self.rep.get().comm() {
+            None => hash(FNV_OFFSET),
+            Some(c) => c.chain(FNV_OFFSET, hash),
+        }
     }
 
-    /// Band voxels, storage, volume and area of the current state. Fails when the area's
-    /// sums cannot be computed (a kernel refused its block).
+    /// Band voxels, storage, volume and area of the current state (of the whole band, on
+    /// every rank, when distributed: collective). Fails when the area's sums cannot be
+    /// computed (a kernel refused its block).
     pub fn measure(&self) -> Result<Measures, EvolveError> {
         let rep = self.rep.get();
         let spec = self.spec();
@@ -420,11 +526,19 @@ impl Simulation {
         let width = self.settings.delta_width * h;
         let mut flat_inside = ExactSum::default();
         let mut band = 0usize;
-        for &v in rep.flat() {
+        for &v in rep.owned_flat() {
             flat_inside.add((0.5 - v / h).clamp(0.0, 1.0));
             band += (v.abs() < g) as usize;
         }
         let unstored = rep.unstored_inside();
+        let flat_inside = rep.comm().map_or(flat_inside, |c| c.sum_exact([flat_inside])[0]);
+        let [band, unstored, stored, bytes, work_bytes] = self.sum_counts([
+            band as u64,
+            unstored,
+            rep.units() as u64,
+            rep.bytes() as u64,
+            (rep.work_bytes() + self.inputs.bytes()) as u64,
+        ]);
         let h3 = lattice.map_or((h as f64).powi(3), |l| l.voxel_volume());
         let area = match lattice {
             // The δ integral's gradient is isotropic.
@@ -436,12 +550,12 @@ impl Simulation {
             }
         };
         Ok(Measures {
-            band_voxels: band,
-            stored: rep.units(),
+            band_voxels: band as usize,
+            stored: stored as usize,
             volume: h3 * (flat_inside.value() + unstored as f64),
             area,
-            bytes: rep.bytes(),
-            work_bytes: rep.work_bytes() + self.inputs.bytes(),
+            bytes: bytes as usize,
+            work_bytes: work_bytes as usize,
         })
     }
 
@@ -532,24 +646,38 @@ impl Simulation {
             )));
         }
         // The buffers' memory, stage 1's inputs and Δt: nothing changes yet (but scratch).
+        // Distributed, every rank agrees on each (the inputs' κ̄ and Δt's maxima are
+        // collective themselves, so no rank may skip them).
         let rep = self.rep.get();
         let budget = self.budget();
         let needed = rep.step_bytes(budget.keeps_phi_n, budget.anchors)
             + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
-        budget.admit(needed, self.rep_bytes(), "the step's buffers")?;
-        let kappa_bar =
-            self.inputs.prepare(rep, &self.flow, &self.settings, self.time, true, self.steps)?;
+        let admitted = budget.admit(needed, self.rep_bytes(), "the step's buffers");
+        self.agree(admitted.map_err(EvolveError::from))?;
+        let rep = self.rep.get();
+        let prepared =
+            self.inputs.prepare(rep, &self.flow, &self.settings, self.time, true, self.steps);
+        let kappa_bar = self.agree(prepared)?;
         let (dt, lands) = self.time_step(until)?;
         // The step proper: on an error everything is put back.
         match self.advance(dt) {
             Ok(collapsed) => {
-                self.rep.get_mut().commit_step();
+                let rep = self.rep.get_mut();
+                rep.commit_step();
                 self.time = if lands { until } else { self.time + dt as f64 };
                 self.steps += 1;
                 self.collapsed = collapsed;
+                if let Rep::Tiles(t) = &mut self.rep {
+                    t.rebalance();
+                }
                 Ok(StepReport { step: self.steps, time: self.time, dt, kappa_bar, collapsed })
             }
             Err(e) => {
+                // A rank cannot undo its part of a step the others took (see
+                // `crate::distributed`, "Failures").
+                if let Some(c) = self.rep.get().comm() {
+                    c.abort(&format!("step {}: {e}", self.steps + 1));
+                }
                 self.rep.get_mut().undo_step();
                 Err(e)
             }
@@ -565,6 +693,12 @@ impl Simulation {
         let eps = self.flow.curvature * self.settings.lattice.map_or(1.0, |l| l.curvature_factor());
         let (max_f, max_u, max_u0, max_e) =
             in_pool(&self.settings.pool, || inputs.band_maxima(flat, g, advects, eps));
+        // Distributed: every rank's band and ghosts hold values of the whole band, so the
+        // maxima over the ranks are the whole band's.
+        let [max_f, max_u, max_u0, max_e] = match self.rep.get().comm() {
+            Some(c) => c.max_f32([max_f, max_u, max_u0, max_e]),
+            None => [max_f, max_u, max_u0, max_e],
+        };
         let mut limit = self.stability_limit(max_f, max_u, max_e);
         let rest = (until - self.time) as f32;
         // A time-separable velocity s(t) u(x, 0) is read at the later stages' times too
@@ -673,16 +807,18 @@ impl Simulation {
         let rep = self.rep.get();
         let spec = rep.spec();
         let (g, h) = (spec.gamma(), spec.voxel_size);
+        let comm = rep.comm();
         let inside = |c: Coord| rep.value(c) < 0.0;
         let resolved = rep.any_voxel(&mut |c, v| {
             v < 0.0
                 && v > -g
                 && crate::coord::FACE_OFFSETS.iter().any(|&d| c.checked_add(d).is_some_and(inside))
         });
-        if resolved {
+        if comm.map_or(resolved, |c| c.any(resolved)) {
             return false;
         }
-        if rep.unstored_inside() == 0 && !rep.flat().iter().any(|&v| v < 0.0) {
+        let empty = rep.unstored_inside() == 0 && !rep.owned_flat().iter().any(|&v| v < 0.0);
+        if comm.map_or(empty, |c| !c.any(!empty)) {
             return true;
         }
         let inside_measure = |values: &[f32]| {
@@ -692,6 +828,9 @@ impl Simulation {
             }
             s
         };
-        inside_measure(rep.flat()).value() <= inside_measure(rep.step_start()).value()
+        let (now, before) =
+            (inside_measure(rep.owned_flat()), inside_measure(rep.owned_step_start()));
+        let [now, before] = comm.map_or([now, before], |c| c.sum_exact([now, before]));
+        now.value() <= before.value()
     }
 }

@@ -245,6 +245,79 @@ impl TileGrid {
         Ok(g)
     }
 
+    /// A grid from its four lists in list order (coordinates sorted, one tile, border
+    /// and activity flag word per coordinate), as another grid held them: the
+    /// coordinates must be strictly increasing and in range, the lengths equal, values
+    /// finite and within [-γ, γ]; flags are taken as they are (bits outside their masks
+    /// dropped).
+    pub(crate) fn from_parts(
+        spec: GridSpec,
+        coords: Vec<Coord>,
+        arena: Vec<Tile>,
+        border: Vec<u32>,
+        activity: Vec<u32>,
+    ) -> Result<TileGrid, GridError> {
+        let n = coords.len();
+        if arena.len() != n || border.len() != n || activity.len() != n {
+            return Err(GridError::InvalidParameter(format!(
+                "{n} tile coordinates with {} tiles, {} border and {} activity flags",
+                arena.len(),
+                border.len(),
+                activity.len()
+            )));
+        }
+        check_list_len(n)?;
+        for w in coords.windows(2) {
+            if w[1] <= w[0] {
+                return Err(GridError::NotSorted { last: w[0], coord: w[1] });
+            }
+        }
+        if let Some(&c) = coords.iter().find(|&&c| !tile_in_range(c)) {
+            return Err(GridError::OutOfRange { coord: c });
+        }
+        let g = spec.gamma();
+        for (t, &c) in arena.iter().zip(&coords) {
+            if let Some(i) = t.0.iter().position(|v| !(v.abs() <= g)) {
+                let coord = voxel_of(c, i);
+                return Err(match t.0[i] {
+                    v if v.is_nan() => GridError::NaN { coord },
+                    v => GridError::InvalidParameter(format!(
+                        "value {v} at voxel {coord} is beyond the band's ±{g}"
+                    )),
+                });
+            }
+        }
+        let mut grid = TileGrid { spec, coords, arena, border, activity, dir: None };
+        for b in grid.border.iter_mut() {
+            *b &= BORDER_MASK;
+        }
+        for p in 0..n {
+            let a = grid.activity[p];
+            grid.set_activity_flags(p, a);
+        }
+        grid.build_directory();
+        grid.debug_check();
+        Ok(grid)
+    }
+
+    /// The tiles at list positions `range` as a grid of their own, with their flags.
+    pub(crate) fn sub_list(&self, range: std::ops::Range<usize>) -> Result<TileGrid, GridError> {
+        TileGrid::from_parts(
+            self.spec,
+            self.coords[range.clone()].to_vec(),
+            self.arena[range.clone()].to_vec(),
+            self.border[range.clone()].to_vec(),
+            self.activity[range].to_vec(),
+        )
+    }
+
+    /// The values and activity flags of every tile, for a caller that overwrites tiles
+    /// with another grid's (a rank's ghost tiles): values must stay finite and within
+    /// [-γ, γ], flags within their masks.
+    pub(crate) fn values_activity_mut(&mut self) -> (&mut [Tile], &mut [u32]) {
+        (&mut self.arena, &mut self.activity)
+    }
+
     /// Reserves room for `additional` more tiles.
     pub fn reserve(&mut self, additional: usize) {
         self.coords.reserve(additional);

@@ -111,7 +111,23 @@ pub(crate) trait Representation: Send + Sync {
     fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool;
     /// Value at any voxel (±γ where nothing is stored).
     fn value(&self, c: Coord) -> f32;
-    /// Tiles (tiles), points (DT-Grid) or voxels (dense) stored.
+    /// The rank's transport when the representation is one rank's part of a
+    /// distributed band ([`crate::distributed`]); `None` otherwise.
+    fn comm(&self) -> Option<&crate::distributed::Comm> {
+        None
+    }
+    /// The values of the units this rank owns, in flat order (all of them unless
+    /// distributed).
+    fn owned_flat(&self) -> &[f32] {
+        self.flat()
+    }
+    /// [`Representation::step_start`] restricted to the units this rank owned before the
+    /// step.
+    fn owned_step_start(&self) -> &[f32] {
+        self.step_start()
+    }
+    /// Tiles (tiles, those this rank owns when distributed), points (DT-Grid) or voxels
+    /// (dense) stored.
     fn units(&self) -> usize;
     /// Bytes of the representation's data (values, indices, flags; unused capacity of
     /// its arrays excluded).

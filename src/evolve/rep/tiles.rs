@@ -6,6 +6,7 @@ use super::{
     growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
 };
 use crate::coord::Coord;
+use crate::distributed::{Comm, RankPart};
 use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
@@ -49,6 +50,9 @@ pub(crate) struct TilesRep {
     undo: Undo,
     /// Boxed: kept only while a step is in progress.
     prev: Option<Box<TileGrid>>,
+    /// This rank's part of a distributed band (`None`: the whole band); see
+    /// [`crate::distributed`]. Boxed: most grids are not distributed.
+    part: Option<Box<RankPart>>,
 }
 
 /// The buffers of a step, one entry per tile in list order.
@@ -111,7 +115,99 @@ impl TilesRep {
     pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
         let mut table = NeighbourTable::default();
         table.rebuild(grid.tile_coords());
-        TilesRep { grid, lanes, table, buf: Buffers::default(), undo: Undo::Nothing, prev: None }
+        TilesRep {
+            grid,
+            lanes,
+            table,
+            buf: Buffers::default(),
+            undo: Undo::Nothing,
+            prev: None,
+            part: None,
+        }
+    }
+
+    /// The engine over one rank's part of a distributed band (`grid`: its tiles and
+    /// ghosts, as `part` plans them).
+    pub fn distributed(grid: TileGrid, lanes: Lanes, part: RankPart) -> Self {
+        TilesRep { part: Some(Box::new(part)), ..TilesRep::new(grid, lanes) }
+    }
+
+    /// The list positions this rank owns (every tile when the band is not distributed).
+    fn owned(&self) -> Range<usize> {
+        self.part.as_ref().map_or(0..self.grid.len(), |p| p.owned.clone())
+    }
+
+    /// The values changed (a sweep was swapped in): the ghost tiles get their owners'
+    /// new values and activity flags, which the next sweep, the κ̄ sums and tile
+    /// management read (distributed bands only).
+    fn exchange_ghosts(&mut self) {
+        exchange_ghosts(&self.part, &mut self.grid)
+    }
+
+    /// Whether tile z `tz` is this rank's (always, when the band is not distributed).
+    fn owns_z(&self, tz: i32) -> bool {
+        self.part.as_ref().is_none_or(|p| {
+            let r = p.comm.rank();
+            p.cuts[r] <= tz && tz < p.cuts[r + 1]
+        })
+    }
+
+    /// Moves the cuts of a distributed band to balance the ranks' tiles when the largest
+    /// rank holds more than (1 + threshold) × the smallest one's and new cuts improve
+    /// that (collective); see [`crate::distributed`]. Returns whether tiles moved. Call
+    /// between steps.
+    pub fn rebalance(&mut self) -> bool {
+        let Some(part) = self.part.as_mut() else { return false };
+        let Some(threshold) = part.rebalance else { return false };
+        let counts = part.comm.counts(part.owned.len() as u64);
+        let spread = |c: &[u64]| {
+            let (lo, hi) = (c.iter().min().copied(), c.iter().max().copied());
+            (lo.unwrap_or(0), hi.unwrap_or(0))
+        };
+        let (lo, hi) = spread(&counts);
+        if hi as f64 <= (1.0 + threshold) * lo as f64 {
+            return false;
+        }
+        let mine = crate::distributed::slab_counts(self.grid.tile_coords(), part.owned.clone());
+        let bytes: Vec<u8> = mine
+            .iter()
+            .flat_map(|&(z, n)| z.to_le_bytes().into_iter().chain(n.to_le_bytes()))
+            .collect();
+        let slabs: Vec<(i32, u64)> = part
+            .comm
+            .gather(&bytes)
+            .iter()
+            .flat_map(|m| {
+                m.chunks_exact(12).map(|c| {
+                    let z = i32::from_le_bytes(c[..4].try_into().expect("4 bytes"));
+                    (z, u64::from_le_bytes(c[4..].try_into().expect("8 bytes")))
+                })
+            })
+            .collect();
+        let n = part.comm.size();
+        let cuts = crate::distributed::balanced_cuts(&slabs, n);
+        let mut after = vec![0u64; n];
+        for &(z, k) in &slabs {
+            after[crate::distributed::owner(&cuts, z)] += k;
+        }
+        let (new_lo, new_hi) = spread(&after);
+        if cuts == part.cuts || new_hi - new_lo >= hi - lo {
+            return false;
+        }
+        let grid = part.redistribute(&self.grid, cuts);
+        self.grid = grid;
+        self.table.rebuild(self.grid.tile_coords());
+        true
+    }
+
+    /// The statistics of this rank's exchanges (distributed bands only).
+    pub fn halo_stats(&self) -> Option<crate::distributed::HaloStats> {
+        self.part.as_ref().map(|p| p.comm.stats())
+    }
+
+    /// This rank and the cuts of a distributed band.
+    pub fn cuts(&self) -> Option<(usize, &[i32])> {
+        self.part.as_ref().map(|p| (p.comm.rank(), &p.cuts[..]))
     }
 
     /// The neighbour table, checked against the list in debug builds.
@@ -213,6 +309,14 @@ fn kappa_tile<L: Lane>(
         a.store(&mut num[first..]);
         b.store(&mut den[first..]);
     });
+}
+
+/// See [`TilesRep::exchange_ghosts`] (a function of the two fields it touches, for
+/// callers that borrow others).
+fn exchange_ghosts(part: &Option<Box<RankPart>>, grid: &mut TileGrid) {
+    if let Some(part) = part {
+        part.sync_values(grid);
+    }
 }
 
 fn tile_flat(t: &[Tile]) -> &[f32] {
@@ -325,6 +429,7 @@ impl Representation for TilesRep {
         };
         dispatch(&p, scheme, sweep)?;
         self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+        exchange_ghosts(&self.part, &mut self.grid);
         // `out` and `activity` now hold the previous values and their flags.
         if p.stage == 1 {
             self.undo = if last {
@@ -378,6 +483,7 @@ impl Representation for TilesRep {
             };
             dispatch_renorm(p, anchored.then_some(tile_flat(anchor)), sweep)?;
             self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+            self.exchange_ghosts();
             if self.undo == Undo::Nothing {
                 self.undo = Undo::Out;
             }
@@ -404,6 +510,17 @@ impl Representation for TilesRep {
             if self.undo != Undo::Nothing && self.prev.is_none() {
                 self.prev = Some(Box::new(prev));
             }
+        }
+        // Distributed: the ghost slabs become the owners' tiles (this rank's decisions
+        // about them missed the neighbours beyond them).
+        if let Some(part) = self.part.as_mut() {
+            let cuts = part.cuts.clone();
+            let grid = part.redistribute(&self.grid, cuts);
+            let old = std::mem::replace(&mut self.grid, grid);
+            if self.undo != Undo::Nothing && self.prev.is_none() {
+                self.prev = Some(Box::new(old));
+            }
+            self.table.rebuild(self.grid.tile_coords());
         }
         Ok(())
     }
@@ -435,15 +552,15 @@ impl Representation for TilesRep {
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
         let table = self.table();
-        let n = self.grid.len();
+        let owned = self.owned();
         let lanes = self.lanes;
         let grid = &self.grid;
         let skip_inactive = width <= grid.gamma();
-        let sums = (0..n.div_ceil(TILE_CHUNK))
+        let sums = (0..owned.len().div_ceil(TILE_CHUNK))
             .into_par_iter()
             .map(|c| {
-                let start = c * TILE_CHUNK;
-                let end = (start + TILE_CHUNK).min(n);
+                let start = owned.start + c * TILE_CHUNK;
+                let end = (start + TILE_CHUNK).min(owned.end);
                 let mut block = PaddedBlock::<1>::new();
                 let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
                 let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
@@ -464,16 +581,31 @@ impl Representation for TilesRep {
                 }
                 Ok::<_, EvolveError>((num, den))
             })
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(sums.into_iter().fold((ExactSum::default(), ExactSum::default()), |(a, b), (c, d)| {
-            (a.merge(c), b.merge(d))
-        }))
+            .collect::<Result<Vec<_>, _>>();
+        let sums = match (sums, &self.part) {
+            (Ok(s), _) => s,
+            (Err(e), None) => return Err(e),
+            // The other ranks wait in the reduction below.
+            (Err(e), Some(p)) => p.comm.abort(&format!("κ̄ sums: {e}")),
+        };
+        let (num, den) =
+            sums.into_iter().fold((ExactSum::default(), ExactSum::default()), |(a, b), (c, d)| {
+                (a.merge(c), b.merge(d))
+            });
+        Ok(match &self.part {
+            Some(p) => {
+                let [num, den] = p.comm.sum_exact([num, den]);
+                (num, den)
+            }
+            None => (num, den),
+        })
     }
 
     fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {
         const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
         let coords = self.grid.tile_coords();
-        for p in 1..coords.len() {
+        let owned = self.owned();
+        for p in owned.start.max(1)..owned.end {
             let (a, b) = (coords[p - 1], coords[p]);
             if a.z == b.z
                 && a.y == b.y
@@ -491,16 +623,45 @@ impl Representation for TilesRep {
     }
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f)
+        if self.part.is_none() {
+            return crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f);
+        }
+        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, &mut |c, v| {
+            if self.owns_z(c.z >> 2) {
+                f(c, v)
+            }
+        })
     }
 
     fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool {
-        let coords = self.grid.tile_coords();
-        self.grid
-            .values()
+        let owned = self.owned();
+        let coords = &self.grid.tile_coords()[owned.clone()];
+        self.grid.values()[owned]
             .iter()
             .zip(coords)
             .any(|(t, &tc)| t.0.iter().enumerate().any(|(l, &v)| f(voxel_of(tc, l), v)))
+    }
+
+    fn comm(&self) -> Option<&Comm> {
+        self.part.as_ref().map(|p| &*p.comm)
+    }
+
+    fn owned_flat(&self) -> &[f32] {
+        let owned = self.owned();
+        tile_flat(&self.grid.values()[owned])
+    }
+
+    fn owned_step_start(&self) -> &[f32] {
+        let start = self.step_start();
+        let Some(p) = &self.part else { return start };
+        if start.is_empty() {
+            return start;
+        }
+        // φⁿ is in the order of the list before the step.
+        let coords = self.prev.as_ref().map_or(self.grid.tile_coords(), |g| g.tile_coords());
+        let r = p.comm.rank();
+        let owned = crate::distributed::z_range(coords, p.cuts[r], p.cuts[r + 1]);
+        &start[64 * owned.start..64 * owned.end]
     }
 
     fn value(&self, c: Coord) -> f32 {
@@ -508,7 +669,7 @@ impl Representation for TilesRep {
     }
 
     fn units(&self) -> usize {
-        self.grid.len()
+        self.owned().len()
     }
 
     fn bytes(&self) -> usize {
