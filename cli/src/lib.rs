@@ -21,6 +21,7 @@ pub mod memtable;
 pub mod output;
 pub mod pin;
 pub mod progress;
+pub mod ranks;
 pub mod scenario;
 pub mod segbench;
 pub mod solution;

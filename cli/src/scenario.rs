@@ -19,6 +19,7 @@
 //! box `[0, size]³`); `enright` lives in the unit box with voxel size 1/size.
 
 use serde::Serialize;
+use sparse_levelset::distributed::{HaloStats, Transport};
 use sparse_levelset::evolve::{
     EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Reinit,
     Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
@@ -109,6 +110,12 @@ pub struct ScenarioOptions {
     pub voxel_size: Option<f32>,
     /// Reinitialise by fast marching every so many steps.
     pub reinit: Option<Reinit>,
+    /// Run distributed over the ranks of this transport (the tile engine only; see
+    /// [`sparse_levelset::distributed`]).
+    pub transport: Option<Arc<dyn Transport>>,
+    /// Distributed: move the cuts when the largest rank holds more than (1 + this) × the
+    /// smallest rank's tiles (`None`: never).
+    pub rebalance: Option<f64>,
 }
 
 impl ScenarioOptions {
@@ -138,6 +145,8 @@ impl ScenarioOptions {
             init: None,
             voxel_size: None,
             reinit: None,
+            transport: None,
+            rebalance: Some(0.1),
         }
     }
 
@@ -270,6 +279,22 @@ pub struct Summary {
     pub volume_ratio_period: Option<f64>,
     /// V(end)/V(0).
     pub volume_ratio: f64,
+    /// The ranks of a distributed run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distributed: Option<DistributedSummary>,
+}
+
+/// How a distributed run was spread over its ranks.
+#[derive(Clone, Debug, Serialize)]
+pub struct DistributedSummary {
+    pub ranks: usize,
+    /// The final cuts: rank r owns the tile z-slabs `cuts[r] ≤ tz < cuts[r + 1]` (the
+    /// outer two are the i32 limits).
+    pub cuts: Vec<i32>,
+    /// Tiles each rank owns at the end.
+    pub tiles_per_rank: Vec<u64>,
+    /// Each rank's exchanges over the run.
+    pub halo: Vec<HaloStats>,
 }
 
 /// A resolved scenario: the simulation and what to run.
@@ -541,9 +566,22 @@ impl Scenario {
             shape: format!("{shape:?}"),
             target: target_desc,
         };
-        let sim = match &init {
-            Some(field) => Simulation::from_dense(o.grid, field, spec, flow, settings)?,
-            None => Simulation::from_shape(o.grid, &shape, spec, flow, settings)?,
+        let sim = match (&o.transport, &init) {
+            (Some(t), init) => {
+                let GridKind::Tiles(lanes) = o.grid else {
+                    return Err(EvolveError::InvalidParameter(
+                        "only the tile engine runs distributed (--grid tiles)".into(),
+                    )
+                    .into());
+                };
+                let tiles = match init {
+                    Some(field) => sparse_levelset::build::tiles_from_dense(field, spec)?,
+                    None => sparse_levelset::build::tiles_from_shape(&shape, spec)?,
+                };
+                Simulation::distributed(t.clone(), tiles, lanes, flow, settings, o.rebalance)?
+            }
+            (None, Some(field)) => Simulation::from_dense(o.grid, field, spec, flow, settings)?,
+            (None, None) => Simulation::from_shape(o.grid, &shape, spec, flow, settings)?,
         };
         let milestones = match (kind, period) {
             (ScenarioKind::Enright, Some(t)) => vec![t / 2.0, t],
@@ -608,6 +646,13 @@ impl Scenario {
             progress(frac.min(1.0));
         }
         let last = records.last().expect("the initial record");
+        // Collective: every rank of a distributed run gets here.
+        let distributed = self.sim.cuts().map(|(_, cuts)| DistributedSummary {
+            ranks: cuts.len() - 1,
+            cuts,
+            tiles_per_rank: self.sim.tiles_per_rank(),
+            halo: self.sim.halo_stats_per_rank(),
+        });
         let summary = Summary {
             params: self.params,
             steps_taken: self.sim.steps(),
@@ -621,6 +666,7 @@ impl Scenario {
             volume_ratio_period: ratios.get(1).copied(),
             volume_ratio: last.volume / m0.volume,
             records,
+            distributed,
         };
         Ok((summary, self.sim))
     }

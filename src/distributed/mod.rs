@@ -89,6 +89,12 @@ pub trait Transport: Send + Sync {
     fn abort(&self, message: &str) -> !;
 }
 
+impl std::fmt::Debug for dyn Transport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Transport {{ rank: {}, size: {} }}", self.rank(), self.size())
+    }
+}
+
 /// One rank: the transport of a process that is not distributed.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SingleRank;
@@ -207,6 +213,43 @@ pub struct HaloStats {
     /// Rebalancing moves, and the tiles this rank sent to new owners in them.
     pub rebalances: u64,
     pub tiles_moved: u64,
+}
+
+impl HaloStats {
+    /// The eight fields as little-endian words (floats as their bits).
+    pub(crate) fn to_bytes(self) -> Vec<u8> {
+        [
+            self.exchanges,
+            self.messages,
+            self.bytes,
+            self.seconds.to_bits(),
+            self.reductions,
+            self.reduction_seconds.to_bits(),
+            self.rebalances,
+            self.tiles_moved,
+        ]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect()
+    }
+
+    /// The statistics [`HaloStats::to_bytes`] wrote (`None` for another length).
+    pub(crate) fn from_bytes(b: &[u8]) -> Option<HaloStats> {
+        if b.len() != 64 {
+            return None;
+        }
+        let w = |i: usize| u64::from_le_bytes(b[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+        Some(HaloStats {
+            exchanges: w(0),
+            messages: w(1),
+            bytes: w(2),
+            seconds: f64::from_bits(w(3)),
+            reductions: w(4),
+            reduction_seconds: f64::from_bits(w(5)),
+            rebalances: w(6),
+            tiles_moved: w(7),
+        })
+    }
 }
 
 /// A rank's transport with its statistics.

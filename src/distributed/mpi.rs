@@ -64,6 +64,15 @@ impl Mpi {
         Some((counts, displs, total))
     }
 
+    /// A buffer of `n` bytes whose address is a real allocation even when `n` is 0: the
+    /// empty `Vec`'s dangling address 0x1 is OpenMPI's `MPI_IN_PLACE`.
+    fn buffer(mut v: Vec<u8>) -> Vec<u8> {
+        if v.capacity() == 0 {
+            v.reserve(1);
+        }
+        v
+    }
+
     fn split(buf: &[u8], counts: &[i32], displs: &[i32]) -> Vec<Vec<u8>> {
         counts
             .iter()
@@ -87,7 +96,7 @@ impl Transport for Mpi {
         let Some((scounts, sdispls, _)) = Mpi::layout(send.iter().map(Vec::len)) else {
             self.abort("an exchange of 2 GiB or more (MPI counts are 32-bit)")
         };
-        let flat = send.concat();
+        let flat = Mpi::buffer(send.concat());
         self.world(|w| {
             let mut rcounts = vec![0i32; self.size];
             w.all_to_all_into(&scounts[..], &mut rcounts[..]);
@@ -96,7 +105,7 @@ impl Transport for Mpi {
             else {
                 self.abort("an exchange of 2 GiB or more (MPI counts are 32-bit)")
             };
-            let mut recv = vec![0u8; total];
+            let mut recv = Mpi::buffer(vec![0u8; total]);
             {
                 let s = Partition::new(&flat[..], &scounts[..], &sdispls[..]);
                 let mut r = PartitionMut::new(&mut recv[..], &rcounts[..], &rdispls[..]);
@@ -118,10 +127,11 @@ impl Transport for Mpi {
             else {
                 self.abort("a reduction of 2 GiB or more (MPI counts are 32-bit)")
             };
-            let mut recv = vec![0u8; total];
+            let mut recv = Mpi::buffer(vec![0u8; total]);
+            let data = Mpi::buffer(data.to_vec());
             {
                 let mut r = PartitionMut::new(&mut recv[..], &counts[..], &displs[..]);
-                w.all_gather_varcount_into(data, &mut r);
+                w.all_gather_varcount_into(&data[..], &mut r);
             }
             Mpi::split(&recv, &counts, &displs)
         })

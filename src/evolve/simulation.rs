@@ -129,6 +129,15 @@ impl Simulation {
         }
     }
 
+    /// Every rank's exchange statistics, in rank order (collective); empty when the
+    /// simulation is not distributed.
+    pub fn halo_stats_per_rank(&self) -> Vec<HaloStats> {
+        let (Some(c), Some(mine)) = (self.rep.get().comm(), self.halo_stats()) else {
+            return Vec::new();
+        };
+        c.gather(&mine.to_bytes()).iter().filter_map(|b| HaloStats::from_bytes(b)).collect()
+    }
+
     /// This rank and the cuts (tile z coordinates: rank r owns `cuts[r] ≤ tz <
     /// cuts[r + 1]`) when the simulation is distributed.
     pub fn cuts(&self) -> Option<(usize, Vec<i32>)> {

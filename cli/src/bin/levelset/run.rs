@@ -183,6 +183,13 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Under `mpirun` (a build with `--features mpi`): move the cuts between the ranks
+    /// when the largest rank holds more than (1 + R) × the smallest rank's tiles.
+    #[arg(allow_hyphen_values = true, long, value_name = "R", default_value_t = 0.1)]
+    pub rebalance: f64,
+    /// Under `mpirun`: never move the cuts.
+    #[arg(long, conflicts_with = "rebalance")]
+    pub no_rebalance: bool,
 }
 
 /// The frames `levelset run` writes while it steps (`--render-every`, `--mesh-every`).
@@ -308,6 +315,17 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
         every: a.every,
     });
     o.init = a.init.clone();
+    o.rebalance = (!a.no_rebalance).then_some(a.rebalance);
+    // Distributed (started by mpirun): every rank runs the same code; rank 0 reports and
+    // writes, the others only compute.
+    let transport = levelset_cli::ranks::transport()?;
+    let lead = transport.as_ref().is_none_or(|t| t.rank() == 0);
+    if transport.is_some() && (a.render_every.is_some() || a.mesh_every.is_some() || a.export_npy) {
+        return Err("--render-every, --mesh-every and --export-npy need the whole band in one \
+                    process: run them without mpirun"
+            .into());
+    }
+    o.transport = transport.clone();
     let mut frames = Frames::new(a)?;
     // Before any work: the output directory, every parameter, the --init field, memory.
     check_output_dir(&a.out)?;
@@ -319,14 +337,31 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     }
     let scenario = Scenario::resolve(o).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
-    let bar =
-        progress::bar(a.quiet, 1000, "{spinner} [{elapsed_precise}] {bar:30} {percent}% {msg}");
+    let bar = progress::bar(
+        a.quiet || !lead,
+        1000,
+        "{spinner} [{elapsed_precise}] {bar:30} {percent}% {msg}",
+    );
     bar.set_message(format!("{} on {}", kind.name(), scenario.params.grid));
     let (summary, sim) = scenario
         .run_with(|f| bar.set_position((f * 1000.0) as u64), |sim| frames.write(sim))
         .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
+    if !lead {
+        return Ok(());
+    }
     let last = summary.records.last().expect("records");
+    if let Some(d) = &summary.distributed {
+        let halo: u64 = d.halo.iter().map(|h| h.bytes).sum();
+        outln!(
+            "{} ranks, tiles per rank {:?}, {} rebalancing move(s), halo {:.1} kB per step \
+             over all ranks",
+            d.ranks,
+            d.tiles_per_rank,
+            d.halo.first().map_or(0, |h| h.rebalances),
+            halo as f64 / 1e3 / summary.steps_taken.max(1) as f64
+        );
+    }
     outln!(
         "{}: {} steps to t = {:.6}{} on {} in {:.2} s ({:.1} Mvoxel-updates/s); band voxels {}, \
          volume V/V0 = {:.6}, area {:.6e}, {} bytes; checksum {}",
