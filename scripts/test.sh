@@ -4,7 +4,9 @@
 # environment of its own (target/py-venv) with the reference libraries the tests compare
 # against (python/requirements-test.txt). The `.vdb` cross-checks run Debian's OpenVDB
 # (python3-openvdb for /usr/bin/python3, vdb_print from libopenvdb-tools), installed with
-# apt-get when missing. Extra arguments go to `cargo test` (e.g. --no-default-features).
+# apt-get when missing, as are OpenMPI and libclang for the distributed runs' tests
+# (`cargo test --features mpi`, which start `mpirun -n 2` and `-n 3`). Extra arguments go
+# to `cargo test` (e.g. --no-default-features).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,6 +16,15 @@ if ! { /usr/bin/python3 -c "import pyopenvdb" && command -v vdb_print; } >/dev/n
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-openvdb libopenvdb-tools >/dev/null
+fi
+
+if ! { command -v mpirun && dpkg -s libopenmpi-dev libclang-dev; } >/dev/null 2>&1; then
+  echo "== installing OpenMPI and libclang (libopenmpi-dev, openmpi-bin, libclang-dev)"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libopenmpi-dev openmpi-bin \
+    libclang-dev >/dev/null
 fi
 
 venv=target/py-venv
@@ -26,6 +37,9 @@ fi
 
 echo "== Rust tests"
 cargo test --workspace --locked "$@"
+
+echo "== distributed runs under mpirun (2 and 3 ranks; feature mpi)"
+cargo test -p levelset-cli --features mpi --locked --test mpi "$@"
 
 echo "== the Python package (pip install ./python) and its tests"
 "$venv/bin/python" -m pip install -q --force-reinstall --no-deps ./python

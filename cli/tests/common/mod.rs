@@ -26,4 +26,5 @@ pub fn stdout(o: &Output) -> String {
 // The temporary paths, ball fields and `.npy` files of the library's integration tests.
 #[path = "../../../tests/common/mod.rs"]
 mod shared;
+#[allow(unused_imports)] // each test file uses some of them
 pub use shared::{ball, npy, tmp};
