@@ -58,16 +58,15 @@ fn single(
     finish(&sim, dts)
 }
 
-/// The same run on `ranks` ranks with `threads` threads each; every rank's outcome.
+/// The same run on `ranks` ranks with `threads` threads each, rebalancing at
+/// `rebalance`; every rank's outcome.
 fn distributed(
-    ranks: usize,
-    threads: usize,
+    (ranks, threads, rebalance): (usize, usize, Option<f64>),
     shape: &Shape,
     spec: GridSpec,
     flow: &Flow,
     settings: &Settings,
     steps: usize,
-    rebalance: Option<f64>,
 ) -> Vec<Outcome> {
     LocalRanks::run(ranks, |t| {
         let tiles = tiles_from_shape(shape, spec).unwrap();
@@ -86,15 +85,10 @@ fn distributed(
 
 fn agree(shape: &Shape, spec: GridSpec, flow: Flow, settings: Settings, steps: usize) {
     let reference = single(shape, spec, &flow, &settings, steps);
-    for (ranks, threads, rebalance) in
-        [(1, 1, None), (2, 1, Some(0.05)), (3, 2, Some(0.0)), (5, 1, None)]
-    {
-        for (rank, o) in
-            distributed(ranks, threads, shape, spec, &flow, &settings, steps, rebalance)
-                .into_iter()
-                .enumerate()
-        {
-            assert_eq!(o, reference, "{ranks} ranks × {threads} threads, rank {rank}");
+    for layout in [(1, 1, None), (2, 1, Some(0.05)), (3, 2, Some(0.0)), (5, 1, None)] {
+        let outcomes = distributed(layout, shape, spec, &flow, &settings, steps);
+        for (rank, o) in outcomes.into_iter().enumerate() {
+            assert_eq!(o, reference, "(ranks, threads, rebalance) {layout:?}, rank {rank}");
         }
     }
 }

@@ -139,11 +139,11 @@ impl LocalRanks {
         let mut to: Vec<Vec<Sender<Vec<u8>>>> = (0..n).map(|_| Vec::with_capacity(n)).collect();
         let mut from: Vec<Vec<Mutex<Receiver<Vec<u8>>>>> =
             (0..n).map(|_| Vec::with_capacity(n)).collect();
-        for s in 0..n {
-            for d in 0..n {
+        for to_s in to.iter_mut() {
+            for from_d in from.iter_mut() {
                 let (tx, rx) = channel();
-                to[s].push(tx);
-                from[d].push(Mutex::new(rx));
+                to_s.push(tx);
+                from_d.push(Mutex::new(rx));
             }
         }
         let ranks: Vec<LocalRanks> = to
@@ -647,7 +647,7 @@ impl TileParts {
     }
 
     fn unpack(&mut self, m: &[u8]) -> Result<(), String> {
-        if m.len() % TILE_RECORD != 0 {
+        if !m.len().is_multiple_of(TILE_RECORD) {
             return Err(format!("{} bytes is not a whole number of tiles", m.len()));
         }
         let word = |b: &[u8], i: usize| u32::from_le_bytes(b[4 * i..4 * i + 4].try_into().unwrap());

@@ -277,7 +277,7 @@ impl TileGrid {
         }
         let g = spec.gamma();
         for (t, &c) in arena.iter().zip(&coords) {
-            if let Some(i) = t.0.iter().position(|v| !(v.abs() <= g)) {
+            if let Some(i) = t.0.iter().position(|v| v.is_nan() || v.abs() > g) {
                 let coord = voxel_of(c, i);
                 return Err(match t.0[i] {
                     v if v.is_nan() => GridError::NaN { coord },
