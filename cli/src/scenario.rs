@@ -293,6 +293,9 @@ pub struct DistributedSummary {
     pub cuts: Vec<i32>,
     /// Tiles each rank owns at the end.
     pub tiles_per_rank: Vec<u64>,
+    /// The z-slabs of tiles that hold tiles at the end: the most ranks the
+    /// decomposition can use.
+    pub slabs: usize,
     /// Each rank's exchanges over the run.
     pub halo: Vec<HaloStats>,
 }
@@ -651,6 +654,7 @@ impl Scenario {
             ranks: cuts.len() - 1,
             cuts,
             tiles_per_rank: self.sim.tiles_per_rank(),
+            slabs: self.sim.slabs().unwrap_or(0),
             halo: self.sim.halo_stats_per_rank(),
         });
         let summary = Summary {

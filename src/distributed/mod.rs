@@ -44,6 +44,41 @@
 //! [`for_each_band_voxel`](crate::evolve::Simulation::for_each_band_voxel) visits its own
 //! part of the band.
 //!
+//! # Example
+//! Two ranks as threads of this process; with MPI, every process of `mpirun` makes its
+//! transport with `Arc::new(Mpi::init()?)` (feature `mpi`) and runs the closure's body.
+//! ```
+//! use sparse_levelset::build::tiles_from_shape;
+//! use sparse_levelset::distributed::LocalRanks;
+//! use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
+//! use sparse_levelset::{grid::GridSpec, shapes::Shape};
+//! use std::sync::Arc;
+//!
+//! let shape = Shape::Sphere { center: [0.0; 3], radius: 12.0 };
+//! let spec = GridSpec::default();
+//! let flow = Flow::mean_curvature(1.0);
+//! let checksums = LocalRanks::run(2, |transport| {
+//!     let tiles = tiles_from_shape(&shape, spec).unwrap();
+//!     // A pool per rank: a rank waiting in an exchange holds its thread.
+//!     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+//!     let settings = Settings { pool: Some(Arc::new(pool)), ..Settings::default() };
+//!     let rebalance = Some(0.1);
+//!     let mut sim =
+//!         Simulation::distributed(transport, tiles, Lanes::Simd, flow.clone(), settings, rebalance)
+//!             .unwrap();
+//!     for _ in 0..5 {
+//!         sim.step().unwrap();
+//!     }
+//!     sim.checksum() // collective: the whole band's
+//! });
+//! let kind = GridKind::Tiles(Lanes::Simd);
+//! let mut one = Simulation::from_shape(kind, &shape, spec, flow, Settings::default()).unwrap();
+//! for _ in 0..5 {
+//!     one.step().unwrap();
+//! }
+//! assert_eq!(checksums, vec![one.checksum(); 2]);
+//! ```
+//!
 //! # Failures
 //! What can fail before a step changes anything (the memory budget of the step's
 //! buffers, stage 1's speeds, a fixed Δt against the CFL limit) is agreed on by all

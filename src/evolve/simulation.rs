@@ -129,6 +129,14 @@ impl Simulation {
         }
     }
 
+    /// The z-slabs of tiles that hold tiles, over all ranks (collective; `None` when the
+    /// simulation is not distributed): the most ranks a slab decomposition can use.
+    pub fn slabs(&self) -> Option<usize> {
+        let Rep::Tiles(t) = &self.rep else { return None };
+        let n = t.owned_slabs()?;
+        Some(self.sum_counts([n as u64])[0] as usize)
+    }
+
     /// Every rank's exchange statistics, in rank order (collective); empty when the
     /// simulation is not distributed.
     pub fn halo_stats_per_rank(&self) -> Vec<HaloStats> {

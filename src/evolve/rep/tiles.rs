@@ -200,6 +200,12 @@ impl TilesRep {
         true
     }
 
+    /// The z-slabs of tiles this rank owns that hold tiles (distributed bands only).
+    pub fn owned_slabs(&self) -> Option<usize> {
+        let p = self.part.as_ref()?;
+        Some(crate::distributed::slab_counts(self.grid.tile_coords(), p.owned.clone()).len())
+    }
+
     /// The statistics of this rank's exchanges (distributed bands only).
     pub fn halo_stats(&self) -> Option<crate::distributed::HaloStats> {
         self.part.as_ref().map(|p| p.comm.stats())
@@ -498,12 +504,18 @@ impl Representation for TilesRep {
         // new list in the next step, which admits them before its first stage.
         let table = &self.table;
         debug_assert_eq!(table.len(), self.grid.len(), "stale neighbour table");
-        let (_, prev) = self.grid.manage_tiles_checked(Some(table), |tiles| {
+        let managed = self.grid.manage_tiles_checked(Some(table), |tiles| {
             let needed = current
                 + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
                 + table.growth_bytes(tiles) as u64;
             budget.admit(needed, current, "the band's tiles")
-        })?;
+        });
+        let (_, prev) = match (managed, &self.part) {
+            (Ok(m), _) => m,
+            (Err(e), None) => return Err(e.into()),
+            // The other ranks wait in the hand-over below (`crate::distributed`, "Failures").
+            (Err(e), Some(p)) => p.comm.abort(&format!("tile management: {e}")),
+        };
         if let Some(prev) = prev {
             self.table.rebuild(self.grid.tile_coords());
             // A step in progress keeps the list its φⁿ belongs to.
