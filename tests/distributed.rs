@@ -39,6 +39,16 @@ fn finish(sim: &Simulation, dts: Vec<(u32, Option<u64>)>) -> Outcome {
     }
 }
 
+/// Takes `steps` steps and returns the outcome.
+fn run(sim: &mut Simulation, steps: usize) -> Outcome {
+    let mut dts = Vec::new();
+    for _ in 0..steps {
+        let r = sim.step().unwrap();
+        dts.push((r.dt.to_bits(), r.kappa_bar.map(f64::to_bits)));
+    }
+    finish(sim, dts)
+}
+
 fn single(
     shape: &Shape,
     spec: GridSpec,
@@ -50,12 +60,7 @@ fn single(
     let mut sim =
         Simulation::from_shape(GridKind::Tiles(Lanes::Simd), shape, spec, flow.clone(), settings)
             .unwrap();
-    let mut dts = Vec::new();
-    for _ in 0..steps {
-        let r = sim.step().unwrap();
-        dts.push((r.dt.to_bits(), r.kappa_bar.map(f64::to_bits)));
-    }
-    finish(&sim, dts)
+    run(&mut sim, steps)
 }
 
 /// The same run on `ranks` ranks with `threads` threads each, rebalancing at
@@ -74,12 +79,7 @@ fn distributed(
         let mut sim =
             Simulation::distributed(t, tiles, Lanes::Simd, flow.clone(), settings, rebalance)
                 .unwrap();
-        let mut dts = Vec::new();
-        for _ in 0..steps {
-            let r = sim.step().unwrap();
-            dts.push((r.dt.to_bits(), r.kappa_bar.map(f64::to_bits)));
-        }
-        finish(&sim, dts)
+        run(&mut sim, steps)
     })
 }
 
