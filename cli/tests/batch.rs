@@ -136,3 +136,25 @@ fn folder_mode_refuses_before_any_work() {
     assert!(stderr(&r).contains("cannot write the output"), "{}", stderr(&r));
     assert!(!stderr(&r).contains("panicked"), "{}", stderr(&r));
 }
+
+/// Under a launcher of several ranks, one mesh (or one image) is refused before any work:
+/// every rank would write the same file. The launcher's variable is all the check reads.
+#[test]
+fn one_input_on_several_ranks_is_refused() {
+    let mesh = folder("one-mesh", &[("a.obj", box_obj(2, 2, 2))]).join("a.obj");
+    let out = tmp("one-mesh.npy");
+    let seg_out = tmp("one-mask.npy");
+    for args in [
+        vec!["voxelize", mesh.to_str().unwrap(), "-o", out.to_str().unwrap()],
+        vec!["segment", out.to_str().unwrap(), "--method", "gac", "-o", seg_out.to_str().unwrap()],
+    ] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_levelset"))
+            .args(&args)
+            .env("OMPI_COMM_WORLD_SIZE", "2")
+            .output()
+            .expect("binary runs");
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains("runs in one process"), "{args:?}: {}", stderr(&o));
+    }
+    assert!(!out.exists() && !seg_out.exists());
+}

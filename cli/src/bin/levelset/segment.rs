@@ -417,9 +417,11 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
     }
     if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
         // Every rank would segment the same image into the same files.
-        return Err("one image runs in one process: start it without mpirun (a directory of \
-                    images is spread over the ranks)"
-            .into());
+        return Err(format!(
+            "{}: not a directory, and one image runs in one process: start it without \
+             mpirun (a directory of images is spread over the ranks)",
+            a.image.display()
+        ));
     }
     // Everything is checked before the work starts.
     let j = job(a, &a.image, a.output.clone(), a.level_set.clone(), a.truth.as_deref(), None)?;

@@ -106,9 +106,11 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
     }
     if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
         // Every rank would voxelise the same mesh into the same file.
-        return Err("one mesh runs in one process: start it without mpirun (a directory of \
-                    meshes is spread over the ranks)"
-            .into());
+        return Err(format!(
+            "{}: not a directory, and one mesh runs in one process: start it without \
+             mpirun (a directory of meshes is spread over the ranks)",
+            a.mesh.display()
+        ));
     }
     let bar = progress::spinner(a.quiet);
     let v = voxelize_one(a, &a.mesh, &a.output, threads, &bar)?;
