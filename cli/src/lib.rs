@@ -2,9 +2,10 @@
 //!
 //! The application around the `sparse-levelset` library: the papers' evolution scenarios as
 //! command-line presets, the speed-up report (tiles against the DT-Grid), the storage
-//! benchmark, the `info` report, progress bars, worker pinning and the output helpers of
-//! the two binaries, `levelset` (one module per subcommand) and `levelset-speedup` (the
-//! report, what `cargo run --release` runs). It adds no numerics: every computation and
+//! benchmark, the `info` report, the batch commands' spreading over ranks and threads,
+//! progress bars, worker pinning and the output helpers of the two binaries, `levelset`
+//! (one module per subcommand) and `levelset-speedup` (the report, what
+//! `cargo run --release` runs). It adds no numerics: every computation and
 //! every input check is the library's ([`sparse_levelset::input`] is the one loader).
 //!
 //! ```
@@ -16,6 +17,7 @@
 //! assert_eq!(summary.steps_taken, 2);
 //! ```
 
+pub mod batch;
 pub mod info;
 pub mod memtable;
 pub mod output;

@@ -54,10 +54,12 @@ enum Command {
     /// computed on their sparse bands, into a .npy field.
     Csg(csg::CsgArgs),
     /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
-    /// distances, inside/outside by ray votes robust to holes, into a .npy field.
+    /// distances, inside/outside by ray votes robust to holes, into a .npy field; a
+    /// directory of meshes into a directory of fields (spread over the ranks under mpirun).
     Voxelize(voxelize::VoxelizeArgs),
     /// Segment a scan (NIfTI, .npy, PNG) from seeds or a mask by threshold propagation,
-    /// geodesic active contours or Chan–Vese; the mask in the input's format.
+    /// geodesic active contours or Chan–Vese; the mask in the input's format; a directory
+    /// of scans in one batch (spread over the ranks under mpirun).
     Segment(segment::SegmentArgs),
     /// Write a seeded noisy phantom (image, truth mask, seeds) for the segmentation.
     Phantom(phantom::PhantomArgs),

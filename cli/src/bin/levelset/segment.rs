@@ -5,7 +5,7 @@
 
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
-use levelset_cli::{outln, progress};
+use levelset_cli::{batch, outln, progress};
 use sparse_levelset::image::{self, LoadedImage, Output};
 use sparse_levelset::segment::{metrics::dice, segment, Init, Method, Params, Seed};
 use std::path::{Path, PathBuf};
@@ -25,7 +25,8 @@ pub enum MethodArg {
 #[derive(Args)]
 pub struct SegmentArgs {
     /// The image: .nii, .nii.gz, .npy (shape (nz, ny, nx) or (ny, nx)) or .png (grey).
-    /// A directory: batch mode, every image in it (see --output).
+    /// A directory: batch mode, every image in it (see --output); under
+    /// `mpirun -n N` (a build with `--features mpi`) the images are spread over the ranks.
     #[arg(value_name = "IMAGE|DIR")]
     pub image: PathBuf,
     /// The method.
@@ -101,7 +102,9 @@ pub struct SegmentArgs {
     /// NAME-seeds.json ({"seeds": [{"center": [x, y, z], "radius": r}], "lower", "upper"},
     /// as `levelset phantom` writes). Images run in parallel (one thread each) when there
     /// are at least as many as threads, one after another with all threads otherwise; an
-    /// image that fails is reported and skipped.
+    /// image that fails is reported and skipped. Under `mpirun -n N`, rank r takes the
+    /// images i (in name order) with i % N = r, each rank with --threads threads, and rank
+    /// 0 writes summary.json with every image's record.
     #[arg(short, long, value_name = "MASK|OUTDIR")]
     pub output: PathBuf,
     /// The final level set (φ < 0 inside, world units) as a float32 volume (.nii(.gz) or
@@ -412,6 +415,14 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
     if a.image.is_dir() {
         return batch(a, threads);
     }
+    if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
+        // Every rank would segment the same image into the same files.
+        return Err(format!(
+            "{}: not a directory, and one image runs in one process: start it without \
+             mpirun (a directory of images is spread over the ranks)",
+            a.image.display()
+        ));
+    }
     // Everything is checked before the work starts.
     let j = job(a, &a.image, a.output.clone(), a.level_set.clone(), a.truth.as_deref(), None)?;
     let bar =
@@ -452,20 +463,33 @@ fn split_ext(name: &str) -> (&str, bool) {
     (name, false)
 }
 
-/// Batch mode: every image of `a.image` into the directory `a.output`.
+/// Batch mode: every image of `a.image` into the directory `a.output`, spread over the
+/// MPI ranks when `mpirun` started the process (rank 0 writes the summary).
 fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
-    if a.level_set.is_some() || a.truth.is_some() {
-        return Err(
-            "batch mode takes no --level-set or --truth (truths are found as NAME-truth.*)".into(),
-        );
-    }
-    levelset_cli::output::check_output_dir(&a.output)?;
-    let images = batch_images(&a.image)?;
-    if images.is_empty() {
-        return Err(format!("{}: no image (.nii, .nii.gz, .npy, .png) in it", a.image.display()));
-    }
-    std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
+    // Dropped last: MPI is finalised when the last clone goes.
+    let transport = levelset_cli::ranks::transport()?;
+    let t = transport.as_deref();
+    // Every rank checks the same things before any work and fails together.
+    let checked = (|| {
+        if a.level_set.is_some() || a.truth.is_some() {
+            return Err("batch mode takes no --level-set or --truth (truths are found as \
+                        NAME-truth.*)"
+                .to_string());
+        }
+        levelset_cli::output::check_output_dir(&a.output)?;
+        let images = batch_images(&a.image)?;
+        if images.is_empty() {
+            return Err(format!(
+                "{}: no image (.nii, .nii.gz, .npy, .png) in it",
+                a.image.display()
+            ));
+        }
+        std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
+        Ok(images)
+    })();
+    let images = batch::agree(t, checked)?;
     let start = std::time::Instant::now();
+    let prefix = batch::line_prefix(t);
     let one = |p: &PathBuf, threads: usize| -> Result<serde_json::Value, String> {
         let file = p.file_name().and_then(|n| n.to_str()).unwrap_or("image").to_string();
         let lower = file.to_ascii_lowercase();
@@ -478,58 +502,41 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
         let j = job(a, p, out, None, truth.as_deref(), seeds.as_deref())?;
         execute(a, &j, threads, &indicatif::ProgressBar::hidden())
     };
-    let report = |r: &Result<serde_json::Value, String>, p: &PathBuf| match r {
-        Ok(v) => outln!("{}", summary_line(v)),
-        Err(e) => outln!("{}: FAILED, skipped: {e}", p.display()),
-    };
-    let results: Vec<(PathBuf, Result<serde_json::Value, String>)> = if images.len() >= threads {
-        // Many images: `threads` workers take the next image, each on a one-thread pool
-        // of its own (a rayon parallel loop would let a waiting worker start another
-        // image, running more images at once than threads).
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let done = std::sync::Mutex::new(Vec::new());
-        std::thread::scope(|scope| {
-            for _ in 0..threads {
-                scope.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(p) = images.get(i) else { break };
-                    let r = one(p, 1);
-                    report(&r, p);
-                    done.lock().unwrap_or_else(|e| e.into_inner()).push((i, p.clone(), r));
-                });
-            }
-        });
-        let mut done = done.into_inner().unwrap_or_else(|e| e.into_inner());
-        done.sort_by_key(|(i, _, _)| *i);
-        done.into_iter().map(|(_, p, r)| (p, r)).collect()
-    } else {
-        images
-            .iter()
-            .map(|p| {
-                let r = one(p, threads);
-                report(&r, p);
-                (p.clone(), r)
-            })
-            .collect()
-    };
-    let failed = results.iter().filter(|(_, r)| r.is_err()).count();
+    // Each rank reports its images as they finish, so a long batch shows its progress.
+    let results = batch::spread(t, &images, threads, |p, threads| {
+        let r = one(p, threads);
+        match &r {
+            Ok(v) => outln!("{prefix}{}", summary_line(v)),
+            Err(e) => outln!("{prefix}{}: FAILED, skipped: {e}", p.display()),
+        }
+        r
+    })?;
+    let Some(results) = results else { return Ok(()) };
+    let failed = results.iter().filter(|r| r.is_err()).count();
     let seconds = start.elapsed().as_secs_f64();
-    let records: Vec<serde_json::Value> = results
+    let records: Vec<serde_json::Value> = images
         .iter()
+        .zip(results)
         .map(|(p, r)| match r {
-            Ok(v) => v.clone(),
+            Ok(v) => v,
             Err(e) => serde_json::json!({"image": p.display().to_string(), "error": e}),
         })
         .collect();
+    let ranks = batch::rank_size(t).1;
     let summary = serde_json::json!({
         "images": images.len(),
         "failed": failed,
+        "ranks": ranks,
         "threads": threads,
         "wall_seconds": seconds,
         "records": records,
     });
     levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
-    outln!("{} images, {failed} failed, {seconds:.2} s on {threads} threads", images.len());
+    outln!(
+        "{} images, {failed} failed, {seconds:.2} s on {}{threads} threads",
+        images.len(),
+        if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() }
+    );
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
     }

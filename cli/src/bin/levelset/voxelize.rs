@@ -1,9 +1,11 @@
 //! `levelset voxelize`: a triangle mesh (OBJ, PLY or STL) to a narrow-band signed distance
-//! field ([`sparse_levelset::voxelize`]), written as a dense `.npy` around the band.
+//! field ([`sparse_levelset::voxelize`]), written as a dense `.npy` around the band (or a
+//! sparse `.sls`); a folder of meshes into a folder of `.npy` fields with one summary.
 
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
-use levelset_cli::{outln, progress};
+use levelset_cli::{batch, outln, progress};
+use serde::{Deserialize, Serialize};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::sample::band_voxel_box;
 use sparse_levelset::voxelize::{
@@ -21,13 +23,20 @@ pub enum SignArg {
 
 #[derive(Args)]
 pub struct VoxelizeArgs {
-    /// The mesh: .obj, .ply or .stl (ASCII or binary), any case.
-    #[arg(value_name = "MESH")]
+    /// The mesh: .obj, .ply or .stl (ASCII or binary), any case. A directory: folder
+    /// mode, every mesh in it (see --output); under `mpirun -n N` (a build with
+    /// `--features mpi`) the meshes are spread over the ranks.
+    #[arg(value_name = "MESH|DIR")]
     pub mesh: PathBuf,
     /// Output: OUT.sls, the sparse band (docs/sls-format.md), or OUT.npy, a dense float32
     /// field (shape (nz, ny, nx), φ < 0 inside, world units) covering the band plus one
-    /// voxel, ±γ beyond the band; written atomically.
-    #[arg(short, long, value_name = "OUT.sls|OUT.npy")]
+    /// voxel, ±γ beyond the band; written atomically. In folder mode a directory:
+    /// OUTDIR/NAME.npy per mesh NAME.EXT (in name order) and OUTDIR/summary.json. Meshes
+    /// run in parallel (one thread each) when there are at least as many as threads, one
+    /// after another with all threads otherwise; a mesh that fails is reported and skipped,
+    /// and the exit code is nonzero. Under `mpirun -n N`, rank r takes the meshes i with
+    /// i % N = r, each rank with --threads threads, and rank 0 writes summary.json.
+    #[arg(short, long, value_name = "OUT.sls|OUT.npy|OUTDIR")]
     pub output: PathBuf,
     /// Voxel edge length in world units [default: the mesh's median edge length, clamped
     /// to 64..1024 voxels along the longest side of its bounding box].
@@ -69,13 +78,81 @@ fn output_kind(path: &Path) -> Result<Output, String> {
     }
 }
 
+/// What voxelising one mesh gave: its line of the output and its record in a folder's
+/// summary.
+#[derive(Debug, Serialize, Deserialize)]
+struct Voxelized {
+    triangles: usize,
+    voxel_size: f32,
+    /// Whether the voxel size was chosen from the mesh (no --voxel-size).
+    voxel_size_chosen: bool,
+    half_width: f32,
+    sign: String,
+    band_voxels: u64,
+    tiles: usize,
+    /// The dense output's voxels along x, y, z and the voxel of its element `[0, 0, 0]`
+    /// (`.npy` only).
+    dims: Option<[usize; 3]>,
+    origin: Option<[i32; 3]>,
+    /// Seconds of the voxelisation (reading and writing excluded).
+    seconds: f64,
+    threads: usize,
+}
+
 pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
-    let kind = output_kind(&a.output)?;
-    check_output(&a.output)?;
-    let name = a.mesh.display().to_string();
+    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    if a.mesh.is_dir() {
+        return folder(a, threads);
+    }
+    if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
+        // Every rank would voxelise the same mesh into the same file.
+        return Err(format!(
+            "{}: not a directory, and one mesh runs in one process: start it without \
+             mpirun (a directory of meshes is spread over the ranks)",
+            a.mesh.display()
+        ));
+    }
     let bar = progress::spinner(a.quiet);
+    let v = voxelize_one(a, &a.mesh, &a.output, threads, &bar)?;
+    bar.finish_and_clear();
+    let name = a.mesh.display();
+    outln!(
+        "{name}: {} triangles, voxel size {} ({}), half-width {}, sign {}: {} band voxels \
+         in {} tiles, {:.3} s on {threads} thread{}",
+        v.triangles,
+        v.voxel_size,
+        if v.voxel_size_chosen { "chosen from the mesh" } else { "given" },
+        v.half_width,
+        v.sign,
+        v.band_voxels,
+        v.tiles,
+        v.seconds,
+        if threads == 1 { "" } else { "s" }
+    );
+    let written = match v.origin {
+        None => format!("({} band voxels, sparse)", v.band_voxels),
+        Some([x, y, z]) => format!(
+            "(element [0, 0, 0] is voxel ({x}, {y}, {z}), voxel (0, 0, 0) at the world origin)"
+        ),
+    };
+    outln!("wrote {} {written}", a.output.display());
+    Ok(())
+}
+
+/// Voxelises the mesh at `path` into `output` on `threads` threads; every check comes
+/// before the work. The single-file mode and each mesh of a folder.
+fn voxelize_one(
+    a: &VoxelizeArgs,
+    path: &Path,
+    output: &Path,
+    threads: usize,
+    bar: &indicatif::ProgressBar,
+) -> Result<Voxelized, String> {
+    let kind = output_kind(output)?;
+    check_output(output)?;
+    let name = path.display().to_string();
     bar.set_message(format!("reading {name}"));
-    let mesh = read_mesh(&a.mesh).map_err(|e| e.to_string())?;
+    let mesh = read_mesh(path).map_err(|e| e.to_string())?;
     let chosen = a.voxel_size.is_none();
     let h = match a.voxel_size {
         Some(h) => h,
@@ -120,7 +197,6 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
         )
         .expect("valid template"),
     );
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -132,30 +208,140 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
         indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
             .expect("valid template"),
     );
-    bar.set_message(format!("writing {}", a.output.display()));
-    let written = match kind {
+    bar.set_message(format!("writing {}", output.display()));
+    let (dims, origin) = match kind {
         Output::Sls => {
-            sparse_levelset::sls::save(&a.output, &grid).map_err(|e| e.to_string())?;
-            format!("({} band voxels, sparse)", grid.band_voxels())
+            sparse_levelset::sls::save(output, &grid).map_err(|e| e.to_string())?;
+            (None, None)
         }
         Output::Npy => {
-            let origin = sparse_levelset::build::export_npy(&grid, &a.output, MARGIN)
-                .map_err(|e| format!("{}: {e}", a.output.display()))?;
-            format!("(element [0, 0, 0] is voxel {origin}, voxel (0, 0, 0) at the world origin)")
+            let origin = sparse_levelset::build::export_npy(&grid, output, MARGIN)
+                .map_err(|e| format!("{}: {e}", output.display()))?;
+            let dims = sparse_levelset::build::dense_box(&grid, MARGIN).map(|(_, d)| d);
+            (dims, Some([origin.x, origin.y, origin.z]))
         }
     };
-    bar.finish_and_clear();
+    Ok(Voxelized {
+        triangles: mesh.triangles.len(),
+        voxel_size: h,
+        voxel_size_chosen: chosen,
+        half_width: a.half_width,
+        sign: a.sign.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()),
+        band_voxels: grid.band_voxels() as u64,
+        tiles: grid.len(),
+        dims,
+        origin,
+        seconds,
+        threads,
+    })
+}
+
+/// The meshes of a folder: `.obj`, `.ply`, `.stl` files (any case), by name.
+fn folder_meshes(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let mut out = Vec::new();
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for e in entries {
+        let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        let ext = p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if p.is_file() && matches!(ext.as_deref(), Some("obj" | "ply" | "stl")) {
+            out.push(p);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// The output of `mesh` in the folder mode: `OUTDIR/<stem>.npy`.
+fn folder_output(a: &VoxelizeArgs, mesh: &Path) -> PathBuf {
+    let stem = mesh.file_stem().map_or_else(|| "mesh".into(), |s| s.to_string_lossy());
+    a.output.join(format!("{stem}.npy"))
+}
+
+/// Folder mode: every mesh of the directory `a.mesh` into `a.output/<stem>.npy`, spread
+/// over the MPI ranks when `mpirun` started the process (rank 0 writes the summary).
+fn folder(a: &VoxelizeArgs, threads: usize) -> Result<(), String> {
+    // Dropped last: MPI is finalised when the last clone goes.
+    let transport = levelset_cli::ranks::transport()?;
+    let t = transport.as_deref();
+    // Every rank checks the same things before any work and fails together.
+    let checked = (|| {
+        levelset_cli::output::check_output_dir(&a.output)?;
+        let meshes = folder_meshes(&a.mesh)?;
+        if meshes.is_empty() {
+            return Err(format!("{}: no mesh (.obj, .ply, .stl) in it", a.mesh.display()));
+        }
+        // a.obj and a.ply would both write a.npy.
+        let mut outputs: Vec<PathBuf> = meshes.iter().map(|m| folder_output(a, m)).collect();
+        outputs.sort();
+        if let Some(w) = outputs.windows(2).find(|w| w[0] == w[1]) {
+            return Err(format!(
+                "{}: two meshes of {} have this output (rename one)",
+                w[0].display(),
+                a.mesh.display()
+            ));
+        }
+        std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
+        Ok(meshes)
+    })();
+    let meshes = batch::agree(t, checked)?;
+    let start = std::time::Instant::now();
+    let prefix = batch::line_prefix(t);
+    // Each rank reports its meshes as they finish, so a long batch shows its progress.
+    let results = batch::spread(t, &meshes, threads, |m, threads| {
+        let out = folder_output(a, m);
+        let r = voxelize_one(a, m, &out, threads, &indicatif::ProgressBar::hidden());
+        match &r {
+            Ok(v) => outln!(
+                "{prefix}{}: {} triangles, {} band voxels, {:.3} s; wrote {}",
+                m.display(),
+                v.triangles,
+                v.band_voxels,
+                v.seconds,
+                out.display()
+            ),
+            Err(e) => outln!("{prefix}{}: FAILED, skipped: {e}", m.display()),
+        }
+        r
+    })?;
+    let Some(results) = results else { return Ok(()) };
+    let failed = results.iter().filter(|r| r.is_err()).count();
+    let band_voxels: u64 = results.iter().flatten().map(|v| v.band_voxels).sum();
+    let voxelize_seconds: f64 = results.iter().flatten().map(|v| v.seconds).sum();
+    let seconds = start.elapsed().as_secs_f64();
+    let records = meshes
+        .iter()
+        .zip(results)
+        .map(|(m, r)| {
+            let mut v = match r {
+                Ok(v) => serde_json::to_value(v).map_err(|e| e.to_string())?,
+                Err(e) => serde_json::json!({ "error": e }),
+            };
+            v["mesh"] = serde_json::json!(m.display().to_string());
+            v["output"] = serde_json::json!(folder_output(a, m).display().to_string());
+            Ok(v)
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let ranks = batch::rank_size(t).1;
+    let summary = serde_json::json!({
+        "meshes": meshes.len(),
+        "failed": failed,
+        "band_voxels": band_voxels,
+        "voxelize_seconds": voxelize_seconds,
+        "ranks": ranks,
+        "threads": threads,
+        "wall_seconds": seconds,
+        "records": records,
+    });
+    levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
     outln!(
-        "{name}: {} triangles, voxel size {h} ({}), half-width {}, sign {:?}: {} band voxels \
-         in {} tiles, {seconds:.3} s on {threads} thread{}",
-        mesh.triangles.len(),
-        if chosen { "chosen from the mesh" } else { "given" },
-        a.half_width,
-        a.sign,
-        grid.band_voxels(),
-        grid.len(),
+        "{} meshes, {failed} failed, {band_voxels} band voxels, {seconds:.2} s on {}{threads} \
+         thread{}",
+        meshes.len(),
+        if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() },
         if threads == 1 { "" } else { "s" }
     );
-    outln!("wrote {} {written}", a.output.display());
+    if failed > 0 {
+        return Err(format!("{failed} of {} meshes failed (see above)", meshes.len()));
+    }
     Ok(())
 }
