@@ -81,7 +81,8 @@ def main():
         latency = msgs_step * lat + reductions_step * math.ceil(math.log2(p)) * lat
         budget = comp / 4 - latency
         if p > big_slabs:
-            bw = f"P > {big_slabs:,.0f} slabs: not decomposable"
+            # Whole-slab cuts leave ranks empty: the model does not apply.
+            bw = f"n/a: {big_slabs:,.0f} slabs for {p:,} ranks"
         elif budget <= 0:
             bw = "latency-bound"
         else:
