@@ -2,7 +2,7 @@
 //!
 //! A distributed [`Simulation`](crate::evolve::Simulation) (built by
 //! [`Simulation::distributed`](crate::evolve::Simulation::distributed)) runs one part of
-//! the band on every rank of a [`Transport`] — MPI processes ([`Mpi`], cargo feature
+//! the band on every rank of a [`Transport`] — MPI processes (`Mpi`, cargo feature
 //! `mpi`) or threads of one process ([`LocalRanks`], for tests and experiments). The
 //! result is the single-process result bit for bit, for any number of ranks and threads.
 //!
@@ -32,7 +32,7 @@
 //!   flags) to them, which replace their ghost slabs.
 //! * **Reductions** combine each rank's exact partial results: maxima for Δt, the
 //!   fixed-point sums of κ̄, volume, area and the collapse test
-//!   ([`ExactSum`](crate::evolve::exact::ExactSum), associative and commutative), counts.
+//!   ([`ExactSum`], associative and commutative), counts.
 //!   Each rank sums over the tiles it owns only.
 //! * **Rebalancing**: after a step, when the largest rank holds more than
 //!   (1 + threshold) × the smallest rank's tiles, new cuts are computed from the tile
@@ -108,7 +108,7 @@ pub const GHOST: i32 = 1;
 /// How ranks talk: the few collective operations the decomposition needs. Every rank
 /// calls them in the same order.
 ///
-/// Implementations: [`Mpi`] (feature `mpi`), [`LocalRanks`] (threads of one process) and
+/// Implementations: `Mpi` (feature `mpi`), [`LocalRanks`] (threads of one process) and
 /// [`SingleRank`].
 pub trait Transport: Send + Sync {
     /// This rank, `0..size()`.
