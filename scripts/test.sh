@@ -38,8 +38,8 @@ fi
 echo "== Rust tests"
 cargo test --workspace --locked "$@"
 
-echo "== distributed runs under mpirun (2 and 3 ranks; feature mpi)"
-cargo test -p levelset-cli --features mpi --locked --test mpi "$@"
+echo "== under mpirun (feature mpi): distributed runs on 2 and 3 ranks, batches on 2"
+cargo test -p levelset-cli --features mpi --locked --test mpi --test batch_mpi "$@"
 
 echo "== the Python package (pip install ./python) and its tests"
 "$venv/bin/python" -m pip install -q --force-reinstall --no-deps ./python

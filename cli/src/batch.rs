@@ -32,6 +32,20 @@ pub fn line_prefix(transport: Option<&dyn Transport>) -> String {
     }
 }
 
+/// Refuses a single `input` (a `what`: "mesh", "image") when MPI started more than one
+/// rank: every rank would run it into the same files. A directory of them is what
+/// spreads over the ranks.
+pub fn refuse_one_input_on_ranks(input: &std::path::Path, what: &str) -> Result<(), String> {
+    if crate::ranks::launched_ranks().is_some_and(|n| n > 1) {
+        return Err(format!(
+            "{}: not a directory, and one {what} runs in one process: start it without \
+             mpirun (a directory of {what}s is spread over the ranks)",
+            input.display()
+        ));
+    }
+    Ok(())
+}
+
 /// The checks before any work, agreed on by every rank: every rank passes its own
 /// result (its error, or what it found, such as the sorted list of inputs) and gets an
 /// error when any rank failed or found something other than rank 0 did. Collective.

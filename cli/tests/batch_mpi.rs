@@ -6,7 +6,7 @@
 #[allow(unused_imports)] // the shared helpers re-export more than these tests use
 mod common;
 
-use common::{levelset, stderr, stdout, tmp};
+use common::{box_obj, levelset, stderr, stdout, tmp};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -47,19 +47,6 @@ fn fresh(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// A box `0..sx × 0..sy × 0..sz` as OBJ text (quads, outward).
-fn box_obj(sx: u32, sy: u32, sz: u32) -> String {
-    let mut s = String::new();
-    for i in 0..8 {
-        let (x, y, z) = (sx * (i & 1), sy * (i >> 1 & 1), sz * (i >> 2));
-        s += &format!("v {x} {y} {z}\n");
-    }
-    for f in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]] {
-        s += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
-    }
-    s
 }
 
 #[test]

@@ -415,14 +415,7 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
     if a.image.is_dir() {
         return batch(a, threads);
     }
-    if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
-        // Every rank would segment the same image into the same files.
-        return Err(format!(
-            "{}: not a directory, and one image runs in one process: start it without \
-             mpirun (a directory of images is spread over the ranks)",
-            a.image.display()
-        ));
-    }
+    levelset_cli::batch::refuse_one_input_on_ranks(&a.image, "image")?;
     // Everything is checked before the work starts.
     let j = job(a, &a.image, a.output.clone(), a.level_set.clone(), a.truth.as_deref(), None)?;
     let bar =

@@ -104,14 +104,7 @@ pub fn run(a: &VoxelizeArgs) -> Result<(), String> {
     if a.mesh.is_dir() {
         return folder(a, threads);
     }
-    if levelset_cli::ranks::launched_ranks().is_some_and(|n| n > 1) {
-        // Every rank would voxelise the same mesh into the same file.
-        return Err(format!(
-            "{}: not a directory, and one mesh runs in one process: start it without \
-             mpirun (a directory of meshes is spread over the ranks)",
-            a.mesh.display()
-        ));
-    }
+    levelset_cli::batch::refuse_one_input_on_ranks(&a.mesh, "mesh")?;
     let bar = progress::spinner(a.quiet);
     let v = voxelize_one(a, &a.mesh, &a.output, threads, &bar)?;
     bar.finish_and_clear();
