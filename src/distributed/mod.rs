@@ -17,9 +17,8 @@
 //! # One step
 //! * **After every sweep** (each RK stage, each renormalisation pass) the ghost tiles
 //!   receive their owners' new values and activity flags, which the next sweep, the κ̄
-//!   sums and tile management read. The sweep computes ghost tiles as well (their
-//!   outer neighbours are missing, so those values are wrong); the exchange overwrites
-//!   them.
+//!   sums and tile management read. The sweep computes only the rank's own tiles; the
+//!   ghosts keep their values until the exchange replaces them.
 //! * **Tile management** (Algorithm 3) decides for each tile from its own and its 26
 //!   neighbours' activity flags, and gives a new tile the sign its neighbours' border
 //!   flags hold towards it. With the ghosts' values and activity flags exact, every

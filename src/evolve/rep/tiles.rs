@@ -232,6 +232,9 @@ struct TileSweep<'a> {
     /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
     compute_mask: bool,
     activity: &'a mut [u32],
+    /// The list positions to compute (this rank's tiles when distributed): the others
+    /// (ghost tiles, which the exchange after the sweep overwrites) keep their values.
+    owned: Range<usize>,
 }
 
 impl Sweep for TileSweep<'_> {
@@ -254,7 +257,7 @@ impl TileSweep<'_> {
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
     {
-        let TileSweep { grid, table, out, box_min, compute_mask, activity, .. } = self;
+        let TileSweep { grid, table, out, box_min, compute_mask, activity, owned, .. } = self;
         let gamma = grid.gamma();
         out.par_chunks_mut(TILE_CHUNK)
             .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
@@ -272,7 +275,9 @@ impl TileSweep<'_> {
                     let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
                         .try_into()
                         .expect("64 mask values per tile");
-                    let computes = if compute_mask {
+                    let computes = if !owned.contains(&pos) {
+                        false
+                    } else if compute_mask {
                         block.gather_star_row(grid, pos, table.row(pos));
                         block.box_min_abs(gamma, m)
                     } else {
@@ -424,7 +429,9 @@ impl Representation for TilesRep {
             ..*p
         };
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
+        let owned = self.owned();
         let sweep = TileSweep {
+            owned,
             grid: &self.grid,
             table: &self.table,
             lanes: self.lanes,
@@ -452,6 +459,7 @@ impl Representation for TilesRep {
 
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
         let n = self.grid.len();
+        let owned = self.owned();
         // One sweep evaluates its anchors in place: no anchor pass, no anchor buffer.
         let anchored = p.anchored();
         if anchored {
@@ -462,6 +470,7 @@ impl Representation for TilesRep {
             let Buffers { anchor, box_min, activity, .. } = &mut self.buf;
             // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
             let sweep = TileSweep {
+                owned: owned.clone(),
                 grid: &self.grid,
                 table: &self.table,
                 lanes: self.lanes,
@@ -478,6 +487,7 @@ impl Representation for TilesRep {
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
             let Buffers { out, box_min, activity, anchor, .. } = &mut self.buf;
             let sweep = TileSweep {
+                owned: owned.clone(),
                 grid: &self.grid,
                 table: &self.table,
                 lanes: self.lanes,
