@@ -483,8 +483,16 @@ fn stored_z(cuts: &[i32], r: usize) -> (i32, i32) {
 }
 
 /// The positions of `coords` (sorted) with tile z in `[lo, hi)`.
-pub(crate) fn z_range(coords: &[Coord], lo: i32, hi: i32) -> Range<usize> {
+fn z_range(coords: &[Coord], lo: i32, hi: i32) -> Range<usize> {
     coords.partition_point(|c| c.z < lo)..coords.partition_point(|c| c.z < hi)
+}
+
+/// The positions of `owned` (a rank's own tiles in its list `coords`) that rank `d`
+/// stores under `cuts`: what this rank sends it.
+fn stored_by(coords: &[Coord], owned: &Range<usize>, cuts: &[i32], d: usize) -> Range<usize> {
+    let (lo, hi) = stored_z(cuts, d);
+    let s = z_range(&coords[owned.clone()], lo, hi);
+    owned.start + s.start..owned.start + s.end
 }
 
 /// Bytes of one tile in a hand-over: coordinate, border and activity flags, 64 values.
@@ -537,12 +545,23 @@ impl RankPart {
         let mut send = vec![0..0; n];
         let mut recv = vec![0..0; n];
         for r in (0..n).filter(|&r| r != me) {
-            let (lo, hi) = stored_z(&cuts, r);
-            let s = z_range(&coords[owned.clone()], lo, hi);
-            send[r] = owned.start + s.start..owned.start + s.end;
+            send[r] = stored_by(coords, &owned, &cuts, r);
             recv[r] = z_range(coords, cuts[r], cuts[r + 1]);
         }
         RankPart { comm, cuts, owned, send, recv, rebalance }
+    }
+
+    /// The tile z range `[lo, hi)` this rank owns.
+    pub fn owned_z(&self) -> (i32, i32) {
+        let r = self.comm.rank();
+        (self.cuts[r], self.cuts[r + 1])
+    }
+
+    /// The positions of the tiles this rank owns in a list of its (`coords`, sorted):
+    /// `owned` for the current list, or the list before a step.
+    pub fn owned_in(&self, coords: &[Coord]) -> Range<usize> {
+        let (lo, hi) = self.owned_z();
+        z_range(coords, lo, hi)
     }
 
     /// Gives the ghost tiles of `grid` their owners' current values and activity flags.
@@ -585,14 +604,9 @@ impl RankPart {
     pub fn redistribute(&mut self, grid: &TileGrid, cuts: Vec<i32>) -> TileGrid {
         let (me, n) = (self.comm.rank(), self.comm.size());
         let coords = grid.tile_coords();
-        let owned = z_range(coords, self.cuts[me], self.cuts[me + 1]);
-        let ranges: Vec<Range<usize>> = (0..n)
-            .map(|d| {
-                let (lo, hi) = stored_z(&cuts, d);
-                let s = z_range(&coords[owned.clone()], lo, hi);
-                owned.start + s.start..owned.start + s.end
-            })
-            .collect();
+        let owned = self.owned_in(coords);
+        let ranges: Vec<Range<usize>> =
+            (0..n).map(|d| stored_by(coords, &owned, &cuts, d)).collect();
         let moved = self.cuts != cuts;
         let send: Vec<Vec<u8>> = ranges
             .iter()

@@ -147,8 +147,8 @@ impl TilesRep {
     /// Whether tile z `tz` is this rank's (always, when the band is not distributed).
     fn owns_z(&self, tz: i32) -> bool {
         self.part.as_ref().is_none_or(|p| {
-            let r = p.comm.rank();
-            p.cuts[r] <= tz && tz < p.cuts[r + 1]
+            let (lo, hi) = p.owned_z();
+            lo <= tz && tz < hi
         })
     }
 
@@ -681,8 +681,7 @@ impl Representation for TilesRep {
         }
         // φⁿ is in the order of the list before the step.
         let coords = self.prev.as_ref().map_or(self.grid.tile_coords(), |g| g.tile_coords());
-        let r = p.comm.rank();
-        let owned = crate::distributed::z_range(coords, p.cuts[r], p.cuts[r + 1]);
+        let owned = p.owned_in(coords);
         &start[64 * owned.start..64 * owned.end]
     }
 
