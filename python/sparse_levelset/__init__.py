@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from typing import Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -46,6 +47,7 @@ __all__ = [
     "load_image",
     "segment",
     "Segmentation",
+    "LeakWarning",
     "save_mesh",
     "load_mesh",
     "__version__",
@@ -556,6 +558,12 @@ class Segmentation:
     def report(self) -> dict:
         return json.loads(self._seg.report_json)
 
+    @property
+    def leaked(self) -> bool:
+        """Whether the leak guard stopped the run (``report["stop"] == "leaked"``, the
+        reason in ``report["leak"]``): the mask is then not the seeded object."""
+        return bool(self._seg.leaked)
+
     def mesh(self):
         """The surface: ``(verts (n, 3) float64 world, faces (m, 3) int32, normals)``. World
         is the image's placement (a NIfTI file's affine), or index × spacing in array-axis
@@ -595,6 +603,8 @@ def segment(
     terms: Optional[dict] = None,
     threads: Optional[int] = None,
     progress: Progress = None,
+    feature_image=None,
+    leak_guard: bool = True,
 ) -> Segmentation:
     """Segments a 3-D (or 2-D) image with a level set grown from seeds, with SimpleITK's
     parameter names.
@@ -609,6 +619,18 @@ def segment(
     ``seeds``: ``(i, j, k)`` or ``(i, j, k, radius)`` array indices (radius in voxels of the
     smallest spacing, default 3), or world coordinates with ``world=True``; or start from
     ``init_mask`` / ``init_levelset`` of the image's shape.
+
+    A threshold window may be open at one end: leave ``upper_threshold`` (or
+    ``lower_threshold``) out, or give ``±inf``. ``propagation_scaling`` may be negative
+    (threshold and GAC) to shrink onto an object from a larger ``init_mask``.
+    ``feature_image`` (the image's shape), as SimpleITK's filters take one: for GAC the
+    edge potential itself (1 in flat regions, near 0 on edges), for threshold and Chan–Vese
+    the intensities compared in place of the image.
+
+    A run whose region reaches an image face the seeds did not touch, or grows past half
+    the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
+    True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
+    pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``).
 
     ``sigma`` (Gaussian smoothing, world units), ``propagation_scaling`` β,
     ``curvature_scaling`` ε, ``advection_scaling`` α default to values chosen from the image
@@ -630,6 +652,12 @@ def segment(
     if init_levelset is not None:
         lv = _float32(init_levelset, "init_levelset", ndims=(2, 3))
         lvl = np.asfortranarray(lv.reshape(shape) if lv.ndim == 2 else lv)
+    feat = None
+    if feature_image is not None:
+        fa = _float32(feature_image, "feature_image", ndims=(2, 3))
+        if fa.shape != shape[: fa.ndim]:
+            raise ValueError("feature_image has shape %s, the image %s" % (fa.shape, shape))
+        feat = np.asfortranarray(fa.reshape(shape) if fa.ndim == 2 else fa)
     seed_list = [] if seeds is None else [[float(c) for c in s] for s in seeds]
     term_list = [] if not terms else [(str(k), float(w)) for k, w in terms.items()]
     native = _native.segment(
@@ -638,7 +666,19 @@ def segment(
         None if sigmoid is None else (float(sigmoid[0]), float(sigmoid[1])),
         float(lambda1), float(lambda2), float(nu), float(maximum_rms_error),
         float(volume_change), int(window), int(number_of_iterations), term_list, threads,
-        progress,
+        progress, feat, bool(leak_guard),
     )
     out_shape = tuple(np.shape(image)) if not isinstance(image, _native.Image) else tuple(im.shape)
-    return Segmentation(native, out_shape)
+    result = Segmentation(native, out_shape)
+    if result.leaked:
+        warnings.warn(
+            "the segmentation leaked and was stopped: %s" % result.report.get("leak"),
+            LeakWarning,
+            stacklevel=2,
+        )
+    return result
+
+
+class LeakWarning(UserWarning):
+    """A segmentation's region reached an image face its seeds did not touch, or grew past
+    half the image: the leak guard stopped it (see :func:`segment`)."""

@@ -147,16 +147,20 @@ impl Segmentation {
             .into_pyarray(py))
     }
 
-    /// The final level set on the image lattice (voxel (i, j, k) is image voxel [i, j, k];
-    /// its voxel size is the largest spacing).
+    /// The final level set in the lattice frame (world units along the image's axes,
+    /// voxel [0, 0, 0] at the origin), in cubic voxels of the smallest spacing, so that
+    /// its measures are the segmentation's world volume and area.
     #[getter]
-    fn levelset(&self) -> PyResult<LevelSet> {
-        let tiles = self
-            .seg
-            .simulation
-            .tiles()
-            .ok_or_else(|| crate::value_error("the segmentation holds no tile grid"))?;
-        LevelSet::new(tiles.clone())
+    fn levelset(&self, py: Python<'_>) -> PyResult<LevelSet> {
+        let tiles =
+            py.detach(|| self.seg.level_set(&self.image.image)).map_err(segment_error)?;
+        LevelSet::new(tiles)
+    }
+
+    /// Whether the leak guard stopped the run.
+    #[getter]
+    fn leaked(&self) -> bool {
+        self.seg.report.stop == seglib::Stop::Leaked
     }
 
     /// The run's figures as JSON (the Python layer returns a dict).
@@ -190,11 +194,15 @@ fn method_of(
     nu: f32,
 ) -> PyResult<Method> {
     match name {
+        // A window open at one end: that threshold None (or ±inf).
         "threshold" => match (lower, upper) {
-            (Some(lower), Some(upper)) => Ok(Method::Threshold { lower, upper }),
-            _ => Err(crate::value_error(
-                "the threshold method needs lower_threshold and upper_threshold",
+            (None, None) => Err(crate::value_error(
+                "the threshold method needs lower_threshold or upper_threshold (or both)",
             )),
+            (l, u) => Ok(Method::Threshold {
+                lower: l.unwrap_or(f32::NEG_INFINITY),
+                upper: u.unwrap_or(f32::INFINITY),
+            }),
         },
         "gac" | "geodesic" => Ok(Method::Gac),
         "chan-vese" | "chan_vese" => Ok(Method::ChanVese { lambda1: l1, lambda2: l2, nu }),
@@ -208,7 +216,7 @@ fn method_of(
     image, method, seeds, world, init_mask, init_levelset, lower_threshold, upper_threshold,
     sigma, propagation_scaling, curvature_scaling, advection_scaling, edge_scale, sigmoid,
     lambda1, lambda2, nu, maximum_rms_error, volume_change, window, number_of_iterations,
-    terms, threads, progress=None
+    terms, threads, progress=None, feature=None, leak_guard=true
 ))]
 #[allow(clippy::too_many_arguments)]
 fn segment(
@@ -237,9 +245,27 @@ fn segment(
     terms: Vec<(String, f32)>,
     threads: Option<usize>,
     progress: Option<Bound<'_, PyAny>>,
+    feature: Option<PyReadonlyArray3<'_, f32>>,
+    leak_guard: bool,
 ) -> PyResult<Segmentation> {
     let loaded = Arc::clone(&image.loaded);
     let dims = loaded.image.dims;
+    let feature = match feature {
+        Some(f) => {
+            if f.shape() != dims {
+                return Err(crate::value_error(format!(
+                    "feature has shape {:?}, the image {dims:?}",
+                    f.shape()
+                )));
+            }
+            if !f.is_fortran_contiguous() {
+                return Err(crate::value_error("feature must be Fortran-ordered like the image"));
+            }
+            let data = f.as_slice().map_err(crate::value_error)?.to_vec();
+            Some(Arc::new(LibImage { data, ..loaded.image.clone() }))
+        }
+        None => None,
+    };
     let same_shape = |what: &str, s: &[usize]| -> PyResult<()> {
         if s != dims {
             return Err(crate::value_error(format!("{what} has shape {s:?}, the image {dims:?}")));
@@ -292,6 +318,8 @@ fn segment(
         max_iterations: number_of_iterations,
         pool: crate::pool(threads)?,
         terms: terms_list,
+        feature,
+        leak_guard,
         ..Params::new(method)
     };
     let seg = watch::run(py, progress.as_ref(), "segment", |w| {

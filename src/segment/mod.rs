@@ -53,6 +53,7 @@ pub mod metrics;
 pub mod phantom;
 mod run;
 mod speed;
+mod stats;
 
 pub use run::{segment, Segmentation};
 
@@ -122,7 +123,8 @@ pub struct Params {
     /// σ of the Gaussian smoothing, world units, the same along every axis (0: none).
     /// Default: one voxel along each axis (half a voxel for the threshold method).
     pub sigma: Option<f64>,
-    /// β, ITK's `PropagationScaling`. Default 1.
+    /// β, ITK's `PropagationScaling`. Default 1; negative to shrink onto the object from
+    /// a larger initial region (not with Chan–Vese, whose β scales its data weights).
     pub propagation: Option<f32>,
     /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: the smallest
     /// spacing for GAC, a fifth of it for the others.
@@ -153,6 +155,15 @@ pub struct Params {
     /// times its weight; `method` has weight 1), e.g. GAC plus half a Chan–Vese region
     /// force. Each method at most once; the parameters above apply to each.
     pub terms: Vec<(Method, f32)>,
+    /// A feature image of the image's size, the user's own, as ITK's filters take one: for
+    /// GAC alone, the edge potential g itself (1 in flat regions, near 0 on edges; no
+    /// sigmoid, no smoothing); for the threshold and Chan–Vese methods, the intensities
+    /// they compare in place of the image (smoothed only when `sigma` is given).
+    pub feature: Option<Arc<crate::image::Image>>,
+    /// Stop a run that leaks ([`Stop::Leaked`]): one whose region reaches a face of the
+    /// image that the initial region did not touch, or grows past half the image. On by
+    /// default; turn it off for objects that fill the image or cross its border.
+    pub leak_guard: bool,
 }
 
 impl Params {
@@ -172,6 +183,8 @@ impl Params {
             max_iterations: 2000,
             pool: None,
             terms: Vec::new(),
+            feature: None,
+            leak_guard: true,
         }
     }
 }
@@ -189,8 +202,22 @@ pub struct Resolved {
     pub advection: f32,
     /// K of the rational edge potential (GAC).
     pub edge_scale: Option<f64>,
-    /// (α, β) of the sigmoid edge potential (GAC).
+    /// (α, β) of the sigmoid edge potential (GAC), in the image's intensity units per
+    /// voxel step.
     pub sigmoid: Option<(f64, f64)>,
+    /// The contrast of the first edge the rays from the seeds crossed (GAC; median over
+    /// the rays), intensity units.
+    pub edge_contrast: Option<f64>,
+    /// The intensity over which the threshold speed goes from 0 to 1 (threshold method).
+    pub threshold_scale: Option<f64>,
+    /// The image's noise σ (intensity units), and what is left of it after smoothing.
+    pub noise: f64,
+    pub noise_smoothed: f64,
+    /// The intensity normalisation (center, scale): the flows see (I − center) / scale.
+    pub normalization: [f64; 2],
+    pub leak_guard: bool,
+    /// A feature image was given.
+    pub feature: bool,
     pub spacing: [f64; 3],
     pub planar: bool,
 }
@@ -209,6 +236,10 @@ pub enum Stop {
     Vanished,
     /// The monitor asked to stop.
     Cancelled,
+    /// The leak guard stopped a region that reached a face of the image the initial
+    /// region did not touch, or grew past half the image ([`Report::leak`] says which):
+    /// the mask is not a segmentation of the seeded object.
+    Leaked,
 }
 
 /// The figures of a run.
@@ -226,6 +257,8 @@ pub struct Report {
     pub volume: f64,
     /// Region means c₁ (inside), c₂ (outside) of the smoothed image at the end (Chan–Vese).
     pub means: Option<[f64; 2]>,
+    /// Why the leak guard stopped the run ([`Stop::Leaked`]).
+    pub leak: Option<String>,
     /// Band voxels at the end.
     pub band_voxels: usize,
     /// Σ over steps of the stored voxels times the stages (the voxels the kernels updated).

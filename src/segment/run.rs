@@ -2,6 +2,7 @@
 //! engine, the region means and the stopping tests (see the [module docs](super)).
 
 use super::features;
+use super::stats::{self, Normalization};
 use super::speed::{CurvatureSum, Lookup, RegionForce, SumField, VoxelField, VoxelVector};
 use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
 use crate::build::tiles_from_dense;
@@ -12,6 +13,7 @@ use crate::evolve::{
     Velocity,
 };
 use crate::grid::{GridError, GridSpec};
+use crate::tiles::TileGrid;
 use crate::image::Image;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -57,6 +59,12 @@ impl Segmentation {
             *p =
                 std::array::from_fn(|r| a[r][0] * q[0] + a[r][1] * q[1] + a[r][2] * q[2] + m[r][3]);
         }
+        // A placement that flips an odd number of axes (negative determinant, as many
+        // NIfTI files have) mirrors the surface: reverse every triangle so that it stays
+        // counter-clockwise seen from outside.
+        if det3(a) < 0.0 {
+            mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        }
         // Normals: (A⁻¹)ᵀ n, renormalised.
         let inv = invert3(a);
         for n in &mut mesh.normals {
@@ -70,13 +78,95 @@ impl Segmentation {
         }
         Ok(mesh)
     }
+
+    /// The final level set as a band of cubic voxels of the image's **smallest** spacing in
+    /// the lattice frame (world units along the image's axes, voxel (0, 0, 0)'s centre at
+    /// the origin), so that its measures ([`crate::measure::measure`]) are the world
+    /// volume and area of the segmentation whatever the spacing. An isotropic image's is
+    /// the evolved band itself; an anisotropic one's is resampled from it by trilinear
+    /// interpolation of φ (a distance in world units, so no rescaling), at the cost of
+    /// (largest / smallest spacing) times the voxels. A 2D image's stays extruded over
+    /// four layers along z.
+    pub fn level_set(&self, image: &Image) -> Result<TileGrid, SegmentError> {
+        let tiles = self.simulation.tiles().ok_or_else(|| {
+            SegmentError::InvalidParameter("the segmentation holds no tile grid".into())
+        })?;
+        let s = image.spacing;
+        let planar = image.is_2d();
+        let axes = if planar { 2 } else { 3 };
+        let h = s[..axes].iter().copied().fold(f64::INFINITY, f64::min);
+        if s[..axes].iter().all(|&v| v == h) && tiles.spec().voxel_size as f64 == h {
+            return Ok(tiles.clone());
+        }
+        let gamma = tiles.spec().gamma();
+        let [nx, ny, nz] = image.dims;
+        let layers = if planar { 4 } else { nz };
+        let old = self.simulation.to_dense(Coord::new(0, 0, 0), [nx, ny, layers])?;
+        let old = old.data();
+        // New voxels per axis: positions 0, h, 2h, … up to the last image voxel's centre.
+        let n: [usize; 3] = std::array::from_fn(|a| {
+            if a == 2 && planar {
+                4
+            } else {
+                ((image.dims[a] - 1) as f64 * s[a] / h + 1e-9).floor() as usize + 1
+            }
+        });
+        let count = n[0] as u128 * n[1] as u128 * n[2] as u128;
+        crate::memory::check(crate::memory::bytes_of(count, 4), "the resampled level set")?;
+        let mut data = vec![0.0f32; count as usize];
+        let dims_old = [nx, ny, layers];
+        data.par_chunks_mut(n[0] * n[1]).enumerate().for_each(|(k, slice)| {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    let q = [i, j, k];
+                    // Voxel coordinates in the old lattice.
+                    let p: [f64; 3] = std::array::from_fn(|a| {
+                        if a == 2 && planar {
+                            k as f64
+                        } else {
+                            q[a] as f64 * h / s[a]
+                        }
+                    });
+                    let mut i0 = [0usize; 3];
+                    let mut f = [0.0f64; 3];
+                    for a in 0..3 {
+                        let m = dims_old[a];
+                        let b = (p[a].floor() as usize).min(m.saturating_sub(2));
+                        i0[a] = b;
+                        f[a] = if m > 1 { (p[a] - b as f64).clamp(0.0, 1.0) } else { 0.0 };
+                    }
+                    let mut v = 0.0f64;
+                    for corner in 0..8usize {
+                        let mut w = 1.0;
+                        let mut idx = [0usize; 3];
+                        for a in 0..3 {
+                            let bit = (corner >> a) & 1;
+                            w *= if bit == 1 { f[a] } else { 1.0 - f[a] };
+                            idx[a] = (i0[a] + bit).min(dims_old[a] - 1);
+                        }
+                        if w != 0.0 {
+                            v += w * old[idx[0] + nx * (idx[1] + ny * idx[2])] as f64;
+                        }
+                    }
+                    slice[i + n[0] * j] = (v as f32).clamp(-gamma, gamma);
+                }
+            }
+        });
+        let field = DenseField::from_vec(Coord::new(0, 0, 0), n, data)?;
+        Ok(tiles_from_dense(&field, GridSpec::new(h as f32, [0.0; 3], HALF_WIDTH)?)?)
+    }
+}
+
+/// The determinant of a 3×3 matrix.
+fn det3(a: [[f64; 3]; 3]) -> f64 {
+    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
 /// The inverse of a 3×3 matrix (the placement is invertible: NIfTI's sform/qform are).
 fn invert3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    let det = det3(a);
     let c =
         |r0: usize, c0: usize, r1: usize, c1: usize| a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0];
     [
@@ -117,7 +207,29 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
         _ => Ok(()),
     };
     finite_pos("sigma", params.sigma)?;
-    finite_pos("propagation", params.propagation.map(f64::from))?;
+    if let Some(b) = params.propagation {
+        if !b.is_finite() {
+            return invalid(format!("propagation must be finite, got {b}"));
+        }
+        let methods = std::iter::once(params.method).chain(params.terms.iter().map(|t| t.0));
+        if b < 0.0 && methods.clone().any(|m| matches!(m, Method::ChanVese { .. })) {
+            return invalid(format!(
+                "a negative propagation ({b}) would flip Chan–Vese's data terms; \
+                 it is for threshold and GAC"
+            ));
+        }
+    }
+    if let Some(f) = &params.feature {
+        if f.dims != image.dims || f.data.len() != image.data.len() {
+            return invalid(format!(
+                "the feature image has dimensions {:?}, the image {:?}",
+                f.dims, image.dims
+            ));
+        }
+        if let Some(i) = f.data.iter().position(|v| !v.is_finite()) {
+            return invalid(format!("the feature image's value {i} is {}", f.data[i]));
+        }
+    }
     finite_pos("curvature", params.curvature.map(f64::from))?;
     finite_pos("advection", params.advection.map(f64::from))?;
     finite_pos("RMS tolerance", Some(params.rms))?;
@@ -186,9 +298,17 @@ fn check_method(method: Method) -> Result<(), SegmentError> {
     let invalid = |m: String| Err(SegmentError::InvalidParameter(m));
     match method {
         Method::Threshold { lower, upper }
-            if !(lower.is_finite() && upper.is_finite() && lower < upper) =>
+            if lower.is_nan()
+                || upper.is_nan()
+                || lower >= upper
+                || lower == f32::INFINITY
+                || upper == f32::NEG_INFINITY
+                || (lower.is_infinite() && upper.is_infinite()) =>
         {
-            invalid(format!("thresholds must be finite with lower < upper, got {lower}, {upper}"))
+            invalid(format!(
+                "thresholds need lower < upper with at least one end finite (an open end is \
+                 ±inf), got {lower}, {upper}"
+            ))
         }
         Method::ChanVese { lambda1, lambda2, nu }
             if ![lambda1, lambda2, nu].iter().all(|v| v.is_finite())
@@ -220,43 +340,27 @@ fn segment_in_pool(
     let h_max = lattice.spacing.iter().fold(0.0f32, |m, &s| m.max(s));
     let spec = GridSpec::new(h_max, [0.0; 3], HALF_WIDTH)?;
     let field = initial_field(image, init, &lattice, spec.gamma())?;
-    // Given: the same σ along every axis; default: one voxel along each axis, half a
-    // voxel for the threshold method (its front stops where Ĩ crosses a threshold, and
-    // smoothing moves that level inward on curved objects by about σ²/r: a σ of one voxel
-    // cost the 5-voxel blobs of a 64³ phantom 2–3 % of Dice).
-    let voxels = if matches!(params.method, Method::Threshold { .. }) { 0.5 } else { 1.0 };
-    let sigmas = match params.sigma {
-        Some(s) => [s; 3],
-        None => image.spacing.map(|h| voxels * h),
-    };
-    let sigma = sigmas.iter().fold(0.0f64, |m, &v| m.max(v));
-    let smoothed = if sigma > 0.0 {
-        let s = if image.is_2d() { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
-        features::gaussian(image, s)?
-    } else {
-        image.clone()
-    };
+    let prepared = prepare(image, init, params, &field)?;
+    let Prepared { smoothed, norm, g, mut resolved } = prepared;
     let lookup = Lookup { dims: image.dims };
-    let propagation = params.propagation.unwrap_or(1.0);
-    let mut resolved = Resolved {
-        method: params.method,
-        terms: params.terms.clone(),
-        sigma: sigmas,
-        propagation,
-        curvature: 0.0,
-        advection: 0.0,
-        edge_scale: None,
-        sigmoid: None,
-        spacing: image.spacing,
-        planar: image.is_2d(),
+    let inputs = MethodInputs {
+        params,
+        smoothed: &smoothed,
+        g: g.as_ref(),
+        lookup,
+        h_min,
+        noise_smoothed: resolved.noise_smoothed / norm.scale,
     };
-    let inputs = MethodInputs { params, smoothed: &smoothed, initial: &field, lookup, h_min };
-    let (mut flow, mut region) = method_flow(params.method, 1.0, &inputs, &mut resolved)?;
+    let (mut flow, mut region) = method_flow(params.method, 1.0, &inputs, &norm, &mut resolved)?;
     if !params.terms.is_empty() {
         let mut flows = vec![flow];
         for &(method, weight) in &params.terms {
             let mut scratch = resolved.clone();
-            let (f, r) = method_flow(method, weight, &inputs, &mut scratch)?;
+            let (f, r) = method_flow(method, weight, &inputs, &norm, &mut scratch)?;
+            if matches!(method, Method::Gac) {
+                (resolved.sigmoid, resolved.edge_scale) = (scratch.sigmoid, scratch.edge_scale);
+                resolved.advection = scratch.advection;
+            }
             flows.push(f);
             region = region.or(r);
         }
@@ -289,7 +393,10 @@ fn segment_in_pool(
     let mut updates = 0f64;
     let mut rms = f64::NAN;
     let mut means = None;
-    let (mut voxels, mut inside_sum) = inside(&sim, image.dims, sums.as_ref());
+    let (mut voxels, mut inside_sum, first_faces) = inside(&sim, image.dims, sums.as_ref());
+    let initial_voxels = voxels;
+    let image_voxels = image.len() as u64;
+    let mut leak = None;
     volumes.push(voxels);
     let gamma = sim.spec().gamma();
     let mut seconds_steps = 0.0;
@@ -311,7 +418,7 @@ fn segment_in_pool(
             let c1 = fp.mean(inside_sum, voxels);
             let c2 = fp.mean(fp.total - inside_sum, n - voxels);
             force.set_means(c1, c2);
-            means = Some([c1, c2]);
+            means = Some([norm.back(c1), norm.back(c2)]);
         }
         updates += (sim.stored_voxels() * 3) as f64;
         let t_step = Instant::now();
@@ -350,7 +457,8 @@ fn segment_in_pool(
         }
         rms = if near.is_empty() { 0.0 } else { (sq / near.len() as f64).sqrt() };
         near = next;
-        (voxels, inside_sum) = inside(&sim, image.dims, sums.as_ref());
+        let faces;
+        (voxels, inside_sum, faces) = inside(&sim, image.dims, sums.as_ref());
         volumes.push(voxels);
         let info = StepInfo {
             iteration: sim.steps(),
@@ -364,6 +472,12 @@ fn segment_in_pool(
         }
         if report.collapsed {
             break Stop::Vanished;
+        }
+        if params.leak_guard {
+            leak = leak_of(faces & !first_faces, voxels, initial_voxels, image_voxels);
+            if leak.is_some() {
+                break Stop::Leaked;
+            }
         }
         if rms < params.rms {
             break Stop::Rms;
@@ -389,6 +503,7 @@ fn segment_in_pool(
         voxels,
         volume: voxels as f64 * voxel_volume,
         means,
+        leak,
         band_voxels: sim.band_voxels(),
         voxel_updates: updates,
         seconds_features,
@@ -402,10 +517,14 @@ fn segment_in_pool(
 /// What every method's flow is built from.
 struct MethodInputs<'a> {
     params: &'a Params,
+    /// The intensities the methods compare, normalised ([`Normalization`]) and smoothed.
     smoothed: &'a Image,
-    initial: &'a DenseField,
+    /// GAC's edge potential g, when GAC is one of the methods.
+    g: Option<&'a Image>,
     lookup: Lookup,
     h_min: f64,
+    /// The noise σ left in `smoothed`, normalised units.
+    noise_smoothed: f64,
 }
 
 /// The flow of one method with its weight (β, ε and α scaled by it), and its region
@@ -414,59 +533,49 @@ fn method_flow(
     method: Method,
     weight: f32,
     inputs: &MethodInputs<'_>,
+    norm: &Normalization,
     resolved: &mut Resolved,
 ) -> Result<(Flow, Option<Arc<RegionForce>>), SegmentError> {
-    let MethodInputs { params, smoothed, initial: field, lookup, h_min } = *inputs;
-    let propagation = weight * params.propagation.unwrap_or(1.0);
+    let MethodInputs { params, smoothed, g, lookup, h_min, noise_smoothed } = *inputs;
+    let beta = params.propagation.unwrap_or(1.0);
+    let propagation = weight * beta;
+    // Beyond the image the front is pushed back, whichever way it propagates.
+    let outside = -propagation.abs();
     let mut region: Option<Arc<RegionForce>> = None;
     let flow = match method {
         Method::Threshold { lower, upper } => {
-            let (mid, half) = (0.5 * (lower + upper), 0.5 * (upper - lower));
+            let (lo, hi) = (norm.threshold(lower), norm.threshold(upper));
+            let scale = threshold_scale(lo, hi, noise_smoothed);
+            resolved.threshold_scale = Some(scale * norm.scale);
+            let inv = 1.0 / scale;
             let speed: Vec<f32> = smoothed
                 .data
                 .par_iter()
                 .map(|&v| {
-                    let p = if v < mid { v - lower } else { upper - v };
-                    propagation * (p / half).clamp(-1.0, 1.0)
+                    // Distance into the window from its nearer end (∞ − v = ∞ for an open
+                    // end), in units of the scale: 1 well inside, 0 on a threshold.
+                    let p = ((v as f64 - lo as f64).min(hi as f64 - v as f64) * inv) as f32;
+                    propagation * p.clamp(-1.0, 1.0)
                 })
                 .collect();
             resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
-            let field = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
+            let field = VoxelField { lookup, data: Arc::new(speed), outside };
             Flow::normal_speed(Speed::Field(Arc::new(field)))
                 .with_curvature(weight * resolved.curvature)
         }
         Method::Gac => {
-            // Edges per voxel step (a unit spacing): a step between two slices 2.5 mm apart
-            // is as much an edge as one between two pixels; in world units it would read
-            // 2.5× weaker and the front would leak through the poles of a thick-sliced
-            // volume.
-            let grad =
-                features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })?;
-            let g = match (params.edge_scale, params.sigmoid) {
-                (Some(k), _) => {
-                    resolved.edge_scale = Some(k);
-                    features::edge_potential(&grad, k)?
-                }
-                (None, given) => {
-                    let (alpha, beta) = match given {
-                        Some(g) => g,
-                        None => default_sigmoid(&grad, field)?,
-                    };
-                    resolved.sigmoid = Some((alpha, beta));
-                    // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
-                    features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)?
-                }
-            };
-            resolved.curvature = params.curvature.unwrap_or(h_min as f32);
-            resolved.advection = params.advection.unwrap_or(1.0);
+            let g = g.ok_or_else(|| {
+                SegmentError::InvalidParameter("GAC without its edge potential".into())
+            })?;
+            resolved.curvature = params.curvature.unwrap_or(GAC_CURVATURE * h_min as f32);
+            resolved.advection = params.advection.unwrap_or(GAC_ADVECTION);
             let alpha = weight * resolved.advection;
-            let gg = features::gradient(&g)?.map(|c| c.data);
+            let gg = features::gradient(g)?.map(|c| c.data);
             let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
-            let g = Arc::new(g.data);
             let velocity =
                 gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
-            let z = VoxelField { lookup, data: g, outside: 1.0 };
-            let f = VoxelField { lookup, data: Arc::new(speed), outside: -propagation };
+            let z = VoxelField { lookup, data: Arc::new(g.data.clone()), outside: 1.0 };
+            let f = VoxelField { lookup, data: Arc::new(speed), outside };
             let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
                 .with_curvature_field(weight * resolved.curvature, Arc::new(z));
             if alpha > 0.0 {
@@ -479,7 +588,6 @@ fn method_flow(
         }
         Method::ChanVese { lambda1, lambda2, nu } => {
             resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
-            let beta = params.propagation.unwrap_or(1.0);
             let force = Arc::new(RegionForce::new(
                 lookup,
                 Arc::new(smoothed.data.clone()),
@@ -491,6 +599,358 @@ fn method_flow(
         }
     };
     Ok((flow, region))
+}
+
+/// The intensity over which the threshold speed goes from 0 (on a threshold) to ±1:
+/// the window's half-width when both ends are finite, but at most twice the noise left in
+/// the smoothed image (a window far wider than the noise would otherwise make the speed
+/// small everywhere, and an open window, zero); for a noise-free image with an open
+/// window, 5 % of the image's robust range (normalised units: 0.05).
+fn threshold_scale(lo: f32, hi: f32, noise: f64) -> f64 {
+    let half = 0.5 * (hi as f64 - lo as f64);
+    let by_noise = 2.0 * noise;
+    let scale = match (half.is_finite(), by_noise > 0.0) {
+        (true, true) => half.min(by_noise),
+        (true, false) => half,
+        (false, true) => by_noise,
+        (false, false) => 0.05,
+    };
+    scale.max(1e-9)
+}
+
+/// The images and figures the flows are built from.
+struct Prepared {
+    /// The intensities the methods compare (the image, or a feature image given for the
+    /// threshold and Chan–Vese methods), normalised and smoothed.
+    smoothed: Image,
+    norm: Normalization,
+    /// GAC's edge potential.
+    g: Option<Image>,
+    resolved: Resolved,
+}
+
+/// The defaults of a run from the image's own statistics (module docs, "Defaults").
+fn prepare(
+    image: &Image,
+    init: &Init,
+    params: &Params,
+    field: &DenseField,
+) -> Result<Prepared, SegmentError> {
+    let methods: Vec<Method> =
+        std::iter::once(params.method).chain(params.terms.iter().map(|t| t.0)).collect();
+    let has_gac = methods.iter().any(|m| matches!(m, Method::Gac));
+    let only_gac = methods.len() == 1 && has_gac;
+    // A feature image replaces the intensities the threshold and Chan–Vese methods compare
+    // (used as given: no smoothing unless σ is given); for GAC it is the edge potential.
+    let feature = params.feature.as_deref();
+    let source = match feature {
+        Some(f) if !only_gac => f,
+        _ => image,
+    };
+    let norm = Normalization::of(&source.data)?;
+    let normed = norm.image(source);
+    let noise = stats::noise_sigma(&normed)?;
+    let axes = image.dims.iter().filter(|&&n| n > 1).count().max(1);
+    let n = image.len();
+    let inside_values = |im: &Image| -> Vec<f32> {
+        im.data.iter().zip(&field.data()[..n]).filter(|(_, &p)| p <= 0.0).map(|(&v, _)| v).collect()
+    };
+    let median_inside = |im: &Image| -> Result<f64, GridError> {
+        let v = inside_values(im);
+        Ok(if v.is_empty() { 0.0 } else { features::percentile(&v, 0.5)? as f64 })
+    };
+    let m_in = median_inside(&normed)?;
+    let planar = image.is_2d();
+    let smooth = |v: f64| -> Result<Image, GridError> {
+        if v <= 0.0 {
+            return Ok(normed.clone());
+        }
+        let mut s = image.spacing.map(|h| v * h);
+        if planar {
+            s[2] = 0.0;
+        }
+        features::gaussian(&normed, s)
+    };
+    let mut resolved = Resolved {
+        method: params.method,
+        terms: params.terms.clone(),
+        sigma: [0.0; 3],
+        propagation: params.propagation.unwrap_or(1.0),
+        curvature: 0.0,
+        advection: 0.0,
+        edge_scale: None,
+        sigmoid: None,
+        edge_contrast: None,
+        threshold_scale: None,
+        noise: noise * norm.scale,
+        noise_smoothed: 0.0,
+        normalization: [norm.center, norm.scale],
+        leak_guard: params.leak_guard,
+        feature: feature.is_some(),
+        spacing: image.spacing,
+        planar,
+    };
+    // σ in voxels of each axis (the default), or world units (given).
+    let mut gac: Option<(Image, Image, stats::EdgeProbe, f64)> = None;
+    let voxels = match (params.sigma, params.method) {
+        (Some(_), _) => None,
+        (None, _) if feature.is_some() && !only_gac => Some(0.0),
+        (None, Method::Threshold { lower, upper }) => {
+            // The smallest σ that puts the noise left in Ĩ five times below the distance
+            // from the seeds' intensity to the nearer threshold.
+            let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
+            let margin = (m_in - lo).min(hi - m_in);
+            Some(if noise == 0.0 {
+                0.5
+            } else if margin > 0.0 {
+                stats::smoothing_voxels(0.5, 2.0, |v| {
+                    5.0 * noise * stats::noise_factor(v, axes) <= margin
+                })
+            } else {
+                1.0
+            })
+        }
+        (None, Method::Gac) => {
+            let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
+            let contrast = stats::quantile(
+                &probe.2.contrasts.iter().map(|c| c.abs()).collect::<Vec<_>>(),
+                0.5,
+            );
+            let found = probe.2.peaks.len() * 4 >= probe.2.rays && !probe.2.peaks.is_empty();
+            let v = match contrast {
+                Some(c) if found && noise > 0.0 => {
+                    // Edge gradient over the noise's gradient ≥ 10, for an edge of contrast
+                    // c blurred over a voxel: c / (√(2π) √(v² + 1)) against
+                    // σ_n (∫G²)^½ / (√2 v).
+                    stats::smoothing_voxels(1.0, 3.0, |v| {
+                        let edge = c / ((std::f64::consts::TAU).sqrt() * (v * v + 1.0).sqrt());
+                        let noise_grad =
+                            noise * stats::noise_factor(v, axes) / (std::f64::consts::SQRT_2 * v);
+                        edge >= 10.0 * noise_grad
+                    })
+                }
+                _ => 1.0,
+            };
+            resolved.edge_contrast = contrast.filter(|_| found).map(|c| c * norm.scale);
+            if v == 1.0 {
+                gac = Some(probe);
+            }
+            Some(v)
+        }
+        (None, Method::ChanVese { .. }) => Some(1.0),
+    };
+    let sigmas = match (params.sigma, voxels) {
+        (Some(s), _) => [s; 3],
+        (None, Some(v)) => image.spacing.map(|h| v * h),
+        (None, None) => [0.0; 3],
+    };
+    resolved.sigma = if planar { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
+    let sigma_max = resolved.sigma.iter().fold(0.0f64, |m, &v| m.max(v));
+    let smoothed = if sigma_max > 0.0 {
+        features::gaussian(&normed, resolved.sigma)?
+    } else {
+        normed.clone()
+    };
+    // The noise left after smoothing (voxels of the finest axis as the measure).
+    let v_eff = (0..3)
+        .filter(|&a| image.dims[a] > 1)
+        .map(|a| resolved.sigma[a] / image.spacing[a])
+        .fold(f64::INFINITY, f64::min);
+    let factor = if v_eff.is_finite() && v_eff > 0.0 { stats::noise_factor(v_eff, axes) } else { 1.0 };
+    resolved.noise_smoothed = noise * factor.min(1.0) * norm.scale;
+    let g = if has_gac {
+        Some(match (feature, params.edge_scale, params.sigmoid) {
+            (Some(f), _, _) if only_gac => f.clone(),
+            (_, Some(k), _) => {
+                resolved.edge_scale = Some(k);
+                let grad = voxel_gradient(&smoothed)?;
+                features::edge_potential(&grad, k / norm.scale)?
+            }
+            (_, None, given) => {
+                let (grad, probe) = match gac.take() {
+                    Some((_, grad, probe, _)) => (grad, Some(probe)),
+                    None => {
+                        let grad = voxel_gradient(&smoothed)?;
+                        let m = median_inside(&smoothed)?;
+                        let tau = edge_departure(noise, resolved_factor(&resolved, image, axes));
+                        let probe = stats::probe_edges(
+                            &smoothed,
+                            &grad,
+                            &ray_origins(image, init, field),
+                            m,
+                            tau,
+                            3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b)),
+                        );
+                        (grad, Some(probe))
+                    }
+                };
+                let (alpha, beta) = match given {
+                    Some((a, b)) => (a / norm.scale, b / norm.scale),
+                    None => {
+                        let f = resolved_factor(&resolved, image, axes);
+                        let v = (0..3)
+                            .filter(|&a| image.dims[a] > 1)
+                            .map(|a| resolved.sigma[a] / image.spacing[a])
+                            .fold(f64::INFINITY, f64::min);
+                        let v = if v.is_finite() && v > 0.0 { v } else { 0.5 };
+                        let s = noise * f / (std::f64::consts::SQRT_2 * v);
+                        let chi999 = if axes >= 3 { 4.03 } else { 3.72 };
+                        sigmoid_from_edges(&grad, field, probe.as_ref(), chi999 * s)?
+                    }
+                };
+                resolved.sigmoid = Some((alpha * norm.scale, beta * norm.scale));
+                // Decreasing in |∇Ĩ|: 1 in flat regions, 0 on edges.
+                features::sigmoid(&grad, -alpha, beta, 0.0, 1.0)?
+            }
+        })
+    } else {
+        None
+    };
+    Ok(Prepared { smoothed, norm, g, resolved })
+}
+
+/// The noise factor of the smoothing `resolved` holds.
+fn resolved_factor(resolved: &Resolved, image: &Image, axes: usize) -> f64 {
+    let v = (0..3)
+        .filter(|&a| image.dims[a] > 1)
+        .map(|a| resolved.sigma[a] / image.spacing[a])
+        .fold(f64::INFINITY, f64::min);
+    if v.is_finite() && v > 0.0 {
+        stats::noise_factor(v, axes).min(1.0)
+    } else {
+        1.0
+    }
+}
+
+/// How far (normalised units) the smoothed intensity must depart from the seeds' for a
+/// ray to have met an edge: five times the noise left after smoothing, and at least 5 %
+/// of the image's robust range.
+fn edge_departure(noise: f64, factor: f64) -> f64 {
+    (5.0 * noise * factor).max(0.05)
+}
+
+/// |∇Ĩ| per voxel step (unit spacing): a step between two slices 2.5 mm apart is as much
+/// an edge as one between two pixels; in world units it would read 2.5× weaker and the
+/// front would leak through the poles of a thick-sliced volume.
+fn voxel_gradient(smoothed: &Image) -> Result<Image, GridError> {
+    features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })
+}
+
+/// GAC's pilot: Ĩ at `v` voxels, its gradient and the rays' edges.
+fn gac_probe(
+    image: &Image,
+    init: &Init,
+    field: &DenseField,
+    smooth: &dyn Fn(f64) -> Result<Image, GridError>,
+    v: f64,
+    noise: f64,
+    axes: usize,
+) -> Result<(Image, Image, stats::EdgeProbe, f64), GridError> {
+    let smoothed = smooth(v)?;
+    let grad = voxel_gradient(&smoothed)?;
+    let n = image.len();
+    let inside: Vec<f32> = smoothed
+        .data
+        .iter()
+        .zip(&field.data()[..n])
+        .filter(|(_, &p)| p <= 0.0)
+        .map(|(&x, _)| x)
+        .collect();
+    let m = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.5)? as f64 };
+    let tau = edge_departure(noise, stats::noise_factor(v, axes).min(1.0));
+    let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
+    let probe = stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+    Ok((smoothed, grad, probe, m))
+}
+
+/// Where rays start, in voxel coordinates: the seeds' centres, or the deepest voxel of an
+/// initial mask or level set.
+fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> {
+    let s = image.spacing;
+    match init {
+        Init::Seeds { seeds, world } => seeds
+            .iter()
+            .map(|sd| {
+                if *world {
+                    let p = lattice_position(image, sd.center);
+                    std::array::from_fn(|a| p[a] / s[a])
+                } else {
+                    sd.center
+                }
+            })
+            .collect(),
+        _ => {
+            let n = image.len();
+            let (k, _) = field.data()[..n]
+                .iter()
+                .enumerate()
+                .fold((0, f32::INFINITY), |(bk, bv), (k, &v)| if v < bv { (k, v) } else { (bk, bv) });
+            let [nx, ny, _] = image.dims;
+            vec![[(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64]]
+        }
+    }
+}
+
+/// The sigmoid edge potential's (α, β) by the rule of ITK's guide (Software Guide,
+/// "Geodesic Active Contours Segmentation": K₁ a gradient typical of the object's inside,
+/// K₂ one typical of its edges, α = (K₂ − K₁)/6, β = (K₁ + K₂)/2, so that g = 0.95 at K₁
+/// and 0.05 at K₂), with both measured without a truth:
+///
+/// * K₁ = the 90th percentile of |∇Ĩ| inside the initial region (the seeds lie in the
+///   object), and at least the 99.9th percentile of the gradient that the noise alone
+///   leaves (`noise_gradient`);
+/// * K₂ = the 10th percentile of the peak gradients of the first edge the rays from the
+///   seeds cross ([`stats::probe_edges`]): the guide's "minimum value along the contour",
+///   robustly, when at least a quarter of the rays met an edge.
+///
+/// Without such an edge standing 1.5 K₁ above the inside, K₂ is the 99th percentile over
+/// the image, at least 3 K₁, with α = (K₂ − K₁)/12 and β = K₁ + (K₂ − K₁)/3.
+fn sigmoid_from_edges(
+    grad: &Image,
+    initial: &DenseField,
+    probe: Option<&stats::EdgeProbe>,
+    noise_gradient: f64,
+) -> Result<(f64, f64), GridError> {
+    let n = grad.data.len();
+    let inside: Vec<f32> = grad
+        .data
+        .iter()
+        .zip(&initial.data()[..n])
+        .filter(|(_, &phi)| phi <= 0.0)
+        .map(|(&g, _)| g)
+        .collect();
+    let texture = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9)? as f64 };
+    let k1 = texture.max(noise_gradient);
+    let edge = probe
+        .filter(|p| !p.peaks.is_empty() && p.peaks.len() * 4 >= p.rays)
+        .and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
+    if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * k1) {
+        return Ok(((k2 - k1) / 6.0, 0.5 * (k1 + k2)));
+    }
+    let k2 = (features::percentile(&grad.data, 0.99)? as f64).max(3.0 * k1);
+    let k2 = if k2 > 0.0 { k2 } else { f64::MIN_POSITIVE };
+    Ok(((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0))
+}
+
+/// Why a run leaked, if it did: the region reached a face of the image (bits of
+/// [`inside`]) that the initial region did not touch, or grew past half the image.
+fn leak_of(new_faces: u8, voxels: u64, initial: u64, image: u64) -> Option<String> {
+    const NAMES: [&str; 6] = ["x = 0", "x = max", "y = 0", "y = max", "z = 0", "z = max"];
+    if new_faces != 0 {
+        let faces: Vec<&str> =
+            (0..6).filter(|b| new_faces & (1 << b) != 0).map(|b| NAMES[b]).collect();
+        return Some(format!(
+            "the region reached the image's {} face{} where the initial region did not touch it",
+            faces.join(", "),
+            if faces.len() > 1 { "s" } else { "" }
+        ));
+    }
+    if voxels > initial && 2 * voxels > image {
+        return Some(format!(
+            "the region grew to {voxels} of the image's {image} voxels, more than half"
+        ));
+    }
+    None
 }
 
 /// The weighted sum of the methods' flows ([`Params::terms`]): their speeds add, their
@@ -524,28 +984,6 @@ fn sim_value_left(old: f32, gamma: f32) -> f32 {
     }
 }
 
-/// The sigmoid edge potential's (α, β) from the gradient statistics, by the rule of ITK's
-/// guide (Software Guide, "Geodesic Active Contours Segmentation": K₁ a gradient typical
-/// of the object's inside, K₂ one typical of its edges, α = (K₂ − K₁)/6, β = (K₁ + K₂)/2),
-/// with K₁ the 90th percentile of |∇Ĩ| inside the initial region (the seeds lie in the
-/// object) and K₂ the 99th percentile over the image, at least 3 K₁ (edges are a small
-/// part of a volume; when they are too few to reach the 99th percentile, the noise's tail
-/// is taken as three times the inside's).
-fn default_sigmoid(grad: &Image, initial: &DenseField) -> Result<(f64, f64), GridError> {
-    let n = grad.data.len();
-    let inside: Vec<f32> = grad
-        .data
-        .iter()
-        .zip(&initial.data()[..n])
-        .filter(|(_, &phi)| phi <= 0.0)
-        .map(|(&g, _)| g)
-        .collect();
-    let k1 = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9)? as f64 };
-    let k2 = (features::percentile(&grad.data, 0.99)? as f64).max(3.0 * k1);
-    let k2 = if k2 > 0.0 { k2 } else { f64::MIN_POSITIVE };
-    Ok(((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0))
-}
-
 /// The intensities as integers: q = round((v − min) · scale) < 2³¹, so that sums over any
 /// set of up to 2³² voxels are exact in an i64 and independent of their order.
 struct FixedPoint {
@@ -577,11 +1015,13 @@ impl FixedPoint {
     }
 }
 
-/// Image voxels inside (φ ≤ 0) and, with `sums`, the integer sum of their intensities.
-fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64, i64) {
+/// Image voxels inside (φ ≤ 0), with `sums` the integer sum of their intensities, and
+/// the faces of the image the region touches (bits x = 0, x = max, y = 0, y = max, z = 0,
+/// z = max; an axis of one voxel has no faces).
+fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64, i64, u8) {
     let lookup = Lookup { dims };
     let [nx, ny, nz] = dims;
-    let (mut count, mut sum) = (0u64, 0i64);
+    let (mut count, mut sum, mut faces) = (0u64, 0i64, 0u8);
     sim.for_each_inside_run(|c, len| {
         // A 2D image's level set is extruded over z = 0..3: slice 0 is the image.
         if c.y < 0
@@ -598,12 +1038,21 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
             return;
         }
         count += (x1 - x0) as u64;
+        if nx > 1 {
+            faces |= (x0 == 0) as u8 | (((x1 == nx as i64) as u8) << 1);
+        }
+        if ny > 1 {
+            faces |= (((c.y == 0) as u8) << 2) | (((c.y as usize == ny - 1) as u8) << 3);
+        }
+        if nz > 1 {
+            faces |= (((c.z == 0) as u8) << 4) | (((c.z as usize == nz - 1) as u8) << 5);
+        }
         if let Some(fp) = sums {
             let first = lookup.index(Coord::new(x0 as i32, c.y, c.z)).expect("inside the image");
             sum += fp.q[first..first + (x1 - x0) as usize].iter().map(|&v| v as i64).sum::<i64>();
         }
     });
-    (count, sum)
+    (count, sum, faces)
 }
 
 /// The mask φ ≤ 0 at the image's voxels.
@@ -756,3 +1205,17 @@ fn distance_from_labels(
         phi[i] = if inside(i) { -d } else { *d };
     }
 }
+
+/// GAC's default curvature weight ε, in units of the smallest spacing, and advection
+/// weight α, against a propagation weight β = 1. ITK's guide uses (ε, α) = (1, 1) and
+/// ITK-SNAP (0.2, 2); on the validation phantoms (docs/segmentation.md) both let the front
+/// out where touching objects meet (a crease has no edge) and at SNR 2, while (2, 3)
+/// holds every object whose boundary is an edge everywhere: the edge's attraction must
+/// outweigh the balloon on the edge's outer flank, and curvature closes the noise's holes
+/// in it.
+const GAC_CURVATURE: f32 = 2.0;
+const GAC_ADVECTION: f32 = 3.0;
+
+/// The quantile of the rays' edge peaks taken as the edge's gradient K₂: a robust
+/// minimum, as the ITK guide's "minimum value along the contour".
+const EDGE_QUANTILE: f64 = 0.1;

@@ -66,20 +66,23 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Ok(Some(code)): finished with a distinct exit code (3: a segmentation leaked).
+    let plain = |r: Result<(), String>| r.map(|()| None::<u8>);
     let result = match Cli::parse().command {
-        Command::Info(a) => info::run(&a),
-        Command::Run(a) => run::run(&a),
-        Command::Distance(a) => distance::run(&a),
-        Command::Render(a) => render::run(&a),
-        Command::Mesh(a) => mesh::run(&a),
-        Command::Csg(a) => csg::run(&a),
-        Command::Convert(a) => convert::run(&a),
-        Command::Voxelize(a) => voxelize::run(&a),
-        Command::Segment(a) => segment::run(&a),
-        Command::Phantom(a) => phantom::run(&a),
+        Command::Info(a) => plain(info::run(&a)),
+        Command::Run(a) => plain(run::run(&a)),
+        Command::Distance(a) => plain(distance::run(&a)),
+        Command::Render(a) => plain(render::run(&a)),
+        Command::Mesh(a) => plain(mesh::run(&a)),
+        Command::Csg(a) => plain(csg::run(&a)),
+        Command::Convert(a) => plain(convert::run(&a)),
+        Command::Voxelize(a) => plain(voxelize::run(&a)),
+        Command::Segment(a) => segment::run(&a).map(|leaked| leaked.then_some(segment::EXIT_LEAKED)),
+        Command::Phantom(a) => plain(phantom::run(&a)),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(None) => ExitCode::SUCCESS,
+        Ok(Some(code)) => ExitCode::from(code),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

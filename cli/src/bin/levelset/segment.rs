@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{batch, outln, progress};
 use sparse_levelset::image::{self, LoadedImage, Output};
-use sparse_levelset::segment::{metrics::dice, segment, Init, Method, Params, Seed};
+use sparse_levelset::segment::{metrics::dice, segment, Init, Method, Params, Seed, Stop};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -51,12 +51,24 @@ pub struct SegmentArgs {
     /// units: .nii(.gz) or .npy) instead of seeds.
     #[arg(long, value_name = "LEVELSET")]
     pub init_level_set: Option<PathBuf>,
-    /// Lower threshold (threshold method).
+    /// Lower threshold (threshold method); without --upper the window is open above
+    /// (everything brighter); `-inf` for an open lower end.
     #[arg(long, allow_hyphen_values = true)]
     pub lower: Option<f32>,
-    /// Upper threshold (threshold method).
+    /// Upper threshold (threshold method); without --lower the window is open below;
+    /// `inf` for an open upper end.
     #[arg(long, allow_hyphen_values = true)]
     pub upper: Option<f32>,
+    /// A feature image of the image's size (any image format), as ITK's filters take one:
+    /// for --method gac the edge potential itself (1 in flat regions, near 0 on edges; no
+    /// smoothing, no sigmoid); for threshold and chan-vese the intensities compared in
+    /// place of the image (smoothed only with --sigma).
+    #[arg(long, value_name = "IMAGE")]
+    pub feature: Option<PathBuf>,
+    /// Do not stop a run that leaks (one whose region reaches an image face the seeds did
+    /// not touch, or grows past half the image): for objects that fill the image.
+    #[arg(long)]
+    pub no_leak_guard: bool,
     /// σ of the Gaussian smoothing in world units (0: none) [default: one voxel per axis].
     #[arg(long, allow_hyphen_values = true)]
     pub sigma: Option<f64>,
@@ -181,6 +193,8 @@ struct Job {
     method: Method,
     /// Methods added with their weights.
     terms: Vec<(Method, f32)>,
+    /// The user's feature image.
+    feature: Option<Arc<sparse_levelset::image::Image>>,
 }
 
 /// The method from the flags, the thresholds from `window` when the flags give none.
@@ -190,10 +204,18 @@ fn method_of(
     window: Option<(f32, f32)>,
 ) -> Result<Method, String> {
     Ok(match arg {
-        MethodArg::Threshold => match (a.lower.zip(a.upper)).or(window) {
-            Some((lower, upper)) => Method::Threshold { lower, upper },
-            None => return Err("the threshold method needs --lower and --upper".into()),
-        },
+        MethodArg::Threshold => {
+            let flags = match (a.lower, a.upper) {
+                (None, None) => None,
+                (l, u) => Some((l.unwrap_or(f32::NEG_INFINITY), u.unwrap_or(f32::INFINITY))),
+            };
+            match flags.or(window) {
+                Some((lower, upper)) => Method::Threshold { lower, upper },
+                None => {
+                    return Err("the threshold method needs --lower or --upper (or both)".into())
+                }
+            }
+        }
         MethodArg::Gac => Method::Gac,
         MethodArg::ChanVese => {
             Method::ChanVese { lambda1: a.lambda1, lambda2: a.lambda2, nu: a.nu }
@@ -249,8 +271,13 @@ fn seeds_file(path: &Path) -> Result<SeedsFile, String> {
             }
         })
         .collect::<Result<Vec<_>, String>>()?;
+    // A window open at one end: that end null or left out.
     let f = |k: &str| v.get(k).and_then(|x| x.as_f64()).map(|x| x as f32);
-    Ok((seeds, f("lower").zip(f("upper"))))
+    let window = match (f("lower"), f("upper")) {
+        (None, None) => None,
+        (l, u) => Some((l.unwrap_or(f32::NEG_INFINITY), u.unwrap_or(f32::INFINITY))),
+    };
+    Ok((seeds, window))
 }
 
 /// Loads and checks one image's inputs and outputs.
@@ -294,6 +321,21 @@ fn job(
     };
     let method = method_of(a, a.method, window)?;
     let terms = added(a, window)?;
+    let feature = match &a.feature {
+        Some(f) => {
+            let im = load(f, spacing)?;
+            if im.image.dims != loaded.image.dims {
+                return Err(format!(
+                    "{}: {:?} voxels, the image has {:?}",
+                    f.display(),
+                    im.image.dims,
+                    loaded.image.dims
+                ));
+            }
+            Some(Arc::new(im.image))
+        }
+        None => None,
+    };
     let truth = truth.map(|t| load_mask(t, spacing, &loaded)).transpose()?;
     image::check_output(&output, &loaded, Output::Mask).map_err(|e| e.to_string())?;
     check_output(&output)?;
@@ -309,7 +351,7 @@ fn job(
         check_output(m)?;
     }
     let name = image_path.display().to_string();
-    Ok(Job { name, loaded, output, level_set, mesh, truth, init, method, terms })
+    Ok(Job { name, loaded, output, level_set, mesh, truth, init, method, terms, feature })
 }
 
 /// The methods added with `--add METHOD:W`.
@@ -343,6 +385,7 @@ fn params_of(a: &SegmentArgs, method: Method, threads: usize) -> Result<Params, 
     params.curvature = a.curvature;
     params.advection = a.advection;
     params.edge_scale = a.edge_scale;
+    params.leak_guard = !a.no_leak_guard;
     if let Some(v) = a.rms {
         params.rms = v;
     }
@@ -363,7 +406,11 @@ fn execute(
     threads: usize,
     bar: &indicatif::ProgressBar,
 ) -> Result<serde_json::Value, String> {
-    let params = Params { terms: j.terms.clone(), ..params_of(a, j.method, threads)? };
+    let params = Params {
+        terms: j.terms.clone(),
+        feature: j.feature.clone(),
+        ..params_of(a, j.method, threads)?
+    };
     bar.set_length(params.max_iterations);
     let mut monitor = |s: &sparse_levelset::segment::StepInfo| {
         bar.set_position(s.iteration);
@@ -393,6 +440,7 @@ fn execute(
     v["threads"] = serde_json::json!(threads);
     v["dice"] = serde_json::json!(j.truth.as_ref().and_then(|t| dice(&result.mask, t).ok()));
     v["voxel_updates_per_s"] = serde_json::json!(r.voxel_updates / r.seconds_evolution.max(1e-12));
+    v["leaked"] = serde_json::json!(r.stop == Stop::Leaked);
     Ok(v)
 }
 
@@ -410,7 +458,25 @@ fn summary_line(v: &serde_json::Value) -> String {
     )
 }
 
-pub fn run(a: &SegmentArgs) -> Result<(), String> {
+/// The exit code of a run (or batch) that leaked ([`Stop::Leaked`]): its outputs are
+/// written, and a warning says why.
+pub const EXIT_LEAKED: u8 = 3;
+
+/// The warning for a record that leaked, if it did.
+fn leak_warning(v: &serde_json::Value) -> Option<String> {
+    (v["leaked"].as_bool() == Some(true)).then(|| {
+        format!(
+            "warning: {}: the segmentation leaked and was stopped: {} (the mask is not the \
+             seeded object; check the seeds and window, or give --no-leak-guard if the object \
+             does fill the image)",
+            v["image"].as_str().unwrap_or("?"),
+            v["leak"].as_str().unwrap_or("?")
+        )
+    })
+}
+
+/// Runs `levelset segment`; `Ok(true)` when a segmentation leaked.
+pub fn run(a: &SegmentArgs) -> Result<bool, String> {
     let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
     if a.image.is_dir() {
         return batch(a, threads);
@@ -427,7 +493,11 @@ pub fn run(a: &SegmentArgs) -> Result<(), String> {
     } else {
         outln!("{}", summary_line(&v));
     }
-    Ok(())
+    let warning = leak_warning(&v);
+    if let Some(w) = &warning {
+        eprintln!("{w}");
+    }
+    Ok(warning.is_some())
 }
 
 /// The images of a batch directory: supported extensions, not `*-truth.*`, by name.
@@ -458,7 +528,7 @@ fn split_ext(name: &str) -> (&str, bool) {
 
 /// Batch mode: every image of `a.image` into the directory `a.output`, spread over the
 /// MPI ranks when `mpirun` started the process (rank 0 writes the summary).
-fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
+fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
     // Dropped last: MPI is finalised when the last clone goes.
     let transport = levelset_cli::ranks::transport()?;
     let t = transport.as_deref();
@@ -499,13 +569,22 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
     let results = batch::spread(t, &images, threads, |p, threads| {
         let r = one(p, threads);
         match &r {
-            Ok(v) => outln!("{prefix}{}", summary_line(v)),
+            Ok(v) => {
+                outln!("{prefix}{}", summary_line(v));
+                if let Some(w) = leak_warning(v) {
+                    eprintln!("{prefix}{w}");
+                }
+            }
             Err(e) => outln!("{prefix}{}: FAILED, skipped: {e}", p.display()),
         }
         r
     })?;
-    let Some(results) = results else { return Ok(()) };
+    let Some(results) = results else { return Ok(false) };
     let failed = results.iter().filter(|r| r.is_err()).count();
+    let leaked = results
+        .iter()
+        .filter(|r| r.as_ref().is_ok_and(|v| v["leaked"].as_bool() == Some(true)))
+        .count();
     let seconds = start.elapsed().as_secs_f64();
     let records: Vec<serde_json::Value> = images
         .iter()
@@ -519,6 +598,7 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
     let summary = serde_json::json!({
         "images": images.len(),
         "failed": failed,
+        "leaked": leaked,
         "ranks": ranks,
         "threads": threads,
         "wall_seconds": seconds,
@@ -526,7 +606,7 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
     });
     levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
     outln!(
-        "{} images, {failed} failed, {seconds:.2} s on {}{threads} threads",
+        "{} images, {failed} failed, {leaked} leaked, {seconds:.2} s on {}{threads} threads",
         images.len(),
         if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() }
     );
@@ -536,5 +616,5 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<(), String> {
     if failed > 0 {
         return Err(format!("{failed} of {} images failed (see above)", images.len()));
     }
-    Ok(())
+    Ok(leaked > 0)
 }

@@ -1,0 +1,324 @@
+//! Robust statistics of the image that the segmentation's defaults are taken from, so that
+//! they hold on any intensity scale, offset and noise level:
+//!
+//! * [`Normalization`]: the image is mapped to `(I − c) / s` before anything else, with c
+//!   the (lower) median and s the distance between the 1st and 99th percentiles, all
+//!   order statistics. For `a·I + b` with `a > 0` every one of them transforms exactly
+//!   (where `a·I + b` is itself exact in `f32`, the normalised images are bit for bit the
+//!   same), so every later default, and the mask, is the same.
+//! * [`noise_sigma`]: the noise level, from the median absolute second difference along
+//!   the axes (a high-pass whose variance is 6σ² for white noise), flat runs excluded.
+//! * [`smoothing_voxels`]: the Gaussian σ (in voxels) that brings the noise of the smoothed
+//!   image, or of its gradient, far enough below the contrast the seeds see.
+//! * [`probe_edges`]: rays cast from the seeds outward, which measure the contrast of the
+//!   first edge they cross and the gradient magnitude on it.
+
+use crate::grid::GridError;
+use crate::image::Image;
+use rayon::prelude::*;
+
+/// An affine map of intensities onto a scale of their own: `v ↦ (v − center) / scale`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Normalization {
+    pub center: f64,
+    pub scale: f64,
+}
+
+/// The `k`-th smallest value (0-based) of `v`, reordering it.
+fn order_statistic(v: &mut [f32], k: usize) -> f32 {
+    let k = k.min(v.len() - 1);
+    *v.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+impl Normalization {
+    /// The normalization of `data` (not empty, finite): center the lower median, scale the
+    /// 99th minus the 1st percentile (order statistics ⌊q (n − 1)⌋), else the range, else 1
+    /// (a constant image).
+    pub fn of(data: &[f32]) -> Result<Normalization, GridError> {
+        crate::memory::check(crate::memory::bytes_of(data.len() as u128, 4), "a copy of the image for its percentiles")?;
+        let mut v = data.to_vec();
+        let n = v.len();
+        let at = |q: f64| ((q * (n - 1) as f64).floor() as usize).min(n - 1);
+        let center = order_statistic(&mut v, at(0.5)) as f64;
+        let p99 = order_statistic(&mut v, at(0.99)) as f64;
+        let p01 = order_statistic(&mut v, at(0.01)) as f64;
+        let mut scale = p99 - p01;
+        if !(scale > 0.0) {
+            let (lo, hi) = data
+                .par_iter()
+                .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)))
+                .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
+            scale = hi as f64 - lo as f64;
+        }
+        if !(scale > 0.0 && scale.is_finite()) {
+            scale = 1.0;
+        }
+        Ok(Normalization { center, scale })
+    }
+
+    /// `(v − center) / scale`.
+    #[inline]
+    pub fn apply(&self, v: f64) -> f64 {
+        (v - self.center) / self.scale
+    }
+
+    /// The inverse of [`Normalization::apply`].
+    #[inline]
+    pub fn back(&self, v: f64) -> f64 {
+        v * self.scale + self.center
+    }
+
+    /// A threshold in normalised units; ±∞ stay infinite.
+    pub fn threshold(&self, v: f32) -> f32 {
+        if v.is_infinite() {
+            v
+        } else {
+            self.apply(v as f64) as f32
+        }
+    }
+
+    /// The image normalised (computed in `f64`, rounded once).
+    pub fn image(&self, image: &Image) -> Image {
+        let mut data = vec![0.0f32; image.len()];
+        data.par_chunks_mut(1 << 14).zip(image.data.par_chunks(1 << 14)).for_each(|(o, i)| {
+            for (o, &v) in o.iter_mut().zip(i) {
+                *o = self.apply(v as f64) as f32;
+            }
+        });
+        Image { data, ..image.clone() }
+    }
+}
+
+/// The noise σ of `image` (white noise assumed): the median of |I[i−1] − 2I[i] + I[i+1]|
+/// along every axis of at least 3 voxels, over the triplets that are not all equal (flat
+/// padding and constant backgrounds say nothing of the noise), divided by 0.6745 √6
+/// (the second difference of white noise has variance 6σ²; 0.6745 is the median of |N(0, 1)|).
+/// 0 when no triplet varies.
+pub(crate) fn noise_sigma(image: &Image) -> Result<f64, GridError> {
+    let [nx, ny, nz] = image.dims;
+    let d = &image.data;
+    let strides = [(0usize, 1usize), (1, nx), (2, nx * ny)];
+    // Every second voxel along x, all rows: enough samples, half the work.
+    let rows: Vec<usize> = (0..ny * nz).collect();
+    let samples: Vec<f32> = rows
+        .par_chunks(64)
+        .flat_map_iter(|chunk| {
+            let mut out = Vec::new();
+            for &row in chunk {
+                let (y, z) = (row % ny, row / ny);
+                for x in (0..nx).step_by(2) {
+                    let i = x + nx * row;
+                    let pos = [x, y, z];
+                    for &(axis, stride) in &strides {
+                        let n = image.dims[axis];
+                        if n < 3 || pos[axis] == 0 || pos[axis] + 1 >= n {
+                            continue;
+                        }
+                        let (a, b, c) = (d[i - stride], d[i], d[i + stride]);
+                        if a == b && b == c {
+                            continue;
+                        }
+                        out.push((a as f64 - 2.0 * b as f64 + c as f64).abs() as f32);
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    if samples.is_empty() {
+        return Ok(0.0);
+    }
+    let mut v = samples;
+    let k = (v.len() - 1) / 2;
+    let median = order_statistic(&mut v, k) as f64;
+    Ok(median / (0.674_489_75 * 6f64.sqrt()))
+}
+
+/// The factor by which a Gaussian of `v` voxels along every smoothed axis (`axes` of
+/// them) divides white noise's standard deviation: `(2√π v)^(−axes/2)` (∫G² over the
+/// axes).
+pub(crate) fn noise_factor(v: f64, axes: usize) -> f64 {
+    (2.0 * std::f64::consts::PI.sqrt() * v).powf(-(axes as f64) / 2.0)
+}
+
+/// Candidate smoothing widths, voxels.
+pub(crate) const SIGMA_STEPS: [f64; 9] = [0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0];
+
+/// The smallest σ (voxels) of [`SIGMA_STEPS`] within `[lo, hi]` for which `ok(σ)` holds,
+/// else `hi`.
+pub(crate) fn smoothing_voxels(lo: f64, hi: f64, ok: impl Fn(f64) -> bool) -> f64 {
+    SIGMA_STEPS.iter().copied().filter(|&v| v >= lo && v <= hi).find(|&v| ok(v)).unwrap_or(hi)
+}
+
+/// What rays from the seeds saw of the first edge they crossed.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct EdgeProbe {
+    /// Rays cast, and those that crossed an edge.
+    pub rays: usize,
+    /// Per edge-crossing ray: the contrast `2 (Ĩ(s*) − m)` at the gradient peak s* of the
+    /// edge (the intensity halfway across a symmetric edge), and the peak gradient.
+    pub contrasts: Vec<f64>,
+    pub peaks: Vec<f64>,
+}
+
+/// Directions on the unit sphere (Fibonacci lattice), or in the xy plane for 2D.
+fn directions(planar: bool) -> Vec<[f64; 3]> {
+    if planar {
+        let n = 48;
+        return (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                [a.cos(), a.sin(), 0.0]
+            })
+            .collect();
+    }
+    let n = 128;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|k| {
+            let z = 1.0 - (2.0 * k as f64 + 1.0) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * k as f64;
+            [r * a.cos(), r * a.sin(), z]
+        })
+        .collect()
+}
+
+/// Trilinear interpolation of `image` at voxel coordinates `p` (inside the image).
+fn trilinear(image: &Image, p: [f64; 3]) -> f64 {
+    let mut i0 = [0usize; 3];
+    let mut f = [0.0f64; 3];
+    for a in 0..3 {
+        let n = image.dims[a];
+        let x = p[a].clamp(0.0, (n - 1) as f64);
+        let b = (x.floor() as usize).min(n.saturating_sub(2));
+        i0[a] = b;
+        f[a] = if n > 1 { x - b as f64 } else { 0.0 };
+    }
+    let mut acc = 0.0;
+    for corner in 0..8 {
+        let mut w = 1.0;
+        let mut idx = [0usize; 3];
+        for a in 0..3 {
+            let bit = (corner >> a) & 1;
+            if bit == 1 && image.dims[a] == 1 {
+                w = 0.0;
+            }
+            idx[a] = i0[a] + bit;
+            w *= if bit == 1 { f[a] } else { 1.0 - f[a] };
+        }
+        if w != 0.0 {
+            acc += w * image.data[image.index(idx[0], idx[1], idx[2])] as f64;
+        }
+    }
+    acc
+}
+
+/// Casts rays from every origin (voxel coordinates) outward, half a voxel of the smallest
+/// spacing a step, through `smoothed` (Ĩ) and `grad` (|∇Ĩ|), and records, per ray, the
+/// first edge: the first point where |Ĩ − m| exceeds `tau` (m the median intensity of the
+/// initial region), then the largest gradient within `reach` (world units) on either side
+/// of it, and the contrast 2 (Ĩ − m) at that peak. Rays that leave the image first record
+/// nothing.
+pub(crate) fn probe_edges(
+    smoothed: &Image,
+    grad: &Image,
+    origins: &[[f64; 3]],
+    m: f64,
+    tau: f64,
+    reach: f64,
+) -> EdgeProbe {
+    let planar = smoothed.is_2d();
+    let dirs = directions(planar);
+    let s = smoothed.spacing;
+    let h = s.iter().copied().fold(f64::INFINITY, f64::min);
+    let step = 0.5 * h;
+    let inside = |p: [f64; 3]| {
+        (0..3).all(|a| p[a] >= 0.0 && p[a] <= (smoothed.dims[a] - 1) as f64)
+    };
+    let results: Vec<Option<(f64, f64)>> = origins
+        .par_iter()
+        .flat_map_iter(|o| dirs.iter().map(move |d| (*o, *d)))
+        .map(|(o, d)| {
+            // p(t) = o + t d / s (voxel coordinates), t in world units.
+            let at = |t: f64| -> [f64; 3] { std::array::from_fn(|a| o[a] + t * d[a] / s[a]) };
+            let mut t = 0.0;
+            let cross = loop {
+                let p = at(t);
+                if !inside(p) {
+                    return None;
+                }
+                if (trilinear(smoothed, p) - m).abs() > tau {
+                    break t;
+                }
+                t += step;
+            };
+            let (mut best, mut best_t) = (f64::NEG_INFINITY, cross);
+            let mut u = (cross - reach).max(0.0);
+            while u <= cross + reach {
+                let p = at(u);
+                if inside(p) {
+                    let g = trilinear(grad, p);
+                    if g > best {
+                        (best, best_t) = (g, u);
+                    }
+                }
+                u += step;
+            }
+            let c = 2.0 * (trilinear(smoothed, at(best_t)) - m);
+            Some((c, best))
+        })
+        .collect();
+    let mut probe = EdgeProbe { rays: results.len(), ..Default::default() };
+    for (c, g) in results.into_iter().flatten() {
+        probe.contrasts.push(c);
+        probe.peaks.push(g);
+    }
+    probe
+}
+
+/// The `q`-quantile (lower order statistic) of `v`, `None` when empty.
+pub(crate) fn quantile(v: &[f64], q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut w = v.to_vec();
+    w.sort_by(f64::total_cmp);
+    Some(w[((q * (w.len() - 1) as f64).floor() as usize).min(w.len() - 1)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::IDENTITY;
+
+    #[test]
+    fn normalization_is_exact_under_exact_affine_maps() {
+        // Values k/1024: 1000 v − 500 is exact in f32.
+        let data: Vec<f32> = (0..5000).map(|i| ((i * 7919) % 4096) as f32 / 1024.0).collect();
+        let scaled: Vec<f32> = data.iter().map(|&v| 1000.0 * v - 500.0).collect();
+        let a = Normalization::of(&data).unwrap();
+        let b = Normalization::of(&scaled).unwrap();
+        for (&x, &y) in data.iter().zip(&scaled) {
+            assert_eq!((a.apply(x as f64) as f32).to_bits(), (b.apply(y as f64) as f32).to_bits());
+        }
+        assert_eq!(Normalization::of(&[3.0; 10]).unwrap().scale, 1.0);
+    }
+
+    #[test]
+    fn noise_sigma_of_white_noise() {
+        let dims = [64, 64, 16];
+        let mut rng = crate::segment::phantom::SplitMix64::new(5);
+        let mut data = Vec::with_capacity(64 * 64 * 16);
+        while data.len() < 64 * 64 * 16 {
+            let (a, b) = rng.normal_pair();
+            data.push(10.0 + 2.0 * a as f32);
+            data.push(10.0 + 2.0 * b as f32);
+        }
+        let im = Image { dims, spacing: [1.0; 3], data, to_world: IDENTITY };
+        let s = noise_sigma(&im).unwrap();
+        assert!((s - 2.0).abs() < 0.1, "{s}");
+        let flat = Image { data: vec![1.0; 64 * 64 * 16], ..im };
+        assert_eq!(noise_sigma(&flat).unwrap(), 0.0);
+    }
+}
