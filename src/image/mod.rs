@@ -7,9 +7,11 @@
 //! `f32` whatever the file's voxel type. Voxel `(i, j, k)` has its centre at the
 //! *lattice position* `(i sx, j sy, k sz)` with the spacing `(sx, sy, sz)` in world units
 //! (millimetres for a scan); the level sets of a segmentation live in this frame. The
-//! image's placement in the scanner's world (origin and axis directions, for a NIfTI file
-//! its `sform`/`qform`) is [`Image::to_world`]: meshes are written through it. A 2D
-//! image is a volume with `nz = 1`.
+//! image's placement in the scanner's world (origin and axis directions: for a NIfTI file
+//! its `sform`/`qform`, for a MetaImage its `Offset` and `TransformMatrix`, for a NRRD its
+//! `space origin` and `space directions`) is [`Image::to_world`], in the file's own world
+//! frame (see "World coordinates"): meshes are written through it. A 2D image is a volume
+//! with `nz = 1`.
 //!
 //! # Files
 //! [`load`] reads an image, [`save_mask`] writes a segmentation (0/1 per voxel) and
@@ -21,6 +23,8 @@
 //! | `.nii`, `.nii.gz` | NIfTI-1, one file; voxel types `uint8`, `int8`, `uint16`, `int16`, `uint32`, `int32`, `uint64`, `int64`, `float32`, `float64`, either byte order | masks as `uint8`, floats as `float32`, little-endian |
 //! | `.npy` | 2-D `(ny, nx)` or 3-D `(nz, ny, nx)` arrays of `bool`, `u1`/`i1`, `u2`/`i2`, `u4`/`i4`, `u8`/`i8`, `f4`, `f8`, either byte order, C or Fortran order | masks as `\|u1`, floats as `<f4`, C order, the input's 2-D or 3-D shape |
 //! | `.png` | greyscale, 1 to 16 bits, as one slice; row 0 is y = 0 | masks only, 8-bit greyscale 0/255, images with `nz = 1` |
+//! | `.mha`, `.mhd` | MetaImage (ITK), `NDims` 2 or 3, one channel; `ElementType` `MET_UCHAR`, `MET_CHAR`, `MET_USHORT`, `MET_SHORT`, `MET_UINT`, `MET_INT`, `MET_ULONG`, `MET_LONG`, `MET_ULONG_LONG`, `MET_LONG_LONG`, `MET_FLOAT`, `MET_DOUBLE`, either byte order; voxels after the header (`LOCAL`) or in the data file it names, raw or zlib-compressed; world frame LPS | masks as `MET_UCHAR`, floats as `MET_FLOAT`, little-endian, compressed when the input was; `.mha` in one file, `.mhd` with `NAME.raw` (`NAME.zraw` compressed) beside it |
+//! | `.nrrd`, `.nhdr` | NRRD (`NRRD0001` to `NRRD0005`), 2 or 3 spatial axes after at most one non-spatial axis of size 1; every integer type, `float`, `double` under any of their names, either byte order; encodings `raw` and `gzip`; voxels after the header or in its `data file`; world frame the header's `space` | masks as `uint8`, floats as `float` (little-endian), gzip when the input was; `.nrrd` in one file, `.nhdr` with `NAME.raw` (`NAME.raw.gz`) beside it |
 //!
 //! Every input gets one verdict from [`load`], with one message per kind of bad input
 //! ([`ImageError`], naming the file), before anything large is allocated: the sizes a
@@ -60,14 +64,69 @@
 //! * Bytes after the voxel data are ignored (as nibabel does); a `.nii.gz` is read to its
 //!   end so that gzip's checksum is verified.
 //!
+//! ## MetaImage
+//! * The header: `Key = Value` lines (MetaIO's keys, case as MetaIO writes them), each key
+//!   at most once, ending with `ElementDataFile`; at most 64 KiB. Required: `NDims` (2 or
+//!   3), `DimSize`, `ElementType`, `ElementDataFile`. `ObjectType`, when given, is `Image`;
+//!   `ElementNumberOfChannels`, when given, is 1 (vector and colour images are refused);
+//!   `BinaryData = False` (voxels as text), `FileFormatVersion` other than 0, and lists of
+//!   data files (`LIST`, `%d` patterns) are refused with their own messages. Unknown keys
+//!   (`AnatomicalOrientation`, `CenterOfRotation`, `Modality`, ...) are skipped.
+//! * Byte order: `BinaryDataByteOrderMSB` or its synonym `ElementByteOrderMSB` (they must
+//!   agree when both are given), little-endian when neither is. `MET_LONG` and
+//!   `MET_ULONG` are 4 bytes, as in MetaIO. `ElementToIntensityFunction*` are not applied
+//!   (ITK does not either).
+//! * Geometry: `ElementSpacing` (else `ElementSize`, else 1); `Offset` (or its synonyms
+//!   `Position`, `Origin`; they must agree when several are given); `TransformMatrix` (or
+//!   `Rotation`, `Orientation`), which lists the direction of axis x, then of y, then of
+//!   z. With `D` the directions as columns and `s` the spacing, `A = [D · diag(s) |
+//!   Offset]` and `to_world = [D | Offset]` exactly (a spacing argument `s'` makes it
+//!   `D · diag(s / s')`). A 2-D image is embedded with z along (0, 0, 1).
+//! * Data: after the header line `ElementDataFile = LOCAL`, else in the named file
+//!   (relative to the header's directory, or absolute; it must exist,
+//!   [`ImageError::DataFile`]); `HeaderSize = k` starts the voxels at byte k of that file
+//!   (of the `.mha` for `LOCAL`, as MetaIO does), `-1` at its end. `CompressedData = True`:
+//!   a zlib stream (gzip is recognised too), checked against `CompressedDataSize` when
+//!   given, read to its end so that its checksum is verified. Bytes after the voxels are
+//!   ignored.
+//!
+//! ## NRRD
+//! * The header: the magic `NRRD0001` to `NRRD0005`, then `field: description` lines
+//!   (`key:=value` pairs and `#` comments skipped), ended by a blank line (or, in a header
+//!   naming a `data file`, by the end of the file); at most 64 KiB. Field names are read
+//!   without case and spaces (`data file`, `datafile`); each at most once; fields not
+//!   needed (`content`, `units`, `axis mins`, `centerings`, `measurement frame`, ...) are
+//!   skipped. Required: `type`, `dimension`, `sizes`, `encoding`, and `endian` for types
+//!   wider than a byte. Other encodings (`ascii`, `hex`, `bzip2`, ...), `block` data and
+//!   lists of data files are refused with their own messages.
+//! * Axes: 2 or 3 spatial axes (x fastest, as the file stores them), possibly after one
+//!   leading non-spatial axis of size 1 (its space direction `none` or its kind not
+//!   `domain`/`space`, or any leading axis of a 4-D array); a non-spatial axis of more
+//!   than one sample (a vector, colour or time series image), or one elsewhere, is refused.
+//! * Geometry: with `space` (`left-posterior-superior`/`LPS`, `right-anterior-superior`/
+//!   `RAS`, `left-anterior-superior`/`LAS`, `scanner-xyz`, `3D-right-handed`,
+//!   `3D-left-handed`; spaces with time are refused) or `space dimension` (2 or 3),
+//!   `space directions` `d_i` and `space origin` `o` give `A = [d_0 d_1 d_2 | o]`, the
+//!   spacing `|d_i|` (NRRD has no other), `to_world = A · diag(1/s)`; a 2-D image in 3-D
+//!   space gets the unit normal of its plane as its z axis. Without a space, `spacings`
+//!   (`nan` is 1, as ITK reads it) and the identity placement; `axis mins` are not read.
+//!   `spacings` with `space directions` on the same axis, vectors of the wrong length,
+//!   parallel or zero directions are refused.
+//! * Data: after the header, else in the `data file` (relative to the header's
+//!   directory, or absolute; it must exist); `line skip` lines then `byte skip` bytes
+//!   skipped (for gzip, the bytes of the decompressed stream), `byte skip: -1` for data at
+//!   the end of a raw file; gzip read to its end. Bytes after the voxels are ignored.
+//!
 //! ## The spacing argument
-//! `load(path, Some(spacing))` replaces the file's spacing (NIfTI's `pixdim`, and the
-//! default `(1, 1, 1)` of `.npy` and PNG); it is checked as above and allowed for every
-//! format. For a NIfTI file placed by its `sform` or `qform` the placement is kept: voxel
-//! `(i, j, k)` still lands at `A · (i, j, k, 1)` in the world, only the lattice (the frame
-//! of distances and curvatures) changes; an unplaced image stays at world = lattice
-//! position. It rescues a file with a broken `pixdim` unless its placement is a `qform`
-//! (which is built from `pixdim`).
+//! `load(path, Some(spacing))` replaces the file's spacing (NIfTI's `pixdim`,
+//! MetaImage's `ElementSpacing`, NRRD's lengths of `space directions` or `spacings`, and
+//! the default `(1, 1, 1)` of `.npy` and PNG); it is checked as above and allowed for
+//! every format. For a placed image (NIfTI by its `sform` or `qform`, MetaImage, NRRD) the
+//! placement is kept: voxel `(i, j, k)` still lands at `A · (i, j, k, 1)` in the world,
+//! only the lattice (the frame of distances and curvatures) changes; an unplaced image
+//! stays at world = lattice position. It rescues a NIfTI file with a broken `pixdim`
+//! unless its placement is a `qform` (which is built from `pixdim`); the placements of
+//! MetaImage and NRRD are built from their spacings, which must be valid.
 //!
 //! ## Writing back
 //! [`LoadedImage`] keeps what writing in the input's format needs ([`Source`]): for a
@@ -76,19 +135,49 @@
 //! `sform`, `qform` and their codes, `xyzt_units`, `descrip` — with the datatype changed
 //! (`uint8` for masks, with `cal_min = 0`, `cal_max = 1`; `float32` for floats), no
 //! scaling (`scl_slope = 1`, `scl_inter = 0`), no intent, no extensions, little-endian,
-//! data at byte 352. Images from `.npy`, PNG or memory get a header of their own: their
-//! spacing in `pixdim`, `A = to_world · diag(sx, sy, sz, 1)` as the `sform` (code 2,
-//! aligned), and as the `qform` too (code 2) when `to_world` is a rotation (possibly
-//! improper) plus a translation, spatial units unknown. A `.npy` output has the input's
-//! 2-D or 3-D shape (2-D for PNG inputs and NIfTI inputs with `dim[0] ≤ 2`). An image
-//! whose [`Image::dims`] no longer match its NIfTI header (cropped after loading) is not
-//! written with that header ([`ImageError::CannotWrite`]): make it a
-//! [`LoadedImage::from_image`] first.
+//! data at byte 352. Images from other formats or memory get a header of their own: their
+//! spacing in `pixdim`, `A = to_world · diag(sx, sy, sz, 1)` (in RAS for an LPS or LAS
+//! input, see "World coordinates") as the `sform` (code 2, aligned), and as the `qform`
+//! too (code 2) when `to_world` is a rotation (possibly improper) plus a translation,
+//! spatial units unknown. A `.npy` output has the input's 2-D or 3-D shape (2-D for 2-D
+//! inputs, [`LoadedImage::is_2d_source`]). An image whose [`Image::dims`] no longer match
+//! its input's header (cropped after loading) is not written with that header (NIfTI,
+//! MetaImage, NRRD; [`ImageError::CannotWrite`]): make it a [`LoadedImage::from_image`]
+//! first.
 //!
-//! ## World coordinates of NIfTI
-//! NIfTI's world frame (`sform`/`qform` codes 1 to 4) is **RAS+**: x grows to the
-//! subject's Right, y Anterior, z Superior, in millimetres when `xyzt_units` says so.
-//! DICOM and ITK use LPS+: x and y have the opposite sign. Nothing here converts.
+//! A MetaImage or NRRD input keeps its geometry as its header wrote it ([`MetaSource`],
+//! [`NrrdSource`]): an output in the same format (either of its two extensions) repeats
+//! it number for number — `NDims`, `DimSize`, `ElementSpacing`, `TransformMatrix`,
+//! `Offset`; or the spatial `sizes`, `space`, `space directions`, `space origin` (or
+//! `spacings`) — so that it reads back with the input's dims, spacing and `to_world` bit
+//! for bit (a leading non-spatial axis of size 1 is not written). Numbers are written in
+//! their shortest form that reads back exactly. Other inputs get the image's spacing, the
+//! columns of `to_world` as directions and its origin: in a MetaImage converted to LPS,
+//! in a NRRD with the frame's `space` (none for `.npy`, PNG and memory images, and for
+//! 2-D images, written in `space dimension: 2` as ITK writes them). NRRD has no spacing
+//! apart from its directions: an image whose `to_world` columns are not unit vectors (a
+//! shear, a NIfTI `sform` scaled unlike `pixdim`) reads back with its voxels in the same
+//! place but the lattice spacing `|A column|`. A 2-D input (see
+//! [`LoadedImage::is_2d_source`]) lying in the plane z = 0 is written with two axes. The
+//! data file of a detached header is written first, then the header, each atomically; a
+//! compressed `.mha` says its `CompressedDataSize` (ITK needs it).
+//!
+//! ## World coordinates
+//! [`Image::to_world`] maps into the input file's own world frame,
+//! [`LoadedImage::world_frame`]; nothing converts on reading:
+//! * NIfTI's world frame (`sform`/`qform` codes 1 to 4) is **RAS+**: x grows to the
+//!   subject's Right, y Anterior, z Superior, in millimetres when `xyzt_units` says so.
+//! * MetaImage's is ITK's (and DICOM's) **LPS+**: x and y have the opposite sign; NRRD's
+//!   is its `space` (LPS, RAS or LAS; no anatomical frame for `scanner-xyz`,
+//!   `3D-right-handed`, `3D-left-handed`, a bare `space dimension`, or no space).
+//!
+//! Meshes written through `to_world` are therefore in LPS for MetaImage inputs, as ITK
+//! and 3D Slicer's LPS model files expect. Writing in another format converts between
+//! anatomical frames (exactly, by negating rows of the placement,
+//! [`WorldFrame::convert`]), so that a mask lands where its input was: a MetaImage input
+//! written as NIfTI gets an RAS `sform` (x and y negated), a NIfTI input written as
+//! MetaImage an LPS `TransformMatrix` and `Offset`. An image without an anatomical frame
+//! is written with its placement as it is.
 //!
 //! ## `.npy`
 //! `arr[z, y, x]` (or `arr[y, x]`) is voxel `(x, y, z)`. Fortran-ordered files are read
@@ -130,9 +219,12 @@
 //! std::fs::remove_dir_all(&dir).unwrap();
 //! ```
 
+mod meta;
 mod nifti;
 mod npy;
+mod nrrd;
 mod png;
+mod textheader;
 mod voxels;
 
 use rayon::prelude::*;
@@ -192,7 +284,7 @@ pub const IDENTITY: [[f64; 4]; 3] =
     [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
 
 /// The extensions [`load`] and the writers know, for messages.
-pub const SUPPORTED_EXTENSIONS: &str = ".nii, .nii.gz, .npy, .png";
+pub const SUPPORTED_EXTENSIONS: &str = ".nii, .nii.gz, .npy, .png, .mha, .mhd, .nrrd, .nhdr";
 
 /// Why an image cannot be read or written; every message names the file.
 #[derive(Debug, thiserror::Error)]
@@ -214,6 +306,16 @@ pub enum ImageError {
     /// The file is not what its extension says, or its header contradicts itself.
     #[error("{}: not a valid {format} file: {reason}", .path.display())]
     Corrupt { path: PathBuf, format: &'static str, reason: String },
+    /// The data file a MetaImage or NRRD header names (`ElementDataFile`, `data file`)
+    /// cannot be read; `data` is its path (relative names are taken from the header's
+    /// directory).
+    #[error("{}: cannot read the data file {} it names: {source}", .path.display(), .data.display())]
+    DataFile {
+        path: PathBuf,
+        data: PathBuf,
+        #[source]
+        source: io::Error,
+    },
     /// The file ends before the data its header announces.
     #[error("{}: truncated file: {detail}", .path.display())]
     Truncated { path: PathBuf, detail: String },
@@ -266,7 +368,9 @@ pub enum ImageError {
         .path.display()
     )]
     BadSpacing { path: PathBuf, axis: char, value: f64, from: String },
-    /// A NIfTI placement (`which`: "sform" or "qform") that is not finite or invertible.
+    /// A placement that is not finite or invertible; `which` names it: NIfTI's "sform" or
+    /// "qform", MetaImage's "TransformMatrix" or "Offset", NRRD's "space directions" or
+    /// "space origin".
     #[error("{}: bad {which}: {reason}", .path.display())]
     BadTransform { path: PathBuf, which: &'static str, reason: String },
     /// An output the format cannot hold (a float or 3-D image as PNG).
@@ -295,6 +399,11 @@ pub enum FileFormat {
     Npy,
     /// PNG.
     Png,
+    /// MetaImage: `.mha` (one file), or `.mhd` when `detached` (a header naming a data
+    /// file).
+    MetaImage { detached: bool },
+    /// NRRD: `.nrrd` (one file), or `.nhdr` when `detached` (a header naming a data file).
+    Nrrd { detached: bool },
 }
 
 impl FileFormat {
@@ -311,6 +420,18 @@ impl FileFormat {
             }
             Some(n) if n.ends_with(".npy") && n.len() > 4 => Ok(FileFormat::Npy),
             Some(n) if n.ends_with(".png") && n.len() > 4 => Ok(FileFormat::Png),
+            Some(n) if n.ends_with(".mha") && n.len() > 4 => {
+                Ok(FileFormat::MetaImage { detached: false })
+            }
+            Some(n) if n.ends_with(".mhd") && n.len() > 4 => {
+                Ok(FileFormat::MetaImage { detached: true })
+            }
+            Some(n) if n.ends_with(".nrrd") && n.len() > 5 => {
+                Ok(FileFormat::Nrrd { detached: false })
+            }
+            Some(n) if n.ends_with(".nhdr") && n.len() > 5 => {
+                Ok(FileFormat::Nrrd { detached: true })
+            }
             _ => Err(ImageError::UnsupportedFormat { path: path.to_path_buf() }),
         }
     }
@@ -334,13 +455,29 @@ impl LoadedImage {
     }
 
     /// Whether the input was two-dimensional: a PNG, a 2-D `.npy`, a NIfTI file with
-    /// `dim[0] ≤ 2`. Outputs keep it (a `.npy` of shape `(ny, nx)`, a NIfTI `dim[0] = 2`).
+    /// `dim[0] ≤ 2`, a MetaImage with `NDims = 2`, a NRRD with two spatial axes. Outputs
+    /// keep it (a `.npy` of shape `(ny, nx)`, a NIfTI `dim[0] = 2`, ...).
     pub fn is_2d_source(&self) -> bool {
         match &self.source {
             Source::Nifti(n) => n.header.dim[0] <= 2,
             Source::Npy { ndim, .. } => *ndim == 2,
             Source::Png { .. } => true,
+            Source::MetaImage(m) => m.ndim == 2,
+            Source::Nrrd(n) => n.ndim == 2,
             Source::Memory => false,
+        }
+    }
+
+    /// The world frame of [`Image::to_world`]: the input file's own (see the module docs,
+    /// "World coordinates").
+    pub fn world_frame(&self) -> WorldFrame {
+        match &self.source {
+            Source::Nifti(n) if n.header.sform_code > 0 || n.header.qform_code > 0 => {
+                WorldFrame::Ras
+            }
+            Source::MetaImage(_) => WorldFrame::Lps,
+            Source::Nrrd(n) => n.frame,
+            _ => WorldFrame::Unspecified,
         }
     }
 
@@ -362,6 +499,10 @@ pub enum Source {
     Npy { ndim: usize, dtype: String, fortran_order: bool },
     /// A PNG file of the given bit depth (1 to 16).
     Png { bit_depth: u8 },
+    /// A MetaImage file (`.mha`, `.mhd`); its geometry is kept.
+    MetaImage(MetaSource),
+    /// A NRRD file (`.nrrd`, `.nhdr`); its geometry is kept.
+    Nrrd(NrrdSource),
     /// Made in memory.
     Memory,
 }
@@ -401,6 +542,131 @@ impl NiftiSource {
     }
 }
 
+/// What is kept of a MetaImage input: its geometry as written in its header, so that
+/// outputs in MetaImage repeat it exactly.
+#[derive(Clone, Debug)]
+pub struct MetaSource {
+    /// `NDims`: 2 or 3.
+    ndim: usize,
+    /// `DimSize`, with nz = 1 for `NDims = 2`.
+    dims: [usize; 3],
+    /// `ElementSpacing` (or `ElementSize`), 1 for z when `NDims = 2`.
+    spacing: [f64; 3],
+    /// `TransformMatrix`: `axes[i]` is the direction of voxel axis i (embedded in 3-D).
+    axes: [[f64; 3]; 3],
+    /// `Offset`.
+    origin: [f64; 3],
+    compressed: bool,
+    element_type: &'static str,
+}
+
+impl MetaSource {
+    /// Whether the voxels were compressed (`CompressedData = True`); outputs in MetaImage
+    /// are compressed alike.
+    pub fn compressed(&self) -> bool {
+        self.compressed
+    }
+
+    /// The `ElementType` (`MET_SHORT`, ...).
+    pub fn element_type(&self) -> &'static str {
+        self.element_type
+    }
+
+    /// `NDims`: 2 or 3.
+    pub fn ndim(&self) -> usize {
+        self.ndim
+    }
+}
+
+/// What is kept of a NRRD input: its geometry as written in its header (for its spatial
+/// axes), so that outputs in NRRD repeat it exactly.
+#[derive(Clone, Debug)]
+pub struct NrrdSource {
+    /// Spatial axes: 2 or 3.
+    ndim: usize,
+    /// `sizes` of the spatial axes, with nz = 1 for two.
+    dims: [usize; 3],
+    /// `space` (its full name) or `space dimension`, if any.
+    space: Option<&'static str>,
+    space_dim: usize,
+    /// `space directions` of the spatial axes (`space_dim` components each).
+    directions: Option<[[f64; 3]; 3]>,
+    /// `space origin`.
+    origin: Option<[f64; 3]>,
+    /// `spacings` of the spatial axes, as written (NaN for `nan`).
+    spacings: Option<[f64; 3]>,
+    gzip: bool,
+    type_name: &'static str,
+    frame: WorldFrame,
+}
+
+impl NrrdSource {
+    /// Whether the voxels were gzip-compressed; outputs in NRRD are compressed alike.
+    pub fn gzip(&self) -> bool {
+        self.gzip
+    }
+
+    /// The `type` (its standard name: `int16`, `float`, ...).
+    pub fn type_name(&self) -> &'static str {
+        self.type_name
+    }
+
+    /// The `space` (`left-posterior-superior`, ...), if the header names one.
+    pub fn space(&self) -> Option<&'static str> {
+        self.space
+    }
+}
+
+/// The world frame of an image's [`Image::to_world`]: each file's own, not converted on
+/// reading (see the module docs, "World coordinates").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum WorldFrame {
+    /// x to the subject's Right, y Anterior, z Superior (NIfTI placed by a sform or
+    /// qform; NRRD with space `right-anterior-superior`).
+    Ras,
+    /// x Left, y Anterior, z Superior (NRRD with space `left-anterior-superior`).
+    Las,
+    /// x Left, y Posterior, z Superior: DICOM's and ITK's (MetaImage; NRRD with space
+    /// `left-posterior-superior`).
+    Lps,
+    /// No anatomical frame: `.npy`, PNG, images made in memory, NIfTI without a sform or
+    /// qform, NRRD without a space or with a space such as `scanner-xyz` or
+    /// `3D-right-handed`.
+    Unspecified,
+}
+
+impl WorldFrame {
+    /// The sign of each world axis relative to RAS, for an anatomical frame.
+    fn signs(self) -> Option<[f64; 3]> {
+        match self {
+            WorldFrame::Ras => Some([1.0, 1.0, 1.0]),
+            WorldFrame::Las => Some([-1.0, 1.0, 1.0]),
+            WorldFrame::Lps => Some([-1.0, -1.0, 1.0]),
+            WorldFrame::Unspecified => None,
+        }
+    }
+
+    /// A placement (such as [`Image::to_world`]) in this frame, expressed in `to`: the
+    /// rows of the world axes on which the two frames point opposite ways are negated
+    /// (exactly); unchanged when either frame is [`WorldFrame::Unspecified`].
+    ///
+    /// ```
+    /// use sparse_levelset::image::{WorldFrame, IDENTITY};
+    /// let ras = WorldFrame::Lps.convert(IDENTITY, WorldFrame::Ras);
+    /// assert_eq!(ras[0], [-1.0, 0.0, 0.0, 0.0]);
+    /// assert_eq!(ras[2], [0.0, 0.0, 1.0, 0.0]);
+    /// ```
+    pub fn convert(self, m: [[f64; 4]; 3], to: WorldFrame) -> [[f64; 4]; 3] {
+        match (self.signs(), to.signs()) {
+            (Some(a), Some(b)) => {
+                std::array::from_fn(|r| if a[r] == b[r] { m[r] } else { m[r].map(|v| -v) })
+            }
+            _ => m,
+        }
+    }
+}
+
 /// Reads an image; the format is chosen by the extension ([`FileFormat::from_path`]).
 /// `spacing`, when given, replaces the file's spacing (see the module docs for what it
 /// means for a NIfTI file's placement); it must be finite and > 0.
@@ -416,6 +682,8 @@ pub fn load(path: &Path, spacing: Option<[f64; 3]>) -> Result<LoadedImage, Image
         FileFormat::Nifti { compressed } => nifti::read(path, spacing, compressed)?,
         FileFormat::Npy => npy::read(path, spacing)?,
         FileFormat::Png => png::read(path, spacing)?,
+        FileFormat::MetaImage { .. } => meta::read(path, spacing)?,
+        FileFormat::Nrrd { .. } => nrrd::read(path, spacing)?,
     };
     debug_assert_eq!(loaded.image.data.len(), loaded.voxel_count());
     Ok(loaded)
@@ -457,7 +725,7 @@ fn output_format(path: &Path, like: &LoadedImage, what: Output) -> Result<FileFo
         if what == Output::Float {
             return Err(cannot(
                 "a float volume as PNG",
-                "write it as .nii, .nii.gz or .npy".to_string(),
+                "write it as .nii, .nii.gz, .npy, .mha, .mhd, .nrrd or .nhdr".to_string(),
             ));
         }
         let [nx, ny, nz] = like.image.dims;
@@ -466,7 +734,7 @@ fn output_format(path: &Path, like: &LoadedImage, what: Output) -> Result<FileFo
                 "a 3-D mask as PNG",
                 format!(
                     "the image has {nz} slices ({nx}×{ny}×{nz}) and a PNG holds one; write \
-                     it as .nii, .nii.gz or .npy"
+                     it as .nii, .nii.gz, .npy, .mha, .mhd, .nrrd or .nhdr"
                 ),
             ));
         }
@@ -503,6 +771,8 @@ pub fn save_mask(path: &Path, mask: &[u8], like: &LoadedImage) -> Result<(), Ima
         FileFormat::Nifti { compressed } => nifti::write(path, like, compressed, data),
         FileFormat::Npy => npy::write(path, like, data),
         FileFormat::Png => png::write_mask(path, like, mask),
+        FileFormat::MetaImage { detached } => meta::write(path, like, detached, data),
+        FileFormat::Nrrd { detached } => nrrd::write(path, like, detached, data),
     }
 }
 
@@ -519,6 +789,8 @@ pub fn save_f32(path: &Path, data: &[f32], like: &LoadedImage) -> Result<(), Ima
         FileFormat::Nifti { compressed } => nifti::write(path, like, compressed, data),
         FileFormat::Npy => npy::write(path, like, data),
         FileFormat::Png => unreachable!("refused by output_format"),
+        FileFormat::MetaImage { detached } => meta::write(path, like, detached, data),
+        FileFormat::Nrrd { detached } => nrrd::write(path, like, detached, data),
     }
 }
 

@@ -8,7 +8,7 @@
 use super::voxels::{self, Rescale, Scalar};
 use super::{
     check_dims, check_finite, check_memory, check_spacing, index_to_world, lattice_to_world, Image,
-    ImageError, LoadedImage, NiftiSource, Payload, Source, IDENTITY,
+    ImageError, LoadedImage, NiftiSource, Payload, Source, WorldFrame, IDENTITY,
 };
 use ::nifti::{Endianness, NiftiHeader};
 use flate2::bufread::MultiGzDecoder;
@@ -91,19 +91,9 @@ pub(super) fn read(
     }
 }
 
-/// Maps a read failure: in a gzip stream, bad data are [`ImageError::Corrupt`] and an
-/// early end [`ImageError::Truncated`]; anything else is [`ImageError::Io`].
+/// Maps a read failure ([`voxels::stream_error`]; the codec of a `.nii.gz` is gzip).
 fn stream_error(path: &Path, compressed: bool, e: io::Error) -> ImageError {
-    let path = path.to_path_buf();
-    match e.kind() {
-        io::ErrorKind::UnexpectedEof => {
-            ImageError::Truncated { path, detail: format!("the stream ends early ({e})") }
-        }
-        io::ErrorKind::InvalidInput | io::ErrorKind::InvalidData if compressed => {
-            ImageError::Corrupt { path, format: "gzip", reason: e.to_string() }
-        }
-        _ => ImageError::Io { path, source: e },
-    }
+    voxels::stream_error(path, compressed.then_some("gzip"), e)
 }
 
 fn read_stream(
@@ -403,7 +393,7 @@ fn quaternion_of(m: [[f64; 3]; 3]) -> ([f64; 3], f64) {
 }
 
 /// A header for an image without a NIfTI header of its own (see the module docs of
-/// [`super`]).
+/// [`super`]), placed in RAS.
 fn header_of(path: &Path, like: &LoadedImage) -> Result<NiftiHeader, ImageError> {
     let im = &like.image;
     check_spacing(path, im.spacing, "the image's spacing")?;
@@ -416,7 +406,9 @@ fn header_of(path: &Path, like: &LoadedImage) -> Result<NiftiHeader, ImageError>
         });
     }
     let s = im.spacing;
-    let a = index_to_world(im.to_world, s);
+    // In NIfTI's RAS frame (an input in LPS, such as a MetaImage, has x and y negated).
+    let to_world = like.world_frame().convert(im.to_world, WorldFrame::Ras);
+    let a = index_to_world(to_world, s);
     if a.iter().flatten().any(|v| !v.is_finite() || v.abs() > f32::MAX as f64) {
         return Err(ImageError::CannotWrite {
             path: path.to_path_buf(),
@@ -426,7 +418,7 @@ fn header_of(path: &Path, like: &LoadedImage) -> Result<NiftiHeader, ImageError>
     }
     let ndim = if like.is_2d_source() { 2 } else { 3 };
     // The qform when to_world is a rotation (proper or not) and a translation.
-    let m: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| im.to_world[r][c]));
+    let m: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| to_world[r][c]));
     let orthonormal = (0..3).all(|i| {
         (0..3).all(|j| {
             let dot: f64 = (0..3).map(|r| m[r][i] * m[r][j]).sum();

@@ -1,6 +1,7 @@
-//! Voxel types of image files and their decoding into `f32`, shared by the NIfTI and
-//! `.npy` readers: the data are read in chunks of [`CHUNK`] bytes and decoded chunk by
-//! chunk, so that reading never holds more than the `f32` intensities and one chunk.
+//! Voxel types of image files and their decoding into `f32`, shared by the NIfTI,
+//! `.npy`, MetaImage and NRRD readers: the data are read in chunks of [`CHUNK`] bytes and
+//! decoded chunk by chunk, so that reading never holds more than the `f32` intensities and
+//! one chunk.
 
 use super::ImageError;
 use std::io::{self, Read};
@@ -117,6 +118,22 @@ pub(crate) fn decode(
         Scalar::I64 => go::<i64>(big_endian, rescale, bytes, out),
         Scalar::F32 => go::<f32>(big_endian, rescale, bytes, out),
         Scalar::F64 => go::<f64>(big_endian, rescale, bytes, out),
+    }
+}
+
+/// Maps a read failure: in a compressed stream (`codec`, e.g. "gzip"), bad data are
+/// [`ImageError::Corrupt`]; an early end is [`ImageError::Truncated`]; anything else is
+/// [`ImageError::Io`].
+pub(crate) fn stream_error(path: &Path, codec: Option<&'static str>, e: io::Error) -> ImageError {
+    let path = path.to_path_buf();
+    match (e.kind(), codec) {
+        (io::ErrorKind::UnexpectedEof, _) => {
+            ImageError::Truncated { path, detail: format!("the stream ends early ({e})") }
+        }
+        (io::ErrorKind::InvalidInput | io::ErrorKind::InvalidData, Some(format)) => {
+            ImageError::Corrupt { path, format, reason: e.to_string() }
+        }
+        _ => ImageError::Io { path, source: e },
     }
 }
 
