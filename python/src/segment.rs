@@ -152,8 +152,7 @@ impl Segmentation {
     /// its measures are the segmentation's world volume and area.
     #[getter]
     fn levelset(&self, py: Python<'_>) -> PyResult<LevelSet> {
-        let tiles =
-            py.detach(|| self.seg.level_set(&self.image.image)).map_err(segment_error)?;
+        let tiles = py.detach(|| self.seg.level_set(&self.image.image)).map_err(segment_error)?;
         LevelSet::new(tiles)
     }
 

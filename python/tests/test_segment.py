@@ -144,3 +144,72 @@ def test_docs_worked_example(tmp_path):
     subprocess.run([sys.executable, "-c", blocks[-1]], cwd=tmp_path, check=True,
                    stdout=subprocess.DEVNULL)
     assert (tmp_path / "ball.ply").exists()
+
+
+def blurred_phantom(shape, inside, spacing=(1.0, 1.0, 1.0), noise=0.25, seed=11):
+    """Another tool's convention: background 0, object 1, the indicator blurred by a
+    one-voxel Gaussian, Gaussian noise (not `levelset phantom`'s 100/200 levels)."""
+    from scipy import ndimage
+    idx = np.indices(shape).astype(np.float64)
+    pos = [idx[a] * spacing[a] for a in range(3)]
+    truth = inside(*pos)
+    rng = np.random.default_rng(seed)
+    image = ndimage.gaussian_filter(truth.astype(np.float64), 1.0) + rng.normal(0, noise, shape)
+    return image.astype(np.float32), truth
+
+
+def test_an_open_threshold_window_keeps_the_whole_object():
+    image, truth = blurred_phantom((40, 40, 40), lambda x, y, z: (x - 20) ** 2 + (y - 19) ** 2 + (z - 21) ** 2 <= 144)
+    for upper in (None, 1e6, float("inf")):
+        seg = sl.segment(image, "threshold", seeds=[(20, 19, 21, 3)], lower_threshold=0.5,
+                         upper_threshold=upper)
+        assert seg.report["stop"] in ("rms", "volume"), upper
+        assert dice(seg.mask.astype(bool), truth) > 0.95, (upper, int(seg.mask.sum()), int(truth.sum()))
+
+
+def test_a_flipped_affine_gives_an_outward_mesh_in_world_millimetres(tmp_path):
+    image, truth = blurred_phantom((36, 36, 36), lambda x, y, z: (x - 15) ** 2 + (y - 18) ** 2 + (z - 19) ** 2 <= 81)
+    affine = np.array([[-1.0, 0, 0, 100.0], [0, 1.0, 0, -20.0], [0, 0, 1.0, 5.0], [0, 0, 0, 1]])
+    path = tmp_path / "flipped.nii.gz"
+    nib.save(nib.Nifti1Image(image, affine), str(path))
+    seg = sl.segment(sl.load_image(path), "chan-vese", seeds=[(15, 18, 19, 3)])
+    assert dice(seg.mask.astype(bool), truth) > 0.95
+    v, f, n = seg.mesh()
+    mesh = trimesh.Trimesh(v, f, process=False)
+    assert mesh.is_watertight and mesh.volume > 0
+    assert mesh.volume == pytest.approx(4 / 3 * np.pi * 729, rel=0.06)
+    # The centroid in world millimetres: voxel (15, 18, 19) through the affine.
+    np.testing.assert_allclose(mesh.centroid, (affine @ [15, 18, 19, 1])[:3], atol=0.3)
+    assert ((v - mesh.centroid) * n).sum(axis=1).min() > 0, "every normal points outward"
+
+
+def test_an_anisotropic_segmentation_level_set_measures_the_world_volume():
+    spacing = (1.0, 1.0, 2.5)
+    image, truth = blurred_phantom(
+        (40, 40, 24), lambda x, y, z: ((x - 20) / 12) ** 2 + ((y - 20) / 9) ** 2 + ((z - 30) / 18) ** 2 <= 1,
+        spacing=spacing)
+    seg = sl.segment(image, "chan-vese", seeds=[(20, 20, 12, 3)], spacing=spacing)
+    assert dice(seg.mask.astype(bool), truth) > 0.95
+    mask_volume = seg.mask.sum() * np.prod(spacing)
+    ls = seg.levelset
+    assert ls.voxel_size == 1.0
+    assert ls.measure()["volume"] == pytest.approx(mask_volume, rel=0.01)
+
+
+def test_a_leak_is_a_warning_and_a_flag():
+    c = 24.0
+
+    def shell(x, y, z):
+        r = np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2)
+        hole = (x > c) & ((y - c) ** 2 + (z - c) ** 2 < 25)
+        return (r >= 15) & (r <= 18) & ~hole
+
+    image, _ = blurred_phantom((48, 48, 48), shell)
+    with pytest.warns(sl.LeakWarning, match="leaked"):
+        seg = sl.segment(image, "gac", seeds=[(c, c, c, 4)])
+    assert seg.leaked and seg.report["stop"] == "leaked" and "face" in seg.report["leak"]
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quiet = sl.segment(image, "gac", seeds=[(c, c, c, 4)], leak_guard=False, number_of_iterations=200)
+    assert not quiet.leaked

@@ -2,8 +2,8 @@
 //! engine, the region means and the stopping tests (see the [module docs](super)).
 
 use super::features;
-use super::stats::{self, Normalization};
 use super::speed::{CurvatureSum, Lookup, RegionForce, SumField, VoxelField, VoxelVector};
+use super::stats::{self, Normalization};
 use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
 use crate::build::tiles_from_dense;
 use crate::coord::Coord;
@@ -13,8 +13,8 @@ use crate::evolve::{
     Velocity,
 };
 use crate::grid::{GridError, GridSpec};
-use crate::tiles::TileGrid;
 use crate::image::Image;
+use crate::tiles::TileGrid;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -696,7 +696,7 @@ fn prepare(
         (Some(_), _) => None,
         (None, _) if feature.is_some() && !only_gac => Some(0.0),
         (None, Method::Threshold { lower, upper }) => {
-            // The smallest σ that puts the noise left in Ĩ five times below the distance
+            // The smallest σ that puts the noise left in Ĩ THRESHOLD_MARGIN times below the distance
             // from the seeds' intensity to the nearer threshold.
             let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
             let margin = (m_in - lo).min(hi - m_in);
@@ -704,7 +704,7 @@ fn prepare(
                 0.5
             } else if margin > 0.0 {
                 stats::smoothing_voxels(0.5, 2.0, |v| {
-                    5.0 * noise * stats::noise_factor(v, axes) <= margin
+                    THRESHOLD_MARGIN * noise * stats::noise_factor(v, axes) <= margin
                 })
             } else {
                 1.0
@@ -722,7 +722,7 @@ fn prepare(
                     // Edge gradient over the noise's gradient ≥ 10, for an edge of contrast
                     // c blurred over a voxel: c / (√(2π) √(v² + 1)) against
                     // σ_n (∫G²)^½ / (√2 v).
-                    stats::smoothing_voxels(1.0, 3.0, |v| {
+                    stats::smoothing_voxels(0.5, 3.0, |v| {
                         let edge = c / ((std::f64::consts::TAU).sqrt() * (v * v + 1.0).sqrt());
                         let noise_grad =
                             noise * stats::noise_factor(v, axes) / (std::f64::consts::SQRT_2 * v);
@@ -746,17 +746,15 @@ fn prepare(
     };
     resolved.sigma = if planar { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
     let sigma_max = resolved.sigma.iter().fold(0.0f64, |m, &v| m.max(v));
-    let smoothed = if sigma_max > 0.0 {
-        features::gaussian(&normed, resolved.sigma)?
-    } else {
-        normed.clone()
-    };
+    let smoothed =
+        if sigma_max > 0.0 { features::gaussian(&normed, resolved.sigma)? } else { normed.clone() };
     // The noise left after smoothing (voxels of the finest axis as the measure).
     let v_eff = (0..3)
         .filter(|&a| image.dims[a] > 1)
         .map(|a| resolved.sigma[a] / image.spacing[a])
         .fold(f64::INFINITY, f64::min);
-    let factor = if v_eff.is_finite() && v_eff > 0.0 { stats::noise_factor(v_eff, axes) } else { 1.0 };
+    let factor =
+        if v_eff.is_finite() && v_eff > 0.0 { stats::noise_factor(v_eff, axes) } else { 1.0 };
     resolved.noise_smoothed = noise * factor.min(1.0) * norm.scale;
     let g = if has_gac {
         Some(match (feature, params.edge_scale, params.sigmoid) {
@@ -859,7 +857,8 @@ fn gac_probe(
     let m = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.5)? as f64 };
     let tau = edge_departure(noise, stats::noise_factor(v, axes).min(1.0));
     let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
-    let probe = stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+    let probe =
+        stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
     Ok((smoothed, grad, probe, m))
 }
 
@@ -881,10 +880,10 @@ fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> 
             .collect(),
         _ => {
             let n = image.len();
-            let (k, _) = field.data()[..n]
-                .iter()
-                .enumerate()
-                .fold((0, f32::INFINITY), |(bk, bv), (k, &v)| if v < bv { (k, v) } else { (bk, bv) });
+            let (k, _) = field.data()[..n].iter().enumerate().fold(
+                (0, f32::INFINITY),
+                |(bk, bv), (k, &v)| if v < bv { (k, v) } else { (bk, bv) },
+            );
             let [nx, ny, _] = image.dims;
             vec![[(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64]]
         }
@@ -896,15 +895,17 @@ fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> 
 /// K₂ one typical of its edges, α = (K₂ − K₁)/6, β = (K₁ + K₂)/2, so that g = 0.95 at K₁
 /// and 0.05 at K₂), with both measured without a truth:
 ///
-/// * K₁ = the 90th percentile of |∇Ĩ| inside the initial region (the seeds lie in the
-///   object), and at least the 99.9th percentile of the gradient that the noise alone
-///   leaves (`noise_gradient`);
-/// * K₂ = the 10th percentile of the peak gradients of the first edge the rays from the
-///   seeds cross ([`stats::probe_edges`]): the guide's "minimum value along the contour",
-///   robustly, when at least a quarter of the rays met an edge.
+/// * K₁ = t, the 90th percentile of |∇Ĩ| inside the initial region (the seeds lie in the
+///   object);
+/// * K₂ = e, the 10th percentile of the peak gradients of the first edge that the rays
+///   from the seeds cross ([`stats::probe_edges`]): the guide's "minimum value along the
+///   contour", robustly, when at least a quarter of the rays met an edge.
 ///
-/// Without such an edge standing 1.5 K₁ above the inside, K₂ is the 99th percentile over
-/// the image, at least 3 K₁, with α = (K₂ − K₁)/12 and β = K₁ + (K₂ − K₁)/3.
+/// When no such edge stands 1.5 K₁ above the inside (thin objects, whose seeds lie partly
+/// on their edge), β comes from the noise instead: β = max(n, min(t, e/2)), α = β/8
+/// (g = 0.95 at 0.63 β, 0.05 at 1.37 β), with n the 99.9th percentile of the gradient that
+/// the image's noise alone leaves after smoothing (`noise_gradient`), and e the 99th
+/// percentile of |∇Ĩ| over the image when the rays found no edge.
 fn sigmoid_from_edges(
     grad: &Image,
     initial: &DenseField,
@@ -920,16 +921,19 @@ fn sigmoid_from_edges(
         .map(|(&g, _)| g)
         .collect();
     let texture = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9)? as f64 };
-    let k1 = texture.max(noise_gradient);
     let edge = probe
         .filter(|p| !p.peaks.is_empty() && p.peaks.len() * 4 >= p.rays)
         .and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
-    if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * k1) {
-        return Ok(((k2 - k1) / 6.0, 0.5 * (k1 + k2)));
+    if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * texture) {
+        return Ok(((k2 - texture) / 6.0, 0.5 * (texture + k2)));
     }
-    let k2 = (features::percentile(&grad.data, 0.99)? as f64).max(3.0 * k1);
-    let k2 = if k2 > 0.0 { k2 } else { f64::MIN_POSITIVE };
-    Ok(((k2 - k1).max(k2 * 1e-3) / 12.0, k1 + (k2 - k1) / 3.0))
+    let e = match edge {
+        Some(e) => e,
+        None => features::percentile(&grad.data, 0.99)? as f64,
+    };
+    let beta = noise_gradient.max(texture.min(0.5 * e));
+    let beta = if beta > 0.0 { beta } else { f64::MIN_POSITIVE };
+    Ok((beta / 8.0, beta))
 }
 
 /// Why a run leaked, if it did: the region reached a face of the image (bits of
@@ -1209,13 +1213,17 @@ fn distance_from_labels(
 /// GAC's default curvature weight ε, in units of the smallest spacing, and advection
 /// weight α, against a propagation weight β = 1. ITK's guide uses (ε, α) = (1, 1) and
 /// ITK-SNAP (0.2, 2); on the validation phantoms (docs/segmentation.md) both let the front
-/// out where touching objects meet (a crease has no edge) and at SNR 2, while (2, 3)
+/// out where touching objects meet (a crease has no edge) and at SNR 2, while (1.5, 3)
 /// holds every object whose boundary is an edge everywhere: the edge's attraction must
 /// outweigh the balloon on the edge's outer flank, and curvature closes the noise's holes
 /// in it.
-const GAC_CURVATURE: f32 = 2.0;
+const GAC_CURVATURE: f32 = 1.5;
 const GAC_ADVECTION: f32 = 3.0;
 
 /// The quantile of the rays' edge peaks taken as the edge's gradient K₂: a robust
 /// minimum, as the ITK guide's "minimum value along the contour".
 const EDGE_QUANTILE: f64 = 0.1;
+
+/// The threshold method's default smoothing puts the noise left in Ĩ this many times
+/// below the distance from the seeds' intensity to the nearer threshold.
+const THRESHOLD_MARGIN: f64 = 5.0;

@@ -35,7 +35,10 @@ impl Normalization {
     /// 99th minus the 1st percentile (order statistics ⌊q (n − 1)⌋), else the range, else 1
     /// (a constant image).
     pub fn of(data: &[f32]) -> Result<Normalization, GridError> {
-        crate::memory::check(crate::memory::bytes_of(data.len() as u128, 4), "a copy of the image for its percentiles")?;
+        crate::memory::check(
+            crate::memory::bytes_of(data.len() as u128, 4),
+            "a copy of the image for its percentiles",
+        )?;
         let mut v = data.to_vec();
         let n = v.len();
         let at = |q: f64| ((q * (n - 1) as f64).floor() as usize).min(n - 1);
@@ -47,7 +50,10 @@ impl Normalization {
             let (lo, hi) = data
                 .par_iter()
                 .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)))
-                .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
+                .reduce(
+                    || (f32::INFINITY, f32::NEG_INFINITY),
+                    |(a, b), (c, d)| (a.min(c), b.max(d)),
+                );
             scale = hi as f64 - lo as f64;
         }
         if !(scale > 0.0 && scale.is_finite()) {
@@ -233,9 +239,7 @@ pub(crate) fn probe_edges(
     let s = smoothed.spacing;
     let h = s.iter().copied().fold(f64::INFINITY, f64::min);
     let step = 0.5 * h;
-    let inside = |p: [f64; 3]| {
-        (0..3).all(|a| p[a] >= 0.0 && p[a] <= (smoothed.dims[a] - 1) as f64)
-    };
+    let inside = |p: [f64; 3]| (0..3).all(|a| p[a] >= 0.0 && p[a] <= (smoothed.dims[a] - 1) as f64);
     let results: Vec<Option<(f64, f64)>> = origins
         .par_iter()
         .flat_map_iter(|o| dirs.iter().map(move |d| (*o, *d)))

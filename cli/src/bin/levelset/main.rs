@@ -57,7 +57,7 @@ enum Command {
     /// distances, inside/outside by ray votes robust to holes, into a .npy field; a
     /// directory of meshes into a directory of fields (spread over the ranks under mpirun).
     Voxelize(voxelize::VoxelizeArgs),
-    /// Segment a scan (NIfTI, .npy, PNG) from seeds or a mask by threshold propagation,
+    /// Segment a scan (NIfTI, MetaImage, NRRD, .npy, PNG) from seeds or a mask by threshold propagation,
     /// geodesic active contours or Chan–Vese; the mask in the input's format; a directory
     /// of scans in one batch (spread over the ranks under mpirun).
     Segment(segment::SegmentArgs),
@@ -77,7 +77,9 @@ fn main() -> ExitCode {
         Command::Csg(a) => plain(csg::run(&a)),
         Command::Convert(a) => plain(convert::run(&a)),
         Command::Voxelize(a) => plain(voxelize::run(&a)),
-        Command::Segment(a) => segment::run(&a).map(|leaked| leaked.then_some(segment::EXIT_LEAKED)),
+        Command::Segment(a) => {
+            segment::run(&a).map(|leaked| leaked.then_some(segment::EXIT_LEAKED))
+        }
         Command::Phantom(a) => plain(phantom::run(&a)),
     };
     match result {

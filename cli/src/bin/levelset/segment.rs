@@ -1,4 +1,4 @@
-//! `levelset segment`: a scan (NIfTI, `.npy`, PNG) segmented from seeds or a mask by
+//! `levelset segment`: a scan (NIfTI, MetaImage, NRRD, `.npy`, PNG) segmented from seeds or a mask by
 //! threshold propagation, geodesic active contours or Chan–Vese
 //! ([`sparse_levelset::segment`]); the mask in the input's format, the level set as a
 //! float volume, the run's figures as JSON.
@@ -24,7 +24,8 @@ pub enum MethodArg {
 
 #[derive(Args)]
 pub struct SegmentArgs {
-    /// The image: .nii, .nii.gz, .npy (shape (nz, ny, nx) or (ny, nx)) or .png (grey).
+    /// The image: .nii, .nii.gz, .mha, .mhd, .nrrd, .nhdr, .npy (shape (nz, ny, nx) or
+    /// (ny, nx)) or .png (grey).
     /// A directory: batch mode, every image in it (see --output); under
     /// `mpirun -n N` (a build with `--features mpi`) the images are spread over the ranks.
     #[arg(value_name = "IMAGE|DIR")]
@@ -41,7 +42,8 @@ pub struct SegmentArgs {
     /// repeatable. World coordinates and radius with --world.
     #[arg(long = "seed", value_name = "x,y,z[:r]", allow_hyphen_values = true)]
     pub seeds: Vec<String>,
-    /// Seeds are in the image's world coordinates (NIfTI: scanner millimetres).
+    /// Seeds are in the image's world coordinates (the file's own frame: NIfTI's RAS,
+    /// MetaImage's LPS, NRRD's `space`).
     #[arg(long)]
     pub world: bool,
     /// Start from this mask (same size as the image, nonzero inside) instead of seeds.
@@ -103,11 +105,12 @@ pub struct SegmentArgs {
     /// At most this many steps.
     #[arg(long, allow_hyphen_values = true)]
     pub max_iterations: Option<u64>,
-    /// Voxel spacing `sx,sy,sz` in world units (for .npy and PNG; replaces a NIfTI's).
+    /// Voxel spacing `sx,sy,sz` in world units (for .npy and PNG; replaces a file's).
     #[arg(long, value_name = "sx,sy,sz", allow_hyphen_values = true)]
     pub spacing: Option<String>,
-    /// The mask out (0/1), in the input's format family by extension: .nii(.gz) (with the
-    /// input's header when it is NIfTI), .npy (uint8), .png (2D images). In batch mode a
+    /// The mask out (0/1), in the input's format family by extension: .nii(.gz), .mha,
+    /// .mhd, .nrrd, .nhdr (with the input's geometry), .npy (uint8), .png (2D images).
+    /// In batch mode a
     /// directory: NAME-mask.EXT per image NAME.EXT and summary.json. Batch mode takes
     /// every image of DIR except NAME-truth.* (a truth: its Dice is reported); without
     /// --seed, each image's seeds (and thresholds, unless --lower/--upper) come from
@@ -518,7 +521,8 @@ fn batch_images(dir: &Path) -> Result<Vec<PathBuf>, String> {
 
 /// `(stem, supported)` of a file name: `.nii.gz` counts as one extension.
 fn split_ext(name: &str) -> (&str, bool) {
-    for ext in [".nii.gz", ".nii", ".npy", ".png"] {
+    // Detached data files (.raw, .zraw, .raw.gz) are not images: their headers are.
+    for ext in [".nii.gz", ".nii", ".npy", ".png", ".mha", ".mhd", ".nrrd", ".nhdr"] {
         if let Some(stem) = name.strip_suffix(ext) {
             return (stem, true);
         }
@@ -543,8 +547,9 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
         let images = batch_images(&a.image)?;
         if images.is_empty() {
             return Err(format!(
-                "{}: no image (.nii, .nii.gz, .npy, .png) in it",
-                a.image.display()
+                "{}: no image ({}) in it",
+                a.image.display(),
+                image::SUPPORTED_EXTENSIONS
             ));
         }
         std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;

@@ -1,0 +1,273 @@
+//! Segmentation on images that `levelset phantom` did not make, with the conventions of
+//! other tools: intensities 0–1 with blurred edges (and the same image scaled and offset),
+//! open threshold windows, leaks, shrinking from a larger region, a feature image of the
+//! user's own, a placement that flips an axis, and anisotropic spacing. The images come
+//! from a generator of this file: an indicator on the voxel centres, blurred by the
+//! binomial kernel [1, 2, 1]/4 along each axis, plus Gaussian noise from `fastrand`, every
+//! intensity rounded to a multiple of 1/1024 so that 1000·I − 500 is exact in `f32`.
+
+use sparse_levelset::image::{Image, IDENTITY};
+use sparse_levelset::measure::measure;
+use sparse_levelset::segment::metrics::dice;
+use sparse_levelset::segment::{segment, Init, Method, Params, Seed, Segmentation, Stop};
+use std::sync::Arc;
+
+/// A blurred, noisy image of `inside` (world positions) on `dims` voxels of `spacing`.
+fn image(
+    dims: [usize; 3],
+    spacing: [f64; 3],
+    sigma_noise: f64,
+    seed: u64,
+    inside: impl Fn([f64; 3]) -> bool,
+) -> (Image, Vec<u8>) {
+    let [nx, ny, nz] = dims;
+    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let mut truth = vec![0u8; nx * ny * nz];
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let p = [x as f64 * spacing[0], y as f64 * spacing[1], z as f64 * spacing[2]];
+                truth[idx(x, y, z)] = inside(p) as u8;
+            }
+        }
+    }
+    let mut v: Vec<f64> = truth.iter().map(|&t| t as f64).collect();
+    for (axis, stride) in [(0, 1), (1, nx), (2, nx * ny)] {
+        let n = dims[axis];
+        let old = v.clone();
+        for (i, out) in v.iter_mut().enumerate() {
+            let k = (i / stride) % n;
+            let lo = if k > 0 { old[i - stride] } else { old[i] };
+            let hi = if k + 1 < n { old[i + stride] } else { old[i] };
+            *out = 0.25 * lo + 0.5 * old[i] + 0.25 * hi;
+        }
+    }
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let data = v
+        .iter()
+        .map(|&c| {
+            let (u1, u2) = (rng.f64().max(1e-300), rng.f64());
+            let n = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            ((c + sigma_noise * n) * 1024.0).round() as f32 / 1024.0
+        })
+        .collect();
+    (Image { dims, spacing, data, to_world: IDENTITY }, truth)
+}
+
+fn ball(c: [f64; 3], r: f64) -> impl Fn([f64; 3]) -> bool {
+    move |p| (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>() <= r * r
+}
+
+fn seeds(list: &[([f64; 3], f64)]) -> Init {
+    Init::Seeds {
+        seeds: list.iter().map(|&(center, radius)| Seed { center, radius }).collect(),
+        world: false,
+    }
+}
+
+fn run(im: &Image, init: &Init, params: &Params) -> Segmentation {
+    segment(im, init, params, &mut |_| true).unwrap()
+}
+
+fn scaled(im: &Image) -> Image {
+    Image { data: im.data.iter().map(|&v| 1000.0 * v - 500.0).collect(), ..im.clone() }
+}
+
+#[test]
+fn a_scaled_and_offset_image_gives_the_same_mask() {
+    let (im, truth) = image([40, 40, 40], [1.0; 3], 0.3, 1, ball([20.0, 19.0, 21.0], 11.0));
+    let big = scaled(&im);
+    let init = seeds(&[([20.0, 19.0, 21.0], 3.0)]);
+    for (m, m_big) in [
+        (
+            Method::Threshold { lower: 0.5, upper: f32::INFINITY },
+            Method::Threshold { lower: 0.0, upper: f32::INFINITY },
+        ),
+        (Method::Gac, Method::Gac),
+        (Method::chan_vese(), Method::chan_vese()),
+    ] {
+        let a = run(&im, &init, &Params::new(m));
+        let b = run(&big, &init, &Params::new(m_big));
+        let d = dice(&a.mask, &truth).unwrap();
+        assert!(d > 0.95, "{}: Dice {d} ({:?})", m.name(), a.report.stop);
+        assert!(a.mask == b.mask, "{}: the masks of I and 1000 I − 500 differ", m.name());
+        assert_eq!(a.report.iterations, b.report.iterations);
+        // The defaults are reported in the image's own units.
+        let (n, n_big) = (a.report.params.noise, b.report.params.noise);
+        assert!((n_big / n - 1000.0).abs() < 1e-6 * 1000.0, "noise {n} vs {n_big}");
+        assert!((n - 0.3).abs() < 0.03, "noise estimate {n}, generated 0.3");
+    }
+}
+
+#[test]
+fn an_open_window_segments_the_object() {
+    let (im, truth) = image([40, 40, 40], [1.0; 3], 0.25, 2, ball([20.0, 20.0, 20.0], 12.0));
+    let init = seeds(&[([20.0, 20.0, 20.0], 3.0)]);
+    let open =
+        run(&im, &init, &Params::new(Method::Threshold { lower: 0.5, upper: f32::INFINITY }));
+    let far = run(&im, &init, &Params::new(Method::Threshold { lower: 0.5, upper: 1e6 }));
+    let d = dice(&open.mask, &truth).unwrap();
+    assert!(
+        d > 0.95,
+        "open window: Dice {d}, {} voxels ({:?})",
+        open.report.voxels,
+        open.report.stop
+    );
+    assert!(open.mask == far.mask, "an upper bound far beyond the data acts as an open one");
+    // Open below: the dark background around the object, seeded in a corner.
+    let dark = run(
+        &im,
+        &seeds(&[([3.0, 3.0, 3.0], 2.0)]),
+        &Params {
+            leak_guard: false,
+            ..Params::new(Method::Threshold { lower: f32::NEG_INFINITY, upper: 0.5 })
+        },
+    );
+    let outside: Vec<u8> = truth.iter().map(|&t| 1 - t).collect();
+    let d = dice(&dark.mask, &outside).unwrap();
+    assert!(d > 0.98, "window open below: Dice {d}");
+    // Both ends open is no window.
+    let both = Method::Threshold { lower: f32::NEG_INFINITY, upper: f32::INFINITY };
+    assert!(segment(&im, &init, &Params::new(both), &mut |_| true).is_err());
+}
+
+/// A bright shell with a hole, seeded in its dark cavity: every flow leaves through the
+/// hole, and the run must say so.
+#[test]
+fn a_front_through_a_gap_is_reported_as_leaked() {
+    let c = [24.0; 3];
+    let shell = move |p: [f64; 3]| {
+        let r = (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>().sqrt();
+        let hole = p[0] > c[0] && (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2) < 25.0;
+        (15.0..=18.0).contains(&r) && !hole
+    };
+    let (im, _) = image([48, 48, 48], [1.0; 3], 0.25, 3, shell);
+    let init = seeds(&[(c, 4.0)]);
+    let s = run(&im, &init, &Params::new(Method::Gac));
+    assert_eq!(s.report.stop, Stop::Leaked, "{} voxels", s.report.voxels);
+    let why = s.report.leak.clone().unwrap();
+    assert!(why.contains("face"), "{why}");
+    // With the guard off, the run goes on and fills the cavity's outside too.
+    let off = run(
+        &im,
+        &init,
+        &Params { leak_guard: false, max_iterations: 300, ..Params::new(Method::Gac) },
+    );
+    assert_ne!(off.report.stop, Stop::Leaked);
+    assert!(off.report.voxels > s.report.voxels);
+}
+
+/// ITK's negative propagation: a large initial region shrinks onto the object.
+#[test]
+fn a_negative_propagation_shrinks_onto_the_object() {
+    let (im, truth) = image([40, 40, 40], [1.0; 3], 0.2, 4, ball([20.0, 20.0, 20.0], 9.0));
+    let [nx, ny, _] = im.dims;
+    let mask: Vec<u8> = (0..im.len())
+        .map(|i| {
+            let p = [i % nx, (i / nx) % ny, i / (nx * ny)];
+            p.iter().all(|&q| (4..36).contains(&q)) as u8
+        })
+        .collect();
+    let params = Params { propagation: Some(-1.0), ..Params::new(Method::Gac) };
+    let s = run(&im, &Init::Mask(mask), &params);
+    let d = dice(&s.mask, &truth).unwrap();
+    assert!(
+        d > 0.9,
+        "Dice {d} after {} steps ({:?}), {} voxels",
+        s.report.iterations,
+        s.report.stop,
+        s.report.voxels
+    );
+    let cv = Params { propagation: Some(-1.0), ..Params::new(Method::chan_vese()) };
+    assert!(segment(&im, &seeds(&[([20.0; 3], 3.0)]), &cv, &mut |_| true).is_err());
+}
+
+#[test]
+fn a_feature_image_replaces_the_intensities() {
+    let (im, _) = image([32, 32, 32], [1.0; 3], 0.2, 5, ball([16.0; 3], 9.0));
+    let init = seeds(&[([16.0; 3], 3.0)]);
+    let m = Method::Threshold { lower: 0.5, upper: f32::INFINITY };
+    let plain = run(&im, &init, &Params { sigma: Some(0.0), ..Params::new(m) });
+    let feature = Arc::new(im.clone());
+    let flat = Image { data: vec![0.0; im.len()], ..im.clone() };
+    let with =
+        run(&flat, &init, &Params { sigma: Some(0.0), feature: Some(feature), ..Params::new(m) });
+    assert!(plain.mask == with.mask);
+    // GAC's feature is the edge potential itself: g = 1 everywhere but a wall at x = 20.
+    let wall = Image {
+        data: (0..im.len())
+            .map(|i| if (19..=21).contains(&(i % 32)) { 0.0 } else { 1.0 })
+            .collect(),
+        ..im.clone()
+    };
+    let params = Params {
+        feature: Some(Arc::new(wall)),
+        leak_guard: false,
+        max_iterations: 400,
+        ..Params::new(Method::Gac)
+    };
+    let s = run(&flat, &seeds(&[([10.0, 16.0, 16.0], 3.0)]), &params);
+    let beyond = (0..im.len()).filter(|&i| i % 32 > 22 && s.mask[i] == 1).count();
+    assert_eq!(beyond, 0, "the front crossed the user's wall");
+    assert!(s.report.voxels > 5000, "{} voxels", s.report.voxels);
+}
+
+/// NIfTI files often flip an axis (a negative determinant): the mesh must stay outward
+/// with a positive volume, in world millimetres.
+#[test]
+fn a_flipped_placement_gives_an_outward_mesh_in_world_coordinates() {
+    let (mut im, truth) = image([36, 36, 36], [1.0; 3], 0.2, 6, ball([15.0, 18.0, 19.0], 9.0));
+    im.to_world = [[-1.0, 0.0, 0.0, 100.0], [0.0, 1.0, 0.0, -20.0], [0.0, 0.0, 1.0, 5.0]];
+    let s = run(&im, &seeds(&[([15.0, 18.0, 19.0], 3.0)]), &Params::new(Method::chan_vese()));
+    assert!(dice(&s.mask, &truth).unwrap() > 0.95);
+    let mesh = s.mesh(&im).unwrap();
+    let mut volume = 0.0;
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        volume += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]))
+            / 6.0;
+    }
+    let want = 4.0 / 3.0 * std::f64::consts::PI * 729.0;
+    assert!(
+        volume > 0.0 && (volume / want - 1.0).abs() < 0.06,
+        "signed volume {volume}, ball {want}"
+    );
+    let n = mesh.positions.len() as f64;
+    let centroid: [f64; 3] =
+        std::array::from_fn(|a| mesh.positions.iter().map(|p| p[a]).sum::<f64>() / n);
+    let world = [100.0 - 15.0, 18.0 - 20.0, 19.0 + 5.0];
+    for a in 0..3 {
+        assert!((centroid[a] - world[a]).abs() < 0.3, "centroid {centroid:?}, world {world:?}");
+    }
+    let outward = mesh
+        .positions
+        .iter()
+        .zip(&mesh.normals)
+        .filter(|(p, nrm)| (0..3).map(|a| (p[a] - centroid[a]) * nrm[a] as f64).sum::<f64>() > 0.0)
+        .count();
+    assert_eq!(outward, mesh.positions.len(), "every normal points away from the centre");
+}
+
+#[test]
+fn an_anisotropic_level_set_measures_the_world_volume() {
+    let spacing = [1.0, 1.0, 2.5];
+    let ellipsoid = |p: [f64; 3]| {
+        ((p[0] - 20.0) / 12.0).powi(2)
+            + ((p[1] - 20.0) / 9.0).powi(2)
+            + ((p[2] - 30.0) / 18.0).powi(2)
+            <= 1.0
+    };
+    let (im, truth) = image([40, 40, 24], spacing, 0.2, 7, ellipsoid);
+    let s = run(&im, &seeds(&[([20.0, 20.0, 12.0], 3.0)]), &Params::new(Method::chan_vese()));
+    assert!(dice(&s.mask, &truth).unwrap() > 0.95);
+    let mask_volume = s.mask.iter().map(|&m| m as f64).sum::<f64>() * 2.5;
+    let ls = s.level_set(&im).unwrap();
+    assert_eq!(ls.spec().voxel_size, 1.0);
+    let m = measure(&ls, &Default::default()).unwrap();
+    assert!(
+        (m.volume / mask_volume - 1.0).abs() < 0.01,
+        "level set {} mm³, mask {mask_volume} mm³",
+        m.volume
+    );
+}
