@@ -51,7 +51,7 @@ fn segment_refuses_bad_arguments_before_any_work() {
     let img = format!("{d}/ball.nii.gz");
     let out = format!("{d}/out.nii.gz");
     for (args, expect) in [
-        (vec!["--method", "threshold", "--seed", "8,8,8"], "--lower and --upper"),
+        (vec!["--method", "threshold", "--seed", "8,8,8"], "--lower or --upper"),
         (vec!["--method", "gac"], "at least one --seed"),
         (vec!["--method", "gac", "--seed", "8,8"], "expected x,y,z"),
         (vec!["--method", "gac", "--seed", "8,8,8:-2"], "expected x,y,z"),
@@ -98,7 +98,7 @@ fn batch_mode_segments_a_folder_and_skips_a_broken_file() {
     assert!(!o.status.success(), "a failed image makes the exit code nonzero");
     let text = stdout(&o);
     assert!(text.contains("broken.nii.gz: FAILED, skipped"), "{text}");
-    assert!(text.contains("4 images, 1 failed"), "{text}");
+    assert!(text.contains("4 images, 1 failed, 0 leaked"), "{text}");
     for kind in ["ball", "torus", "blobs"] {
         assert!(output.join(format!("{kind}-mask.nii.gz")).is_file(), "{kind}");
     }
@@ -110,6 +110,109 @@ fn batch_mode_segments_a_folder_and_skips_a_broken_file() {
     for r in records.iter().filter(|r| r.get("error").is_none()) {
         // The thresholds came from each seeds file; the truths were found beside the images.
         assert!(r["dice"].as_f64().unwrap() > 0.9, "{r}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A bright shell with a hole around a dark cavity, as `.npy` (0–1 intensities): GAC
+/// seeded in the cavity leaves through the hole.
+fn write_shell(path: &std::path::Path) {
+    use sparse_levelset::image::{save_f32, Image, LoadedImage, IDENTITY};
+    let n = 40usize;
+    let c = 20.0f64;
+    let data: Vec<f32> = (0..n * n * n)
+        .map(|i| {
+            let p = [(i % n) as f64, ((i / n) % n) as f64, (i / (n * n)) as f64];
+            let r = p.iter().map(|v| (v - c).powi(2)).sum::<f64>().sqrt();
+            let hole = p[0] > c && (p[1] - c).powi(2) + (p[2] - c).powi(2) < 20.0;
+            let noise = ((i as u64).wrapping_mul(2654435761) % 1000) as f32 / 1000.0 - 0.5;
+            ((12.0..=15.0).contains(&r) && !hole) as u8 as f32 + 0.2 * noise
+        })
+        .collect();
+    let like = LoadedImage::from_image(Image {
+        dims: [n; 3],
+        spacing: [1.0; 3],
+        data,
+        to_world: IDENTITY,
+    });
+    save_f32(path, &like.image.data, &like).unwrap();
+}
+
+/// A run that leaks is stopped, written, warned about and exits with code 3; in a batch it
+/// is marked and counted, and the batch exits with 3 when nothing failed.
+#[test]
+fn a_leak_is_reported_with_exit_code_3() {
+    let dir = std::env::temp_dir().join(format!("levelset-segleak-{}", std::process::id()));
+    let (input, output) = (dir.join("in"), dir.join("out"));
+    std::fs::create_dir_all(&input).unwrap();
+    let shell = input.join("shell.npy");
+    write_shell(&shell);
+    std::fs::write(
+        input.join("shell-seeds.json"),
+        r#"{"seeds": [{"center": [20, 20, 20], "radius": 3}]}"#,
+    )
+    .unwrap();
+    let mask = dir.join("mask.npy");
+    let one = |extra: &[&str]| {
+        let mut a =
+            vec!["segment", shell.to_str().unwrap(), "--method", "gac", "--seed", "20,20,20:3"];
+        a.extend(["-o", mask.to_str().unwrap(), "--json", "--threads", "2"]);
+        a.extend(extra);
+        levelset(&a)
+    };
+    let o = one(&[]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("warning:") && stderr(&o).contains("leaked"), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["stop"], "leaked");
+    assert_eq!(v["leaked"], true);
+    assert!(mask.is_file(), "the mask of a leaked run is written");
+    let o = one(&["--no-leak-guard", "--max-iterations", "60"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // A batch: the shell leaks, a phantom ball does not.
+    let o =
+        levelset(&["phantom", "ball", "--size", "24", "--snr", "4", "-o", input.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = levelset(&[
+        "segment",
+        input.to_str().unwrap(),
+        "--method",
+        "gac",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stdout(&o).contains("2 images, 0 failed, 1 leaked"), "{}", stdout(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(output.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(s["leaked"], 1);
+    let leaked: Vec<bool> =
+        s["records"].as_array().unwrap().iter().map(|r| r["leaked"].as_bool().unwrap()).collect();
+    assert_eq!(leaked, vec![false, true], "ball, then shell");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A threshold window open at the top: `--lower` alone.
+#[test]
+fn an_open_threshold_window_from_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("levelset-segopen-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    assert!(levelset(&["phantom", "ball", "--size", "32", "--snr", "4", "-o", d]).status.success());
+    let (img, truth, mask) =
+        (format!("{d}/ball.nii.gz"), format!("{d}/ball-truth.nii.gz"), format!("{d}/m.nii.gz"));
+    for window in [
+        vec!["--lower", "150"],
+        vec!["--lower", "150", "--upper", "inf"],
+        vec!["--lower", "150", "--upper", "1e9"],
+    ] {
+        let mut a = vec!["segment", img.as_str(), "--method", "threshold", "--seed", "16,16,16:3"];
+        a.extend(window.iter().copied());
+        a.extend(["-o", mask.as_str(), "--truth", truth.as_str(), "--json"]);
+        let o = levelset(&a);
+        assert!(o.status.success(), "{window:?}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        assert!(v["dice"].as_f64().unwrap() > 0.95, "{window:?}: {v}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
