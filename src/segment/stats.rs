@@ -46,7 +46,7 @@ impl Normalization {
         let p99 = order_statistic(&mut v, at(0.99)) as f64;
         let p01 = order_statistic(&mut v, at(0.01)) as f64;
         let mut scale = p99 - p01;
-        if !(scale > 0.0) {
+        if scale.is_nan() || scale <= 0.0 {
             let (lo, hi) = data
                 .par_iter()
                 .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)))
