@@ -526,7 +526,9 @@ def _image(image, spacing) -> "_native.Image":
 
 def load_image(path: Union[str, os.PathLike], spacing: Optional[Sequence[float]] = None) -> Image:
     """Reads a NIfTI (``.nii``, ``.nii.gz``: voxels, spacing and placement from its header),
-    ``.npy`` (2-D or 3-D, any numeric dtype) or grey PNG image. ``spacing`` overrides the
+    MetaImage (``.mha``, ``.mhd``) or NRRD (``.nrrd``, ``.nhdr``) image (each in its own world
+    frame: NIfTI's RAS, ITK's LPS), ``.npy`` (2-D or 3-D, any numeric dtype) or grey PNG
+    image. ``spacing`` overrides the
     file's. The image is indexed ``[i, j, k]`` along the file's x, y, z (for ``.npy`` files
     that is ``np.load(path).T``)."""
     s = None if spacing is None else _spacing(spacing, 3)

@@ -131,6 +131,7 @@ class Segmentation:
     mask: npt.NDArray[np.uint8]
     levelset: LevelSet
     report_json: str
+    leaked: bool
     def mesh(self) -> _Mesh: ...
     def save_mask(self, path: str) -> None: ...
 
@@ -160,4 +161,6 @@ def segment(
     terms: Sequence[Tuple[str, float]],
     threads: Optional[int],
     progress: _Progress = ...,
+    feature: Optional[_F32] = ...,
+    leak_guard: bool = ...,
 ) -> Segmentation: ...

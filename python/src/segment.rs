@@ -120,7 +120,8 @@ impl Image {
     }
 }
 
-/// Reads a NIfTI (`.nii`, `.nii.gz`), `.npy` or grey PNG image.
+/// Reads a NIfTI (`.nii`, `.nii.gz`), MetaImage (`.mha`, `.mhd`), NRRD (`.nrrd`, `.nhdr`),
+/// `.npy` or grey PNG image.
 #[pyfunction]
 #[pyo3(signature = (path, spacing=None))]
 fn load_image(py: Python<'_>, path: PathBuf, spacing: Option<[f64; 3]>) -> PyResult<Image> {

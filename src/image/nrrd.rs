@@ -163,15 +163,13 @@ impl Header<'_> {
         count: usize,
     ) -> Result<Option<Vec<T>>, ImageError> {
         let Some(v) = self.get(key) else { return Ok(None) };
-        let parsed: Result<Vec<T>, _> = v.split_whitespace().map(str::parse).collect();
-        match parsed {
-            Ok(x) if x.len() == count => Ok(Some(x)),
-            Ok(x) => Err(self.corrupt(format!(
-                "{name}: {} holds {} values for {count} axes",
-                clip(v, 80),
-                x.len()
-            ))),
-            Err(_) => {
+        match textheader::numbers(v, count) {
+            Ok(x) => Ok(Some(x)),
+            Err(Some(n)) => {
+                Err(self
+                    .corrupt(format!("{name}: {} holds {n} values for {count} axes", clip(v, 80))))
+            }
+            Err(None) => {
                 Err(self.corrupt(format!("{name}: {} is not a list of numbers", clip(v, 80))))
             }
         }

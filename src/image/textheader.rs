@@ -343,6 +343,20 @@ fn decode<R: Read + ?Sized>(
     Ok(())
 }
 
+/// `v` as whitespace-separated numbers, exactly `count` of them: `Err(Some(n))` when it
+/// holds `n` numbers, `Err(None)` when a word is not a number.
+pub(super) fn numbers<T: std::str::FromStr>(
+    v: &str,
+    count: usize,
+) -> Result<Vec<T>, Option<usize>> {
+    let parsed: Result<Vec<T>, _> = v.split_whitespace().map(str::parse).collect();
+    match parsed {
+        Ok(x) if x.len() == count => Ok(x),
+        Ok(x) => Err(Some(x.len())),
+        Err(_) => Err(None),
+    }
+}
+
 /// A number as written in a header: the shortest text that reads back as the same `f64`.
 pub(super) fn num(v: f64) -> String {
     let plain = format!("{v}");

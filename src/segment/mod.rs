@@ -23,14 +23,15 @@
 //! weights β, ε, α; the last term keeps φ a distance, [`crate::evolve::Renormalization::Coupled`]).
 //! With Ĩ = G_σ ∗ I the smoothed image:
 //!
-//! * [`Method::Threshold`] (ITK's `ThresholdSegmentationLevelSetImageFilter`): P = Ĩ − L
-//!   below the window's midpoint and U − Ĩ above it, divided by the half-width (U − L)/2
-//!   and clamped to [−1, 1]: 1 in the middle of [L, U], 0 at its ends, negative outside;
-//!   Z = 1, no advection.
+//! * [`Method::Threshold`] (ITK's `ThresholdSegmentationLevelSetImageFilter`): P =
+//!   min(Ĩ − L, U − Ĩ)/w clamped to [−1, 1]: 1 well inside [L, U], 0 at its ends, negative
+//!   outside, with w the window's half-width but at most twice the noise left in Ĩ, so that
+//!   a window open at one end (L = −∞ or U = +∞) works as a closed one; Z = 1, no advection.
 //! * [`Method::Gac`] (geodesic active contours, Caselles, Kimmel & Sapiro, IJCV 22 (1997);
 //!   ITK's `GeodesicActiveContourLevelSetImageFilter`): P = Z = g, A = −∇g with the edge
 //!   potential g = 1/(1 + exp((|∇Ĩ| − β)/α)) (the sigmoid form ITK's guide uses, with
-//!   α, β from the gradient statistics) or g = 1/(1 + |∇Ĩ|/K) ([`features::edge_potential`]).
+//!   α, β from the edges that rays from the seeds meet) or g = 1/(1 + |∇Ĩ|/K)
+//!   ([`features::edge_potential`]), or the user's own g ([`Params::feature`]).
 //! * [`Method::ChanVese`] (Chan & Vese, IEEE TIP 10 (2001)): P the region force
 //!   (λ₂(Ĩ − c₂)² − λ₁(Ĩ − c₁)²)/(c₁ − c₂)² − ν with c₁, c₂ the means of Ĩ inside and
 //!   outside, recomputed before every step from exact integer sums over the whole image;
@@ -40,13 +41,26 @@
 //! Chan–Vese region force). Beyond the image the propagation term is −β: the front stays
 //! within the image.
 //!
+//! # Defaults
+//! Every default comes from robust statistics of the image, none from an intensity scale:
+//! the flows see the image normalised by order statistics ((I − median) / (p99 − p1)), so
+//! the mask of a·I + b (a > 0) is the mask of I; the noise σ is the median absolute second
+//! difference over 0.6745 √6; the smoothing is the smallest that puts the noise far below
+//! the contrast that matters (the distance to the nearer threshold; the contrast of the
+//! first edge that rays cast from the seeds cross); GAC's sigmoid follows the ITK Software
+//! Guide's rule with K₁ measured inside the seeds and K₂ on those rays; GAC's weights are
+//! (β, ε, α) = (1, 1.5 h, 3). [`Report::params`] holds every value chosen.
+//!
 //! # Stopping
 //! After every step: the RMS over the voxels next to the interface (|φ| < the smallest
 //! spacing) of the change of φ *per unit time* (the adaptive Δt cannot hide motion), and
 //! the relative change of the segmented volume over the last [`Params::window`] steps.
 //! The run stops when the RMS falls below [`Params::rms`] or the volume changed by less
 //! than [`Params::volume_change`] over the window, or after [`Params::max_iterations`]
-//! steps; [`Report::stop`] says which.
+//! steps; [`Report::stop`] says which. The leak guard ([`Params::leak_guard`], on by
+//! default) stops a region that reaches a face of the image its initial region did not
+//! touch, or grows past half the image, as [`Stop::Leaked`]: a wrong answer is never
+//! returned as a normal stop.
 
 pub mod features;
 pub mod metrics;
@@ -121,15 +135,15 @@ impl Method {
 pub struct Params {
     pub method: Method,
     /// σ of the Gaussian smoothing, world units, the same along every axis (0: none).
-    /// Default: one voxel along each axis (half a voxel for the threshold method).
+    /// Default: chosen per axis in voxels from the image's noise (module docs, "Defaults").
     pub sigma: Option<f64>,
     /// β, ITK's `PropagationScaling`. Default 1; negative to shrink onto the object from
     /// a larger initial region (not with Chan–Vese, whose β scales its data weights).
     pub propagation: Option<f32>,
-    /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: the smallest
-    /// spacing for GAC, a fifth of it for the others.
+    /// ε, ITK's `CurvatureScaling` (Chan–Vese's μ), world units. Default: 1.5 times the
+    /// smallest spacing for GAC, a fifth of it for the others.
     pub curvature: Option<f32>,
-    /// α, ITK's `AdvectionScaling` (GAC only). Default 1.
+    /// α, ITK's `AdvectionScaling` (GAC only). Default 3.
     pub advection: Option<f32>,
     /// K of the rational edge potential g = 1/(1 + |∇Ĩ|/K) (GAC only); when given, it
     /// replaces the sigmoid.

@@ -651,15 +651,7 @@ fn prepare(
     let normed = norm.image(source);
     let noise = stats::noise_sigma(&normed)?;
     let axes = image.dims.iter().filter(|&&n| n > 1).count().max(1);
-    let n = image.len();
-    let inside_values = |im: &Image| -> Vec<f32> {
-        im.data.iter().zip(&field.data()[..n]).filter(|(_, &p)| p <= 0.0).map(|(&v, _)| v).collect()
-    };
-    let median_inside = |im: &Image| -> Result<f64, GridError> {
-        let v = inside_values(im);
-        Ok(if v.is_empty() { 0.0 } else { features::percentile(&v, 0.5)? as f64 })
-    };
-    let m_in = median_inside(&normed)?;
+    let m_in = inside_quantile(&normed, field, 0.5)?;
     let planar = image.is_2d();
     let smooth = |v: f64| -> Result<Image, GridError> {
         if v <= 0.0 {
@@ -769,7 +761,7 @@ fn prepare(
                     Some((_, grad, probe, _)) => (grad, Some(probe)),
                     None => {
                         let grad = voxel_gradient(&smoothed)?;
-                        let m = median_inside(&smoothed)?;
+                        let m = inside_quantile(&smoothed, field, 0.5)?;
                         let tau = edge_departure(noise, resolved_factor(&resolved, image, axes));
                         let probe = stats::probe_edges(
                             &smoothed,
@@ -846,15 +838,7 @@ fn gac_probe(
 ) -> Result<(Image, Image, stats::EdgeProbe, f64), GridError> {
     let smoothed = smooth(v)?;
     let grad = voxel_gradient(&smoothed)?;
-    let n = image.len();
-    let inside: Vec<f32> = smoothed
-        .data
-        .iter()
-        .zip(&field.data()[..n])
-        .filter(|(_, &p)| p <= 0.0)
-        .map(|(&x, _)| x)
-        .collect();
-    let m = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.5)? as f64 };
+    let m = inside_quantile(&smoothed, field, 0.5)?;
     let tau = edge_departure(noise, stats::noise_factor(v, axes).min(1.0));
     let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
     let probe =
@@ -912,15 +896,7 @@ fn sigmoid_from_edges(
     probe: Option<&stats::EdgeProbe>,
     noise_gradient: f64,
 ) -> Result<(f64, f64), GridError> {
-    let n = grad.data.len();
-    let inside: Vec<f32> = grad
-        .data
-        .iter()
-        .zip(&initial.data()[..n])
-        .filter(|(_, &phi)| phi <= 0.0)
-        .map(|(&g, _)| g)
-        .collect();
-    let texture = if inside.is_empty() { 0.0 } else { features::percentile(&inside, 0.9)? as f64 };
+    let texture = inside_quantile(grad, initial, 0.9)?;
     let edge = probe
         .filter(|p| !p.peaks.is_empty() && p.peaks.len() * 4 >= p.rays)
         .and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
@@ -934,6 +910,20 @@ fn sigmoid_from_edges(
     let beta = noise_gradient.max(texture.min(0.5 * e));
     let beta = if beta > 0.0 { beta } else { f64::MIN_POSITIVE };
     Ok((beta / 8.0, beta))
+}
+
+/// The `q`-quantile of `values` over the initial region (φ ≤ 0 on the image's voxels), 0
+/// when the region holds no image voxel.
+fn inside_quantile(values: &Image, initial: &DenseField, q: f64) -> Result<f64, GridError> {
+    let n = values.data.len();
+    let inside: Vec<f32> = values
+        .data
+        .iter()
+        .zip(&initial.data()[..n])
+        .filter(|(_, &phi)| phi <= 0.0)
+        .map(|(&v, _)| v)
+        .collect();
+    Ok(if inside.is_empty() { 0.0 } else { features::percentile(&inside, q)? as f64 })
 }
 
 /// Why a run leaked, if it did: the region reached a face of the image (bits of

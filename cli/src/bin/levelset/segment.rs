@@ -71,16 +71,18 @@ pub struct SegmentArgs {
     /// not touch, or grows past half the image): for objects that fill the image.
     #[arg(long)]
     pub no_leak_guard: bool,
-    /// σ of the Gaussian smoothing in world units (0: none) [default: one voxel per axis].
+    /// σ of the Gaussian smoothing in world units (0: none) [default: from the image's noise].
     #[arg(long, allow_hyphen_values = true)]
     pub sigma: Option<f64>,
-    /// Propagation weight β (ITK's PropagationScaling) [default 1].
+    /// Propagation weight β (ITK's PropagationScaling) [default 1]; negative shrinks a
+    /// larger initial region (--init-mask) onto the object (threshold, gac).
     #[arg(long, allow_hyphen_values = true)]
     pub propagation: Option<f32>,
-    /// Curvature weight ε (ITK's CurvatureScaling; Chan–Vese's μ) in world units.
+    /// Curvature weight ε (ITK's CurvatureScaling; Chan–Vese's μ) in world units
+    /// [default: 1.5 × the smallest spacing for gac, 0.2 × for the others].
     #[arg(long, allow_hyphen_values = true)]
     pub curvature: Option<f32>,
-    /// Advection weight α (ITK's AdvectionScaling; GAC) [default 1].
+    /// Advection weight α (ITK's AdvectionScaling; GAC) [default 3].
     #[arg(long, allow_hyphen_values = true)]
     pub advection: Option<f32>,
     /// K of the rational edge potential 1/(1 + |∇Ĩ|/K) (GAC) [default: the sigmoid edge
@@ -207,18 +209,10 @@ fn method_of(
     window: Option<(f32, f32)>,
 ) -> Result<Method, String> {
     Ok(match arg {
-        MethodArg::Threshold => {
-            let flags = match (a.lower, a.upper) {
-                (None, None) => None,
-                (l, u) => Some((l.unwrap_or(f32::NEG_INFINITY), u.unwrap_or(f32::INFINITY))),
-            };
-            match flags.or(window) {
-                Some((lower, upper)) => Method::Threshold { lower, upper },
-                None => {
-                    return Err("the threshold method needs --lower or --upper (or both)".into())
-                }
-            }
-        }
+        MethodArg::Threshold => match open_window(a.lower, a.upper).or(window) {
+            Some((lower, upper)) => Method::Threshold { lower, upper },
+            None => return Err("the threshold method needs --lower or --upper (or both)".into()),
+        },
         MethodArg::Gac => Method::Gac,
         MethodArg::ChanVese => {
             Method::ChanVese { lambda1: a.lambda1, lambda2: a.lambda2, nu: a.nu }
@@ -226,12 +220,12 @@ fn method_of(
     })
 }
 
-/// A 0/1 mask of `like`'s size from a file.
-fn load_mask(
+/// An image that must have `like`'s size (a mask, a level set, a feature image).
+fn load_like(
     path: &Path,
     spacing: Option<[f64; 3]>,
     like: &LoadedImage,
-) -> Result<Vec<u8>, String> {
+) -> Result<LoadedImage, String> {
     let m = load(path, spacing)?;
     if m.image.dims != like.image.dims {
         return Err(format!(
@@ -241,7 +235,25 @@ fn load_mask(
             like.image.dims
         ));
     }
+    Ok(m)
+}
+
+/// A 0/1 mask of `like`'s size from a file.
+fn load_mask(
+    path: &Path,
+    spacing: Option<[f64; 3]>,
+    like: &LoadedImage,
+) -> Result<Vec<u8>, String> {
+    let m = load_like(path, spacing, like)?;
     Ok(m.image.data.iter().map(|&v| (v != 0.0) as u8).collect())
+}
+
+/// A threshold window from its two ends, either left open (None: ∓∞); None when both are.
+fn open_window(lower: Option<f32>, upper: Option<f32>) -> Option<(f32, f32)> {
+    match (lower, upper) {
+        (None, None) => None,
+        (l, u) => Some((l.unwrap_or(f32::NEG_INFINITY), u.unwrap_or(f32::INFINITY))),
+    }
 }
 
 /// Seeds and the (lower, upper) thresholds if given.
@@ -276,11 +288,7 @@ fn seeds_file(path: &Path) -> Result<SeedsFile, String> {
         .collect::<Result<Vec<_>, String>>()?;
     // A window open at one end: that end null or left out.
     let f = |k: &str| v.get(k).and_then(|x| x.as_f64()).map(|x| x as f32);
-    let window = match (f("lower"), f("upper")) {
-        (None, None) => None,
-        (l, u) => Some((l.unwrap_or(f32::NEG_INFINITY), u.unwrap_or(f32::INFINITY))),
-    };
-    Ok((seeds, window))
+    Ok((seeds, open_window(f("lower"), f("upper"))))
 }
 
 /// Loads and checks one image's inputs and outputs.
@@ -303,16 +311,7 @@ fn job(
     let (init, window) = if let Some(m) = &a.init_mask {
         (Init::Mask(load_mask(m, spacing, &loaded)?), None)
     } else if let Some(l) = &a.init_level_set {
-        let ls = load(l, spacing)?;
-        if ls.image.dims != loaded.image.dims {
-            return Err(format!(
-                "{}: {:?} voxels, the image has {:?}",
-                l.display(),
-                ls.image.dims,
-                loaded.image.dims
-            ));
-        }
-        (Init::LevelSet(ls.image.data), None)
+        (Init::LevelSet(load_like(l, spacing, &loaded)?.image.data), None)
     } else if !a.seeds.is_empty() {
         let seeds = a.seeds.iter().map(|s| parse_seed(s, planar)).collect::<Result<_, _>>()?;
         (Init::Seeds { seeds, world: a.world }, None)
@@ -325,18 +324,7 @@ fn job(
     let method = method_of(a, a.method, window)?;
     let terms = added(a, window)?;
     let feature = match &a.feature {
-        Some(f) => {
-            let im = load(f, spacing)?;
-            if im.image.dims != loaded.image.dims {
-                return Err(format!(
-                    "{}: {:?} voxels, the image has {:?}",
-                    f.display(),
-                    im.image.dims,
-                    loaded.image.dims
-                ));
-            }
-            Some(Arc::new(im.image))
-        }
+        Some(f) => Some(Arc::new(load_like(f, spacing, &loaded)?.image)),
         None => None,
     };
     let truth = truth.map(|t| load_mask(t, spacing, &loaded)).transpose()?;
