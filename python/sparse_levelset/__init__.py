@@ -629,8 +629,8 @@ def segment(
     edge potential itself (1 in flat regions, near 0 on edges), for threshold and Chan–Vese
     the intensities compared in place of the image.
 
-    A run whose region reaches an image face the seeds did not touch, or grows past half
-    the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
+    A run whose region spreads over an image face the seeds did not touch (0.5 % of it),
+    or grows past half the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
     pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``).
 
@@ -682,5 +682,5 @@ def segment(
 
 
 class LeakWarning(UserWarning):
-    """A segmentation's region reached an image face its seeds did not touch, or grew past
+    """A segmentation's region spread over an image face its seeds did not touch, or grew past
     half the image: the leak guard stopped it (see :func:`segment`)."""

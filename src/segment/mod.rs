@@ -58,8 +58,8 @@
 //! The run stops when the RMS falls below [`Params::rms`] or the volume changed by less
 //! than [`Params::volume_change`] over the window, or after [`Params::max_iterations`]
 //! steps; [`Report::stop`] says which. The leak guard ([`Params::leak_guard`], on by
-//! default) stops a region that reaches a face of the image its initial region did not
-//! touch, or grows past half the image, as [`Stop::Leaked`]: a wrong answer is never
+//! default) stops a region that covers part of a face of the image (0.5 %, at least 16
+//! voxels) that its initial region did not touch, or grows past half the image, as [`Stop::Leaked`]: a wrong answer is never
 //! returned as a normal stop.
 
 pub mod features;
@@ -174,8 +174,8 @@ pub struct Params {
     /// sigmoid, no smoothing); for the threshold and Chan–Vese methods, the intensities
     /// they compare in place of the image (smoothed only when `sigma` is given).
     pub feature: Option<Arc<crate::image::Image>>,
-    /// Stop a run that leaks ([`Stop::Leaked`]): one whose region reaches a face of the
-    /// image that the initial region did not touch, or grows past half the image. On by
+    /// Stop a run that leaks ([`Stop::Leaked`]): one whose region covers 0.5 % (at least
+    /// 16 voxels) of a face of the image that the initial region did not touch, or grows past half the image. On by
     /// default; turn it off for objects that fill the image or cross its border.
     pub leak_guard: bool,
 }

@@ -474,7 +474,7 @@ fn segment_in_pool(
             break Stop::Vanished;
         }
         if params.leak_guard {
-            leak = leak_of(faces & !first_faces, voxels, initial_voxels, image_voxels);
+            leak = leak_of(&faces, &first_faces, image.dims, voxels, initial_voxels, image_voxels);
             if leak.is_some() {
                 break Stop::Leaked;
             }
@@ -926,17 +926,34 @@ fn inside_quantile(values: &Image, initial: &DenseField, q: f64) -> Result<f64, 
     Ok(if inside.is_empty() { 0.0 } else { features::percentile(&inside, q)? as f64 })
 }
 
-/// Why a run leaked, if it did: the region reached a face of the image (bits of
-/// [`inside`]) that the initial region did not touch, or grew past half the image.
-fn leak_of(new_faces: u8, voxels: u64, initial: u64, image: u64) -> Option<String> {
+/// Why a run leaked, if it did: the region covers at least [`LEAK_FACE_FRACTION`] of a
+/// face of the image (and 16 voxels) that the initial region did not touch (a thin spur
+/// that brushes a face is not a leak; a front running into the background covers faces
+/// within a few steps), or it grew past half the image.
+fn leak_of(
+    faces: &[u64; 6],
+    first: &[u64; 6],
+    dims: [usize; 3],
+    voxels: u64,
+    initial: u64,
+    image: u64,
+) -> Option<String> {
     const NAMES: [&str; 6] = ["x = 0", "x = max", "y = 0", "y = max", "z = 0", "z = max"];
-    if new_faces != 0 {
-        let faces: Vec<&str> =
-            (0..6).filter(|b| new_faces & (1 << b) != 0).map(|b| NAMES[b]).collect();
+    let area = |f: usize| -> u64 {
+        let [nx, ny, nz] = dims.map(|n| n as u64);
+        [ny * nz, ny * nz, nx * nz, nx * nz, nx * ny, nx * ny][f]
+    };
+    let reached: Vec<String> = (0..6)
+        .filter(|&f| {
+            first[f] == 0 && faces[f] >= 16u64.max((area(f) as f64 * LEAK_FACE_FRACTION) as u64)
+        })
+        .map(|f| format!("{} ({} voxels)", NAMES[f], faces[f]))
+        .collect();
+    if !reached.is_empty() {
         return Some(format!(
             "the region reached the image's {} face{} where the initial region did not touch it",
-            faces.join(", "),
-            if faces.len() > 1 { "s" } else { "" }
+            reached.join(", "),
+            if reached.len() > 1 { "s" } else { "" }
         ));
     }
     if voxels > initial && 2 * voxels > image {
@@ -946,6 +963,10 @@ fn leak_of(new_faces: u8, voxels: u64, initial: u64, image: u64) -> Option<Strin
     }
     None
 }
+
+/// The part of an image face a region must cover, beyond 16 voxels, for the leak guard
+/// to call its contact with the face a leak.
+const LEAK_FACE_FRACTION: f64 = 0.005;
 
 /// The weighted sum of the methods' flows ([`Params::terms`]): their speeds add, their
 /// curvature weights add as one field Σ εᵢ Zᵢ(x), and the one advecting term (GAC) keeps
@@ -1010,12 +1031,12 @@ impl FixedPoint {
 }
 
 /// Image voxels inside (φ ≤ 0), with `sums` the integer sum of their intensities, and
-/// the faces of the image the region touches (bits x = 0, x = max, y = 0, y = max, z = 0,
+/// how many of them lie on each face of the image (x = 0, x = max, y = 0, y = max, z = 0,
 /// z = max; an axis of one voxel has no faces).
-fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64, i64, u8) {
+fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64, i64, [u64; 6]) {
     let lookup = Lookup { dims };
     let [nx, ny, nz] = dims;
-    let (mut count, mut sum, mut faces) = (0u64, 0i64, 0u8);
+    let (mut count, mut sum, mut faces) = (0u64, 0i64, [0u64; 6]);
     sim.for_each_inside_run(|c, len| {
         // A 2D image's level set is extruded over z = 0..3: slice 0 is the image.
         if c.y < 0
@@ -1032,14 +1053,18 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
             return;
         }
         count += (x1 - x0) as u64;
+        let run = (x1 - x0) as u64;
         if nx > 1 {
-            faces |= (x0 == 0) as u8 | (((x1 == nx as i64) as u8) << 1);
+            faces[0] += (x0 == 0) as u64;
+            faces[1] += (x1 == nx as i64) as u64;
         }
         if ny > 1 {
-            faces |= (((c.y == 0) as u8) << 2) | (((c.y as usize == ny - 1) as u8) << 3);
+            faces[2] += run * (c.y == 0) as u64;
+            faces[3] += run * (c.y as usize == ny - 1) as u64;
         }
         if nz > 1 {
-            faces |= (((c.z == 0) as u8) << 4) | (((c.z as usize == nz - 1) as u8) << 5);
+            faces[4] += run * (c.z == 0) as u64;
+            faces[5] += run * (c.z as usize == nz - 1) as u64;
         }
         if let Some(fp) = sums {
             let first = lookup.index(Coord::new(x0 as i32, c.y, c.z)).expect("inside the image");

@@ -67,8 +67,8 @@ pub struct SegmentArgs {
     /// place of the image (smoothed only with --sigma).
     #[arg(long, value_name = "IMAGE")]
     pub feature: Option<PathBuf>,
-    /// Do not stop a run that leaks (one whose region reaches an image face the seeds did
-    /// not touch, or grows past half the image): for objects that fill the image.
+    /// Do not stop a run that leaks (one whose region spreads over an image face the seeds
+    /// did not touch, or grows past half the image): for objects that fill the image.
     #[arg(long)]
     pub no_leak_guard: bool,
     /// σ of the Gaussian smoothing in world units (0: none) [default: from the image's noise].
