@@ -688,8 +688,8 @@ fn prepare(
         (Some(_), _) => None,
         (None, _) if feature.is_some() && !only_gac => Some(0.0),
         (None, Method::Threshold { lower, upper }) => {
-            // The smallest σ that puts the noise left in Ĩ THRESHOLD_MARGIN times below the distance
-            // from the seeds' intensity to the nearer threshold.
+            // The smallest σ that puts the noise left in Ĩ THRESHOLD_MARGIN times below the
+            // distance from the seeds' intensity to the nearer threshold.
             let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
             let margin = (m_in - lo).min(hi - m_in);
             Some(if noise == 0.0 {
@@ -740,14 +740,8 @@ fn prepare(
     let sigma_max = resolved.sigma.iter().fold(0.0f64, |m, &v| m.max(v));
     let smoothed =
         if sigma_max > 0.0 { features::gaussian(&normed, resolved.sigma)? } else { normed.clone() };
-    // The noise left after smoothing (voxels of the finest axis as the measure).
-    let v_eff = (0..3)
-        .filter(|&a| image.dims[a] > 1)
-        .map(|a| resolved.sigma[a] / image.spacing[a])
-        .fold(f64::INFINITY, f64::min);
-    let factor =
-        if v_eff.is_finite() && v_eff > 0.0 { stats::noise_factor(v_eff, axes) } else { 1.0 };
-    resolved.noise_smoothed = noise * factor.min(1.0) * norm.scale;
+    // The noise left after smoothing.
+    resolved.noise_smoothed = noise * resolved_factor(&resolved, image, axes) * norm.scale;
     let g = if has_gac {
         Some(match (feature, params.edge_scale, params.sigmoid) {
             (Some(f), _, _) if only_gac => f.clone(),
@@ -778,11 +772,7 @@ fn prepare(
                     Some((a, b)) => (a / norm.scale, b / norm.scale),
                     None => {
                         let f = resolved_factor(&resolved, image, axes);
-                        let v = (0..3)
-                            .filter(|&a| image.dims[a] > 1)
-                            .map(|a| resolved.sigma[a] / image.spacing[a])
-                            .fold(f64::INFINITY, f64::min);
-                        let v = if v.is_finite() && v > 0.0 { v } else { 0.5 };
+                        let v = smoothing_voxels_of(&resolved, image).unwrap_or(0.5);
                         let s = noise * f / (std::f64::consts::SQRT_2 * v);
                         let chi999 = if axes >= 3 { 4.03 } else { 3.72 };
                         sigmoid_from_edges(&grad, field, probe.as_ref(), chi999 * s)?
@@ -799,17 +789,19 @@ fn prepare(
     Ok(Prepared { smoothed, norm, g, resolved })
 }
 
-/// The noise factor of the smoothing `resolved` holds.
-fn resolved_factor(resolved: &Resolved, image: &Image, axes: usize) -> f64 {
+/// The smoothing `resolved` holds, in voxels of the axis it smooths least (axes of one
+/// voxel aside); `None` without smoothing.
+fn smoothing_voxels_of(resolved: &Resolved, image: &Image) -> Option<f64> {
     let v = (0..3)
         .filter(|&a| image.dims[a] > 1)
         .map(|a| resolved.sigma[a] / image.spacing[a])
         .fold(f64::INFINITY, f64::min);
-    if v.is_finite() && v > 0.0 {
-        stats::noise_factor(v, axes).min(1.0)
-    } else {
-        1.0
-    }
+    (v.is_finite() && v > 0.0).then_some(v)
+}
+
+/// The factor by which the smoothing `resolved` holds divides white noise (1 without).
+fn resolved_factor(resolved: &Resolved, image: &Image, axes: usize) -> f64 {
+    smoothing_voxels_of(resolved, image).map_or(1.0, |v| stats::noise_factor(v, axes).min(1.0))
 }
 
 /// How far (normalised units) the smoothed intensity must depart from the seeds' for a
