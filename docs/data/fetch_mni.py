@@ -207,14 +207,11 @@ def seeds_doc(seeds, lower, upper, figures, t1, affine, depth, name, flipped_fro
 
 
 def dump_json(path: pathlib.Path, doc) -> None:
-    lines = []
-    for k, v in doc.items():
-        if k == "seeds":
-            body = ",\n".join("  " + json.dumps(s) for s in v)
-            lines.append(f' "seeds": [\n{body}\n ]')
-        else:
-            lines.append(f" {json.dumps(k)}: {json.dumps(v)}")
-    path.write_text("{\n" + ",\n".join(lines) + "\n}\n")
+    """Writes `doc` as the phantom generator writes its seeds files (one seed per line)."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "validation"))
+    import phantoms2  # noqa: E402  (docs/validation/phantoms2.py)
+
+    path.write_text(phantoms2.dump_json(doc))
 
 
 def derive(out: pathlib.Path, log=print) -> dict:
