@@ -1,7 +1,8 @@
 //! Criterion benchmarks of one evolution step on each representation: the sphere under
-//! mean curvature flow (first-order upwind + Euler, tile paper Sec. 4.7) and the spiral
-//! under volume-conserving flow (HJ-WENO5 + TVD-RK3, Sec. 5.2). Benchmark ids carry the
-//! stored voxel counts so times convert to throughput; every run computes the same band.
+//! mean curvature flow (first-order upwind + Euler, van der Laan et al. 2011,
+//! Sec. 4.7) and the spiral under volume-conserving flow (HJ-WENO5 + TVD-RK3, Sec. 5.2). Benchmark
+//! ids carry the stored voxel counts so times convert to throughput; every run computes the same
+//! band.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};

@@ -1,4 +1,4 @@
-//! Criterion benchmark of the ray tracer (H-RLE paper Sec. 6.3) on both grids: one
+//! Criterion benchmark of the ray tracer (Houston et al. 2006, Sec. 6.3) on both grids: one
 //! 320×240 image with 2×2 rays per pixel, ground and shadows. The ids carry the ray count
 //! (primary rays; shadow rays come on top) so times convert to rays per second.
 

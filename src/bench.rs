@@ -1,8 +1,8 @@
 //! Reference stencil passes over both storages with identical scalar arithmetic
 //! (`smooth7`, `star19`): what the storage benchmark (`levelset-speedup --storage`) and the
 //! criterion benches (`benches/grids.rs`) time, so a ratio measures the data structures —
-//! tile traversal with a padded block (tile paper Sec. 4.4, 4.7) against the DT-Grid
-//! stencil iterator (DT-Grid paper Sec. 3.3) — and not different arithmetic.
+//! tile traversal with a padded block (van der Laan et al. 2011, Sec. 4.4, 4.7) against the DT-Grid
+//! stencil iterator (Nielsen & Museth 2006, Sec. 3.3) — and not different arithmetic.
 
 use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::tiles::{tile_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};

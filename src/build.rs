@@ -1,8 +1,8 @@
 //! Construction of both grids — from an analytic shape or signed-distance closure, from a
 //! dense field — and conversion between the grids and to dense fields.
 //!
-//! Construction from a closure evaluates only near the band (tile paper Sec. 4.2, "compute
-//! the distance transform up to ±γ"): [`crate::sample::sample_band_tiles`] culls
+//! Construction from a closure evaluates only near the band (van der Laan et al. 2011,
+//! Sec. 4.2, "compute the distance transform up to ±γ"): [`crate::sample::sample_band_tiles`] culls
 //! tile-aligned blocks with a Lipschitz bound, so the work scales with the surface, not the
 //! bounding box. Both grids are built from the same samples.
 

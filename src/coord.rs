@@ -8,9 +8,9 @@ use std::fmt;
 /// # The order
 /// Coordinates compare **z first, then y, then x**, so x is the fastest-varying
 /// component everywhere in this crate:
-/// * along the Sorted Tile List (tile paper Sec. 4.1, "lexicographically sorted"),
+/// * along the Sorted Tile List (van der Laan et al. 2011, Sec. 4.1, "lexicographically sorted"),
 /// * inside a tile (`index = x + 4 y + 16 z`, see [`crate::tiles::Tile`]),
-/// * along a DT-Grid p-column (the DT-Grid paper's `x_N` is our `x`, its `x_1` our `z`),
+/// * along a DT-Grid p-column (`x_N` of Nielsen & Museth 2006 is our `x`, its `x_1` our `z`),
 /// * in dense arrays and `.npy` files (C order with shape `(nz, ny, nx)`).
 ///
 /// `Ord` is written by hand below (not derived) so that the field order of the struct
@@ -109,7 +109,7 @@ pub const FACE_OFFSETS: [Coord; 6] = [
 
 /// The 27 offsets of the 3×3×3 neighbourhood in lexicographic order; index
 /// `d = 9 (dz+1) + 3 (dy+1) + (dx+1)`, so [`MID`] = 13 is the centre and the opposite
-/// direction of `d` is `26 - d` (the tile paper's `reverse`, Sec. 4.6.3).
+/// direction of `d` is `26 - d` (`reverse` of van der Laan et al. 2011, Sec. 4.6.3).
 pub const NEIGHBOURHOOD: [Coord; 27] = {
     let mut out = [Coord::new(0, 0, 0); 27];
     let mut d = 0;

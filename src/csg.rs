@@ -1,6 +1,6 @@
 //! Constructive solid geometry on narrow-band level sets: union, intersection and
 //! difference of any two grids as a merge of their sorted bands, without a dense pass
-//! (the H-RLE paper's CSG operators on augmented level sets, Sec. 5, "union, subtraction,
+//! (the CSG operators on augmented level sets of Houston et al. 2006, Sec. 5, "union, subtraction,
 //! and intersection"; φ < 0 inside).
 //!
 //! With φ < 0 inside, the union is min(φ_A, φ_B), the intersection max(φ_A, φ_B) and the

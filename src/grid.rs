@@ -10,7 +10,8 @@ use serde::Serialize;
 /// φ < 0 inside, φ > 0 outside, in world units. Every stored value lies in `[-γ, γ]`
 /// with `γ = half_width · voxel_size` ([`GridSpec::gamma`]). A voxel is a *band voxel*
 /// when `|φ| < γ`. A voxel that a grid does not store reads as `-γ` inside and `+γ`
-/// outside (DT-Grid paper Sec. 3.3; tile paper Sec. 4.7 "dummy tile").
+/// outside (Nielsen & Museth 2006, Sec. 3.3; van der Laan et al. 2011, Sec. 4.7,
+/// "dummy tile").
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct GridSpec {
     /// Edge length of a voxel in world units (> 0, finite).

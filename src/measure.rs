@@ -7,8 +7,8 @@
 //!   band voxel and after the last are outside (the interior is bounded), and each gap
 //!   between two band voxels has one sign (a sign change needs band voxels), read once.
 //! * **Area** (world units): h³ Σ δ(φ)|∇φ| over the band voxels with the smoothed delta of
-//!   the tile paper's eq. (7) and |∇φ| from the 27-point box of eq. (4), the integrand the
-//!   evolution's κ̄ (eq. (6)) uses.
+//!   eq. (7) of van der Laan et al. 2011 and |∇φ| from the 27-point box of eq. (4), the integrand
+//!   the evolution's κ̄ (eq. (6)) uses.
 //!
 //! Terms are added as exact fixed-point sums ([`crate::evolve::exact::ExactSum`]), so the
 //! results do not depend on the order of the voxels: the tile grid, the DT-Grid and a

@@ -18,7 +18,7 @@
 //! assert_eq!(s.sdf([4.0, 2.0, 3.0]), 1.0);
 //! s.validate().unwrap();
 //!
-//! // The benchmark spiral of the DT-Grid and tile papers on a 128³ grid.
+//! // The benchmark spiral of Nielsen & Museth 2006 and van der Laan et al. 2011 (128³).
 //! let spiral = Shape::spiral_default([64.0; 3], 50.0, 40.0);
 //! spiral.validate().unwrap();
 //! assert!(spiral.sdf([64.0 + 50.0, 64.0, 64.0]).abs() < 1e-12);
@@ -44,8 +44,8 @@ pub enum Shape {
     /// Axis-aligned ellipsoid `Σ ((p_i − center_i) / radii_i)² ≤ 1`; the distance is the
     /// exact Euclidean one (Eberly's robust bisection for the closest point).
     Ellipsoid { center: [f64; 3], radii: [f64; 3] },
-    /// The extruded spiral of the benchmarks (DT-Grid paper Sec. 4.1, tile paper Sec. 5.2:
-    /// radius 50 and depth 40 on a 128³ grid).
+    /// The extruded spiral of the benchmarks (Nielsen & Museth 2006, Sec. 4.1;
+    /// van der Laan et al. 2011, Sec. 5.2: radius 50 and depth 40 on a 128³ grid).
     ///
     /// # Definition
     /// In the plane, a centre curve made of `n = 2·turns` half circles of radius

@@ -51,7 +51,7 @@ pub struct GridInfo {
     pub bytes: Bytes,
     /// Total bytes / band voxels.
     pub bytes_per_band_voxel: f64,
-    /// Total bytes / value bytes (the DT-Grid paper's Fig. 7 measure).
+    /// Total bytes / value bytes (the measure of Nielsen & Museth 2006, Fig. 7).
     pub total_over_values: f64,
     /// Wall time to build the grid from the input.
     pub build_seconds: f64,
@@ -83,9 +83,9 @@ pub struct InfoReport {
     pub half_width: f32,
     pub gamma: f32,
     pub grids: Vec<GridInfo>,
-    /// Tile bytes / DT-Grid bytes (the tile paper measured about 2.5 at 4³, Sec. 5.3).
+    /// Tile bytes / DT-Grid bytes (van der Laan et al. 2011, Sec. 5.3: about 2.5 at 4³).
     pub tiles_over_dtgrid_bytes: f64,
-    /// H-RLE bytes / DT-Grid bytes (the H-RLE paper's Table II: 1.05–1.07).
+    /// H-RLE bytes / DT-Grid bytes (Houston et al. 2006, Table II: 1.05–1.07).
     pub hrle_over_dtgrid_bytes: f64,
     /// Bytes of the level set as a `.sls` file.
     pub sls_bytes: usize,

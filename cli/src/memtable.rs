@@ -1,10 +1,10 @@
-//! The memory table (`levelset-speedup --memory`), in the style of the H-RLE paper's
+//! The memory table (`levelset-speedup --memory`), in the style of Houston et al. 2006,
 //! Table II: the bytes of one level set held by the H-RLE encoding, the DT-Grid and the
 //! Sorted Tile List, and the size of its `.sls` file, at half-width 3 (the paper's band of
-//! 6 voxels). Rows: a mesh voxelised at increasing resolution, the tile paper's spiral, a
-//! sphere of radius 1000, and an unenclosed level set (a sphere clipped by a plane, Fig. 9),
-//! which the H-RLE stores open while the DT-Grid and the tiles must store the closed
-//! hemisphere, band along the cut included.
+//! 6 voxels). Rows: a mesh voxelised at increasing resolution, the spiral of van der Laan
+//! et al. 2011, a sphere of radius 1000, and an unenclosed level set (a sphere clipped by a
+//! plane, Fig. 9), which the H-RLE stores open while the DT-Grid and the tiles must store the
+//! closed hemisphere, band along the cut included.
 
 use crate::info::human_bytes;
 use serde::Serialize;

@@ -3,11 +3,11 @@
 //!
 //! | scenario | what | papers' setup |
 //! |---|---|---|
-//! | `sphere` | sphere under mean curvature flow | tile paper Sec. 5.1: 256³, r₀ = 100, first-order upwind + Euler (Sec. 4.7), 100 steps |
+//! | `sphere` | sphere under mean curvature flow | van der Laan et al. 2011, Sec. 5.1: 256³, r₀ = 100, first-order upwind + Euler (Sec. 4.7), 100 steps |
 //! | `spiral` | extruded spiral under volume-conserving mean curvature flow | Sec. 5.2 / Table 2: 128³, radius 50, depth 40, HJ-WENO5 + TVD-RK3, 1000 steps |
 //! | `enright` | Enright's deformation test | Sec. 5.4: sphere r = 0.15 at (0.35, 0.35, 0.35) in the unit box, period T = 3, 128³ |
-//! | `expand` | a sphere growing at constant speed far beyond its box | DT-Grid paper Sec. 4.3 (out-of-the-box) |
-//! | `morph` | a sphere morphing into a torus | H-RLE paper Sec. 6.4.1, eq. (1) |
+//! | `expand` | a sphere growing at constant speed far beyond its box | Nielsen & Museth 2006, Sec. 4.3 (out-of-the-box) |
+//! | `morph` | a sphere morphing into a torus | Houston et al. 2006, Sec. 6.4.1, eq. (1) |
 //!
 //! Two sets of numerical settings: [`ScenarioOptions::new`] takes the defaults that give
 //! the right answer soonest (renormalisation by Russo–Smereka sweeps outside the step,

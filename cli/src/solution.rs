@@ -13,8 +13,8 @@
 //! ([`ScenarioOptions::new`] + [`Scenario::resolve`]), read back from the run's
 //! [`ScenarioParams`] and reported with it. One exception: where the sphere's default end
 //! is a step count, it runs to the time t = r₀²/600 instead — 50/3 at r₀ = 100, what the
-//! tile paper's 100 steps at Δt = h²/6 reach — so that the error is measured at a time the
-//! flow defines, whatever Δt the scheme takes.
+//! 100 steps at Δt = h²/6 of van der Laan et al. 2011 reach — so that the error is measured at a
+//! time the flow defines, whatever Δt the scheme takes.
 
 use crate::scenario::{Scenario, ScenarioKind, ScenarioOptions, ScenarioParams, Summary};
 use serde::Serialize;
@@ -148,8 +148,8 @@ pub fn conserved_accuracy(ratio: f64) -> Accuracy {
 }
 
 /// The sphere's end time where its default end is a step count: r₀²/600, i.e. 50/3 at
-/// r₀ = 100 (the tile paper's 100 steps at Δt = h²/6), the same fraction (1/300) of the
-/// collapse time r₀²/2 at every radius.
+/// r₀ = 100 (the 100 steps at Δt = h²/6 of van der Laan et al. 2011), the same fraction (1/300) of
+/// the collapse time r₀²/2 at every radius.
 pub fn sphere_end_time(r0: f64) -> f64 {
     r0 * r0 / 600.0
 }

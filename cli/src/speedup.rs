@@ -1,7 +1,7 @@
 //! The speed-up report of `levelset-speedup` (what `cargo run --release` runs): the papers
 //! evolution scenarios on the DT-Grid, on tiles with scalar lanes, with SIMD lanes on one
 //! thread and with SIMD lanes on every thread — the same flows, kernels and band rule, so
-//! the ratios measure the data structures and the lanes (tile paper Sec. 5: the same
+//! the ratios measure the data structures and the lanes (van der Laan et al. 2011, Sec. 5: the same
 //! level-set code on both structures).
 //!
 //! Every run of a scenario ends with the same band, bit for bit (see [`sparse_levelset::evolve`]):
@@ -25,7 +25,8 @@ pub struct SpeedupConfig {
     pub threads: usize,
     /// Pin the worker threads to cores (core_affinity).
     pub pin: bool,
-    /// The spiral's 1000 iterations of the tile paper's Table 2 instead of the short run.
+    /// The spiral's 1000 iterations (van der Laan et al. 2011, Table 2) instead of the short
+    /// run.
     pub full: bool,
     /// A quick look: small sizes and few steps (not a measurement).
     pub quick: bool,

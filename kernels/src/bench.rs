@@ -2,7 +2,7 @@
 //! lane type. This is the arithmetic limit the grid engines are measured against: a grid
 //! can approach it, never beat it.
 //!
-//! Two kernels, the two discretisations of the tile paper:
+//! Two kernels, the two discretisations of van der Laan et al. 2011:
 //!
 //! * `upwind_curvature`: one Euler update of eq. (3) with first-order upwind ∇⁺/∇⁻,
 //!   central curvature (eq. (4)) and the rescaling term (Sec. 4.7), clamped to ±γ;

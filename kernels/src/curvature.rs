@@ -1,4 +1,5 @@
-//! Mean curvature by central differences: tile paper eq. (2) discretised as eq. (4).
+//! Mean curvature by central differences: van der Laan et al. 2011, eq. (2)
+//! discretised as eq. (4).
 //!
 //! # Convention
 //!
@@ -33,7 +34,8 @@ pub struct CentralDiffs<L> {
     pub m: [L; 3],
 }
 
-/// The undivided central differences of the 3×3×3 box (tile paper Sec. 4.7: D⁰ᵃ, D⁰ᵃᵇ).
+/// The undivided central differences of the 3×3×3 box (van der Laan et al. 2011,
+/// Sec. 4.7: D⁰ᵃ, D⁰ᵃᵇ).
 #[inline(always)]
 pub fn central_diffs<L: Lane, W: Window<L>>(w: &W) -> CentralDiffs<L> {
     let c = w.centre();
@@ -69,8 +71,8 @@ fn numerator<L: Lane>(d: &CentralDiffs<L>) -> (L, L) {
 }
 
 /// κ∇⁰: the mean curvature times the central gradient norm, the curvature term of eq. (3)
-/// without its weight ε (tile paper Sec. 4.7, eq. (4) times ∇⁰). No square root: κ∇⁰ =
-/// ½ (Δφ |∇φ|² − ∇φᵀ H ∇φ) / |∇φ|². Bounded where the gradient vanishes (0 at a zero
+/// without its weight ε (van der Laan et al. 2011, Sec. 4.7, eq. (4) times ∇⁰). No square root: κ∇⁰
+/// = ½ (Δφ |∇φ|² − ∇φᵀ H ∇φ) / |∇φ|². Bounded where the gradient vanishes (0 at a zero
 /// gradient). Reads the 3×3×3 box without corners; `inv_h` = 1 / voxel size.
 #[inline(always)]
 pub fn curvature_speed<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> L {
@@ -79,8 +81,8 @@ pub fn curvature_speed<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> L {
     (L::splat(0.5) * inv_h * inv_h) * n / big_g.max(g_min)
 }
 
-/// Mean curvature κ (tile paper eq. (4), with the ½ of eq. (2): 1/r on a sphere); 0 where
-/// `|∇⁰φ|² ≤ GRAD2_MIN`. `inv_h` = 1 / voxel size.
+/// Mean curvature κ (van der Laan et al. 2011, eq. (4), with the ½ of eq. (2): 1/r on a
+/// sphere); 0 where `|∇⁰φ|² ≤ GRAD2_MIN`. `inv_h` = 1 / voxel size.
 #[inline(always)]
 pub fn mean_curvature<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> L {
     let (n, big_g) = numerator(&central_diffs(w));

@@ -1,5 +1,5 @@
-//! First differences, the upwind gradient norms ∇⁺ and ∇⁻ (tile paper Sec. 4.7) and the
-//! Godunov norms G⁺ and G⁻ of the renormalisation sweeps ([`godunov_norms`]).
+//! First differences, the upwind gradient norms ∇⁺ and ∇⁻ (van der Laan et al. 2011,
+//! Sec. 4.7) and the Godunov norms G⁺ and G⁻ of the renormalisation sweeps ([`godunov_norms`]).
 //!
 //! All differences are divided differences: `inv_h` is `1 / voxel size`, so for a
 //! signed-distance φ in world units the results are dimensionless (|∇φ| ≈ 1).
@@ -56,25 +56,26 @@ impl Axis for Z {
     }
 }
 
-/// Backward difference `D⁻ᵃφ = (φ₀ − φ₋₁) / h` along axis `A` (tile paper Sec. 4.7).
+/// Backward difference `D⁻ᵃφ = (φ₀ − φ₋₁) / h` along axis `A` (van der Laan et al. 2011, Sec. 4.7).
 #[inline(always)]
 pub fn diff_minus<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> L {
     (w.centre() - A::at::<L, W, -1>(w)) * inv_h
 }
 
-/// Forward difference `D⁺ᵃφ = (φ₊₁ − φ₀) / h` along axis `A` (tile paper Sec. 4.7).
+/// Forward difference `D⁺ᵃφ = (φ₊₁ − φ₀) / h` along axis `A` (van der Laan et al. 2011, Sec. 4.7).
 #[inline(always)]
 pub fn diff_plus<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> L {
     (A::at::<L, W, 1>(w) - w.centre()) * inv_h
 }
 
-/// Central difference `D⁰ᵃφ = (φ₊₁ − φ₋₁) / 2h` along axis `A` (tile paper Sec. 4.7).
+/// Central difference `D⁰ᵃφ = (φ₊₁ − φ₋₁) / 2h` along axis `A` (van der Laan et al.
+/// 2011, Sec. 4.7).
 #[inline(always)]
 pub fn diff_central<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> L {
     (A::at::<L, W, 1>(w) - A::at::<L, W, -1>(w)) * (inv_h * L::splat(0.5))
 }
 
-/// The central-difference gradient `(D⁰ˣφ, D⁰ʸφ, D⁰ᶻφ)` (tile paper Sec. 4.7).
+/// The central-difference gradient `(D⁰ˣφ, D⁰ʸφ, D⁰ᶻφ)` (van der Laan et al. 2011, Sec. 4.7).
 #[inline(always)]
 pub fn central_gradient<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> [L; 3] {
     [
@@ -84,14 +85,14 @@ pub fn central_gradient<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> [L; 3] {
     ]
 }
 
-/// ∇⁰ = |central gradient| (tile paper Sec. 4.7).
+/// ∇⁰ = |central gradient| (van der Laan et al. 2011, Sec. 4.7).
 #[inline(always)]
 pub fn central_norm<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> L {
     let [gx, gy, gz] = central_gradient(w, inv_h);
     gx.mul_add(gx, gy.mul_add(gy, gz * gz)).sqrt()
 }
 
-/// The upwind gradient norms `(∇⁺, ∇⁻)` of the tile paper, Sec. 4.7, from one-sided
+/// The upwind gradient norms `(∇⁺, ∇⁻)` of van der Laan et al. 2011, Sec. 4.7, from one-sided
 /// derivatives `dm[a]` (backward, left-biased) and `dp[a]` (forward, right-biased) per
 /// axis:
 ///

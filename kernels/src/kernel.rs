@@ -65,7 +65,7 @@ pub trait Scheme: sealed::Sealed + Copy + Default + Send + Sync + 'static {
         ([xm, ym, zm], [xp, yp, zp])
     }
 
-    /// The upwind norms `(∇⁺, ∇⁻)` of the tile paper's Sec. 4.7 with this scheme's
+    /// The upwind norms `(∇⁺, ∇⁻)` of van der Laan et al. 2011, Sec. 4.7, with this scheme's
     /// derivatives ([`upwind_norms`]).
     #[inline(always)]
     fn norms<L: Lane, W: Window<L>>(w: &W, inv_h: L) -> (L, L) {
@@ -74,11 +74,12 @@ pub trait Scheme: sealed::Sealed + Copy + Default + Send + Sync + 'static {
     }
 }
 
-/// First-order one-sided differences D⁻, D⁺ (tile paper Sec. 4.7). Reads ±1.
+/// First-order one-sided differences D⁻, D⁺ (van der Laan et al. 2011, Sec. 4.7). Reads ±1.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Upwind1;
 
-/// HJ-WENO5 (Jiang & Peng; DT-Grid paper Sec. 4.1, tile paper Sec. 5.2). Reads ±3.
+/// HJ-WENO5 (Jiang & Peng 2000; Nielsen & Museth 2006, Sec. 4.1; van der Laan et al. 2011,
+/// Sec. 5.2). Reads ±3.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Weno5;
 
@@ -192,7 +193,7 @@ impl VectorField for ScaledVelocity<'_> {
 // ---------------------------------------------------------------------------------------
 // Rates 𝓛(φ).
 
-/// The rate S of the tile paper's eq. (3) (Sec. 4.7 discretisation, see
+/// The rate S of eq. (3) of van der Laan et al. 2011 (Sec. 4.7 discretisation, see
 /// [`eq3_speed`]): data speed F, curvature weight ε, rescaling term with the smoothed sign
 /// φ/√(φ²+h²). The hyperbolic terms use the scheme `S` ([`Upwind1`]: Sec. 4.7;
 /// [`Weno5`]: Sec. 5.2), the curvature term always central differences (eq. (4)).
@@ -372,8 +373,8 @@ impl<S: Scheme, F: ScalarField, E: ScalarField, V: VectorField> VoxelKernel
 // ---------------------------------------------------------------------------------------
 // Time steps.
 
-/// One forward-Euler step φ + Δt 𝓛(φ) of a rate `K`, clamped to [−γ, γ] (tile paper
-/// Sec. 4.7 and Sec. 3.1). `gamma = f32::INFINITY` disables the clamp.
+/// One forward-Euler step φ + Δt 𝓛(φ) of a rate `K`, clamped to [−γ, γ] (van der Laan
+/// et al. 2011, Sec. 4.7 and Sec. 3.1). `gamma = f32::INFINITY` disables the clamp.
 #[derive(Clone, Copy, Debug)]
 pub struct Euler<K> {
     pub rate: K,
@@ -396,10 +397,10 @@ impl<K: VoxelKernel> VoxelKernel for Euler<K> {
     }
 }
 
-/// One TVD-RK3 stage (Shu & Osher; tile paper Sec. 5.2, DT-Grid paper Sec. 4.1) of a rate
-/// `K`: the window holds φᵏ (φⁿ, φ⁽¹⁾ or φ⁽²⁾), `phi_n` holds φⁿ per voxel (read in stages
-/// 2 and 3; may be empty for stage 1), the result is clamped to [−γ, γ]. See
-/// [`rk3_combine`].
+/// One TVD-RK3 stage (Shu & Osher 1988; van der Laan et al. 2011, Sec. 5.2; Nielsen &
+/// Museth 2006, Sec. 4.1) of a rate `K`: the window holds φᵏ (φⁿ, φ⁽¹⁾ or φ⁽²⁾), `phi_n` holds φⁿ
+/// per voxel (read in stages 2 and 3; may be empty for stage 1), the result is clamped to [−γ, γ].
+/// See [`rk3_combine`].
 #[derive(Clone, Copy, Debug)]
 pub struct Rk3<'a, K, const STAGE: u8> {
     pub rate: K,

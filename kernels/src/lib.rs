@@ -1,8 +1,8 @@
 //! # levelset-kernels
 //!
 //! The stencil arithmetic of sparse-levelset: upwind differences, curvature, HJ-WENO5,
-//! the speed of the tile paper's eq. (3), advection, TVD-RK3 and CFL limits. Every kernel
-//! is written once over the sealed [`Lane`] trait and instantiated for scalar `f32` and
+//! the speed of eq. (3) of van der Laan et al. 2011, advection, TVD-RK3 and CFL limits. Every
+//! kernel is written once over the sealed [`Lane`] trait and instantiated for scalar `f32` and
 //! `wide`'s `f32x4`, `f32x8`, `f32x16`; it reads φ through a [`Window`] and knows no grid
 //! type, so the Sorted Tile List ([`TileBlock`]) and the DT-Grid (point windows
 //! [`BoxWindow`], [`StarWindow`], [`BoxStarWindow`], [`BoxFarWindow`]) run literally the
@@ -97,15 +97,15 @@
 //!   libm/wide `cos` (which differ). So SIMD equals scalar bit for bit.
 //! * **Offsets are const generics.** An offset a window cannot serve does not compile;
 //!   block bounds are checked once per block, then windows load unchecked.
-//! * **κ convention:** κ = ½∇·(∇φ/|∇φ|) as in the tile paper's eq. (2)/(4): 1/r on a
+//! * **κ convention:** κ = ½∇·(∇φ/|∇φ|) as in van der Laan et al. 2011, eq. (2)/(4): 1/r on a
 //!   sphere. The curvature term of eq. (3) is computed as κ∇⁰ without a square root.
-//! * **Upwind norms:** ∇⁺/∇⁻ exactly as printed in the tile paper's Sec. 4.7 (both
+//! * **Upwind norms:** ∇⁺/∇⁻ exactly as printed in van der Laan et al. 2011, Sec. 4.7 (both
 //!   one-sided squares of an axis summed), for first-order and for HJ-WENO5 derivatives
 //!   alike. This differs from the per-axis-max Godunov flux only at local extrema of φ
 //!   along an axis.
 //! * **HJ-WENO5 ε** = 10⁻⁶ max vₖ² (scale invariant); weights are formed with one
 //!   reciprocal and one division per derivative instead of four divisions.
-//! * **Smoothed sign** φ/√(φ² + h²) in the rescaling term (tile paper Sec. 3.2).
+//! * **Smoothed sign** φ/√(φ² + h²) in the rescaling term (van der Laan et al. 2011, Sec. 3.2).
 //! * **Band clamp** to [−γ, γ] is part of the time-step kernels ([`Euler`], [`Rk3`]), so
 //!   both grids clamp identically.
 //! * **A scalar baseline that is scalar.** The `f32` sweeps hide each voxel's index from

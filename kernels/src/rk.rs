@@ -1,6 +1,6 @@
-//! Time integration: forward Euler (tile paper Sec. 4.7), the third-order TVD Runge–Kutta
-//! scheme of Shu & Osher 1988 (tile paper Sec. 5.2; DT-Grid paper Sec. 4.1), and CFL
-//! time-step limits.
+//! Time integration: forward Euler (van der Laan et al. 2011, Sec. 4.7), the third-order TVD
+//! Runge–Kutta scheme of Shu & Osher 1988 (van der Laan et al. 2011, Sec. 5.2; Nielsen &
+//! Museth 2006, Sec. 4.1), and CFL time-step limits.
 //!
 //! TVD-RK3 for φ_t = 𝓛(φ), written as three Euler steps and convex combinations:
 //!
@@ -36,16 +36,16 @@ pub fn rk3_combine<L: Lane, const STAGE: u8>(phi_n: L, phi_k: L, dt: L, rate: L)
     }
 }
 
-/// Forward Euler `φ + Δt 𝓛` (tile paper Sec. 4.7: φⁿ⁺¹ = φⁿ + Δt S). Same bits as
-/// [`rk3_combine`] at stage 1.
+/// Forward Euler `φ + Δt 𝓛` (van der Laan et al. 2011, Sec. 4.7: φⁿ⁺¹ = φⁿ + Δt S). Same
+/// bits as [`rk3_combine`] at stage 1.
 #[inline(always)]
 pub fn euler<L: Lane>(phi: L, dt: L, rate: L) -> L {
     dt.mul_add(rate, phi)
 }
 
-/// Clamps to the band `[−γ, γ]` (tile paper Sec. 3.1: band values live in (−γ, γ)).
-/// NaN maps to −γ (see [`Lane::max`]); `gamma = +∞` disables the clamp (NaN then maps to
-/// −∞).
+/// Clamps to the band `[−γ, γ]` (van der Laan et al. 2011, Sec. 3.1: band values live in
+/// (−γ, γ)). NaN maps to −γ (see [`Lane::max`]); `gamma = +∞` disables the clamp (NaN then
+/// maps to −∞).
 #[inline(always)]
 pub fn clamp_band<L: Lane>(phi: L, gamma: L) -> L {
     phi.max(-gamma).min(gamma)

@@ -1,20 +1,20 @@
-//! Speed terms: the right-hand side S of the tile paper's eq. (3) (discretised in
-//! Sec. 4.7), advection by an external velocity, and the smoothed delta function and
-//! curvature integrals of the volume-conserving flow (Sec. 5.2, eq. (5)–(7)).
+//! Speed terms: the right-hand side S of eq. (3) of van der Laan et al. 2011
+//! (discretised in Sec. 4.7), advection by an external velocity, and the smoothed delta function
+//! and curvature integrals of the volume-conserving flow (Sec. 5.2, eq. (5)–(7)).
 
 use crate::curvature::curvature_speed_and_norm;
 use crate::lane::Lane;
 use crate::window::Window;
 
-/// The smoothed sign φ / √(φ² + h²) that replaces sgn(φ) in the rescaling term (tile paper
-/// Sec. 3.2: a smooth sign improves stability). `h` is the voxel size; the result is in
-/// (−1, 1), 0 at φ = 0, and ±1 far from the interface.
+/// The smoothed sign φ / √(φ² + h²) that replaces sgn(φ) in the rescaling term (van der
+/// Laan et al. 2011, Sec. 3.2: a smooth sign improves stability). `h` is the voxel size; the result
+/// is in (−1, 1), 0 at φ = 0, and ±1 far from the interface.
 #[inline(always)]
 pub fn smoothed_sign<L: Lane>(phi: L, h: L) -> L {
     phi / phi.mul_add(phi, h * h).sqrt()
 }
 
-/// S of eq. (3) as discretised in Sec. 4.7 of the tile paper:
+/// S of eq. (3) as discretised in Sec. 4.7 of van der Laan et al. 2011:
 ///
 /// S = −(max(F,0) ∇⁺ + min(F,0) ∇⁻) + ε κ∇⁰ + w (max(s,0)(1 − ∇⁺) + min(s,0)(1 − ∇⁻))
 ///
@@ -48,7 +48,7 @@ pub fn eq3_speed<L: Lane>(
 /// The rate −u·∇φ of advection by an external velocity `u` (φ_t + u·∇φ = 0), upwinded per
 /// axis: the backward (left-biased) derivative `dm[a]` where uₐ > 0, the forward one
 /// `dp[a]` where uₐ < 0 (upwinding as in Osher & Fedkiw ch. 3; with HJ-WENO5 derivatives the scheme of
-/// the DT-Grid paper's Sec. 4.2 flow test).
+/// flow test of Nielsen & Museth 2006, Sec. 4.2).
 #[inline(always)]
 pub fn advection_rate<L: Lane>(u: [L; 3], dm: [L; 3], dp: [L; 3]) -> L {
     let z = L::splat(0.0);
@@ -75,7 +75,7 @@ fn cos_half_range<L: Lane>(y: L) -> L {
     p.mul_add(y2, c(1.0))
 }
 
-/// The smoothed delta function of eq. (7) of the tile paper,
+/// The smoothed delta function of eq. (7) of van der Laan et al. 2011,
 /// δ(φ) = (1 + cos(πφ/ε)) / 2ε for |φ| < ε and 0 otherwise (the paper's `φ < ε` means
 /// |φ| < ε), evaluated as cos²(πφ/2ε)/ε. `width` is ε, a multiple of the voxel size.
 #[inline(always)]

@@ -1,5 +1,6 @@
 //! HJ-WENO5 one-sided derivatives (Jiang & Peng 2000), the fifth-order spatial scheme of
-//! the DT-Grid paper (Sec. 4.1) and of the tile paper's Sec. 5.2 for the hyperbolic terms.
+//! Nielsen & Museth 2006 (Sec. 4.1) and of van der Laan et al. 2011 (Sec. 5.2) for the
+//! hyperbolic terms.
 //!
 //! For the left-biased derivative φₓ⁻ at voxel i the five inputs are the backward
 //! differences vₖ = D⁻φ at i−2, i−1, i, i+1, i+2; for the right-biased φₓ⁺ they are the
@@ -68,7 +69,8 @@ pub fn hj_weno5<L: Lane>(v: [L; 5]) -> L {
 }
 
 /// The HJ-WENO5 pair `(φₐ⁻, φₐ⁺)` along axis `A`: left- and right-biased fifth-order
-/// derivatives from the 7 values φ₋₃..φ₊₃ (Jiang & Peng; DT-Grid paper Sec. 4.1).
+/// derivatives from the 7 values φ₋₃..φ₊₃ (Jiang & Peng 2000; Nielsen & Museth
+/// 2006, Sec. 4.1).
 /// `inv_h` = 1 / voxel size.
 #[inline(always)]
 pub fn weno5_one_sided<L: Lane, W: Window<L>, A: Axis>(w: &W, inv_h: L) -> (L, L) {

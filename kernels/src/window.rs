@@ -5,11 +5,11 @@
 //! grids feed the same arithmetic:
 //!
 //! * the Sorted Tile List through [`TileWindow`] (a 4³ tile with an `R`-voxel halo, see
-//!   [`crate::TileBlock`]; the tile paper's Sec. 4.4/4.7 stencil access with neighbour
+//!   [`crate::TileBlock`]; van der Laan et al. 2011, Sec. 4.4/4.7: stencil access with neighbour
 //!   and dummy tiles);
 //! * the DT-Grid through the point windows [`BoxWindow`], [`StarWindow`],
 //!   [`BoxStarWindow`] and [`BoxFarWindow`] over the stencil values its stencil iterator
-//!   collects for one voxel (DT-Grid paper Sec. 3.3); their lane type is `f32`;
+//!   collects for one voxel (Nielsen & Museth 2006, Sec. 3.3); their lane type is `f32`;
 //! * dense arrays through [`DenseWindow`] (see [`crate::DenseBlock`]), used by the
 //!   benchmark and the tests.
 //!
@@ -184,20 +184,21 @@ macro_rules! point_window {
 
 point_window!(
     /// The 3×3×3 box around one voxel, in [`box27_index`] order (centre at 13): first-order
-    /// upwind differences and curvature (tile paper Sec. 4.7, eq. (4)). Lane type `f32`.
+    /// upwind differences and curvature (van der Laan et al. 2011, Sec. 4.7, eq. (4)). Lane
+    /// type `f32`.
     BoxWindow, 27, axis 1, box 1, box27_index, "offset outside the 3x3x3 box"
 );
 
 point_window!(
     /// The 19-point WENO5 star around one voxel, in [`star19_index`] order (centre at 0):
-    /// HJ-WENO5 one-sided derivatives (DT-Grid paper Sec. 4.1). Lane type `f32`.
+    /// HJ-WENO5 one-sided derivatives (Nielsen & Museth 2006, Sec. 4.1). Lane type `f32`.
     StarWindow, 19, axis 3, box 0, star19_index, "offset outside the 19-point WENO5 star"
 );
 
 /// The box and the star of one voxel together: what a kernel with HJ-WENO5 hyperbolic
-/// terms *and* a central curvature term reads (tile paper Sec. 5.2, eq. (5); DT-Grid paper
-/// Sec. 4.1). Offsets with max-norm ≤ 1 come from the box, the rest from the star (the
-/// choice is made at compile time). Lane type `f32`.
+/// terms *and* a central curvature term reads (van der Laan et al. 2011, Sec. 5.2, eq. (5);
+/// Nielsen & Museth 2006, Sec. 4.1). Offsets with max-norm ≤ 1 come from the box, the rest from the
+/// star (the choice is made at compile time). Lane type `f32`.
 #[derive(Clone, Copy, Debug)]
 pub struct BoxStarWindow<'a> {
     b: &'a [f32; 27],

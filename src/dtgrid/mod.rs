@@ -1,4 +1,4 @@
-//! The Dynamic Tubular Grid (DT-Grid paper, Sec. 2–3 and Appendices A–F) in 3D: the
+//! The Dynamic Tubular Grid (Nielsen & Museth 2006, Sec. 2–3 and Appendices A–F) in 3D: the
 //! reference every speed and correctness claim of the tile engine is measured against.
 //!
 //! # Layout (paper Sec. 2.1)

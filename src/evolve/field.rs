@@ -96,8 +96,8 @@ impl<F: Fn([f64; 3]) -> f64 + Send + Sync> ScalarFn for StaticSdf<F> {
     }
 }
 
-/// Enright's deformation test field (LeVeque's 3D flow, tile paper Sec. 5.4, DT-Grid paper
-/// Sec. 4.2) in the unit box, periodic in time with period `T`:
+/// Enright's deformation test field (LeVeque's 3D flow; van der Laan et al. 2011, Sec. 5.4;
+/// Nielsen & Museth 2006, Sec. 4.2) in the unit box, periodic in time with period `T`:
 ///
 /// ```text
 /// u =  2 sin²(πx) sin(2πy) sin(2πz) cos(πt/T)
@@ -174,7 +174,7 @@ pub enum Speed {
     Constant(f32),
     /// F(x, t) from a field.
     Field(Arc<dyn ScalarFn>),
-    /// Morphing toward a target level set ψ (H-RLE paper Sec. 6.4.1, eq. (1)): F = φ − ψ,
+    /// Morphing toward a target level set ψ (Houston et al. 2006, Sec. 6.4.1, eq. (1)): F = φ − ψ,
     /// i.e. φ_t = (ψ − φ)|∇φ|. Eq. (1) as printed, φ_t = (φ − ψ)|∇φ|, makes the difference
     /// e = φ − ψ grow (e_t = e|∇φ|) under either sign convention, so its sign is reversed
     /// here: this form's steady state is φ = ψ. The target is clamped to ±γ like a sparse
@@ -225,8 +225,8 @@ impl std::fmt::Debug for Velocity {
 }
 
 /// A field given on its own dense grid (an image, a simulated velocity component),
-/// sampled at world positions by trilinear interpolation (tile paper Sec. 5.4: fields that
-/// are not analytic, or live on a grid of another resolution, are interpolated);
+/// sampled at world positions by trilinear interpolation (van der Laan et al. 2011, Sec. 5.4:
+/// fields that are not analytic, or live on a grid of another resolution, are interpolated);
 /// positions beyond the grid take the value of its nearest face.
 #[derive(Clone, Debug)]
 pub struct SampledField {

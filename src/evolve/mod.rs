@@ -1,7 +1,7 @@
 //! Evolution of a level set under a PDE, with one API over the Sorted Tile List (scalar
 //! or SIMD lanes), the DT-Grid and a dense reference.
 //!
-//! The PDE is eq. (3) of the tile paper with an advection term added,
+//! The PDE is eq. (3) of van der Laan et al. 2011 with an advection term added,
 //!
 //! ```text
 //! φ_t = −F(x, t)|∇φ| + ε κ |∇φ| − u(x, t)·∇φ  [+ w sgn(φ)(1 − |∇φ|)]
@@ -12,12 +12,12 @@
 //! term always with central differences (eq. (4)), integrated with forward Euler or
 //! TVD-RK3 ([`Integrator`]). A [`Flow`] chooses the physical terms:
 //!
-//! * mean curvature flow: ε > 0 ([`Flow::mean_curvature`]; tile paper Sec. 5.1);
+//! * mean curvature flow: ε > 0 ([`Flow::mean_curvature`]; van der Laan et al. 2011, Sec. 5.1);
 //! * volume-conserving mean curvature flow, eq. (5): F = ε κ̄ with κ̄ from eq. (6)–(7),
 //!   recomputed from the current φ in every stage ([`Flow::volume_conserving`]; Sec. 5.2);
 //! * normal speed F(x, t), constant or a field ([`Speed`]);
 //! * advection by u(x, t) ([`Velocity`]; Enright's test, Sec. 5.4);
-//! * morphing toward a target ([`Speed::MorphTo`], H-RLE paper eq. (1)).
+//! * morphing toward a target ([`Speed::MorphTo`], Houston et al. 2006, eq. (1)).
 //!
 //! # Keeping φ a distance
 //! [`Settings::renormalization`] chooses how φ stays close to a signed distance:
@@ -29,8 +29,8 @@
 //!   which keeps the zero crossings where they are ([`Simulation::renormalize`]). The
 //!   step's CFL limit covers only the physical terms.
 //! * [`Renormalization::Coupled`]: the rescaling term w sgn(φ)(1 − |∇φ|) of eq. (3)
-//!   (Sec. 3.2) inside the PDE, the tile paper's route (and the speed-up report's). Its
-//!   rate √3 w/h enters the CFL limit, and with first-order upwinding it moves a curved
+//!   (Sec. 3.2) inside the PDE, the route of van der Laan et al. 2011 (and of the speed-up report).
+//!   Its rate √3 w/h enters the CFL limit, and with first-order upwinding it moves a curved
 //!   interface: the one-sided gradient norm is off by O(h/r) there, and the term turns
 //!   that into motion (a sphere of r₀ = 20 under mean curvature flow reaches r = 13.37
 //!   instead of 14.14 at half its collapse time).
@@ -110,9 +110,9 @@ use std::sync::Arc;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SpatialScheme {
-    /// First-order one-sided differences (tile paper Sec. 4.7).
+    /// First-order one-sided differences (van der Laan et al. 2011, Sec. 4.7).
     Upwind1,
-    /// Fifth-order HJ-WENO (tile paper Sec. 5.2, DT-Grid paper Sec. 4.1).
+    /// Fifth-order HJ-WENO (van der Laan et al. 2011, Sec. 5.2; Nielsen & Museth 2006, Sec. 4.1).
     Weno5,
 }
 
@@ -120,9 +120,9 @@ pub enum SpatialScheme {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Integrator {
-    /// Forward Euler (tile paper Sec. 4.7).
+    /// Forward Euler (van der Laan et al. 2011, Sec. 4.7).
     Euler,
-    /// Third-order TVD Runge–Kutta of Shu & Osher (tile paper Sec. 5.2).
+    /// Third-order TVD Runge–Kutta of Shu & Osher 1988 (van der Laan et al. 2011, Sec. 5.2).
     Rk3,
 }
 
@@ -197,7 +197,8 @@ impl Flow {
         }
     }
 
-    /// Motion by mean curvature with weight ε (eq. (3) with F = 0; tile paper Sec. 5.1).
+    /// Motion by mean curvature with weight ε (eq. (3) with F = 0; van der Laan et al.
+    /// 2011, Sec. 5.1).
     pub fn mean_curvature(eps: f32) -> Flow {
         Flow { curvature: eps, ..Flow::rest() }
     }
@@ -217,7 +218,7 @@ impl Flow {
         Flow { velocity: Some(velocity), ..Flow::rest() }
     }
 
-    /// Morphing toward the level set `target` (H-RLE paper eq. (1)).
+    /// Morphing toward the level set `target` (Houston et al. 2006, eq. (1)).
     pub fn morph(target: Arc<dyn ScalarFn>) -> Flow {
         Flow::normal_speed(Speed::MorphTo(target))
     }
@@ -399,9 +400,9 @@ pub enum Renormalization {
     /// Nothing: |∇φ| follows the flow (a shear steepens or flattens φ and the band
     /// widens or thins).
     Off,
-    /// The rescaling term w sgn(φ)(1 − |∇φ|) of the tile paper's eq. (3) (Sec. 3.2) as a
-    /// term of the PDE, in every stage, with the smoothed sign φ/√(φ² + h²). Its rate
-    /// √3 w/h counts in the step's CFL limit, so it shortens the step of slow flows
+    /// The rescaling term w sgn(φ)(1 − |∇φ|) of eq. (3) of van der Laan et al. 2011
+    /// (Sec. 3.2) as a term of the PDE, in every stage, with the smoothed sign φ/√(φ² + h²). Its
+    /// rate √3 w/h counts in the step's CFL limit, so it shortens the step of slow flows
     /// (mean curvature flow takes about three times as many steps). The papers' route:
     /// the speed-up report's benchmarks run it with w = 1.
     Coupled {
@@ -451,7 +452,7 @@ impl Renormalization {
         }
     }
 
-    /// The tile paper's eq. (3): the coupled rescaling term with weight 1.
+    /// Eq. (3) of van der Laan et al. 2011: the coupled rescaling term with weight 1.
     pub fn paper() -> Renormalization {
         Renormalization::Coupled { weight: 1.0 }
     }
@@ -529,8 +530,8 @@ impl Settings {
         }
     }
 
-    /// The tile paper's first-order route (Sec. 4.7): first-order upwind, forward Euler,
-    /// the coupled rescaling term of eq. (3), CFL 0.5 — what its sphere benchmark runs.
+    /// The first-order route of van der Laan et al. 2011 (Sec. 4.7): first-order upwind, forward
+    /// Euler, the coupled rescaling term of eq. (3), CFL 0.5 — what its sphere benchmark runs.
     pub fn paper_upwind1() -> Settings {
         Settings {
             scheme: SpatialScheme::Upwind1,
@@ -541,8 +542,8 @@ impl Settings {
         }
     }
 
-    /// The tile paper's Sec. 5.2 route: HJ-WENO5, TVD-RK3, the coupled rescaling term of
-    /// eq. (3), CFL 0.5.
+    /// The route of van der Laan et al. 2011, Sec. 5.2: HJ-WENO5, TVD-RK3, the coupled rescaling
+    /// term of eq. (3), CFL 0.5.
     pub fn paper_weno5_rk3() -> Settings {
         Settings {
             scheme: SpatialScheme::Weno5,

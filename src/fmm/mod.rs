@@ -1,6 +1,6 @@
 //! Fast marching on the sparse grids: signed distances, band reinitialisation and
 //! widening, and arrival times — after Bærentzen, *On the Implementation of Fast Marching
-//! Methods for 3D Lattices* (`fast-marching-3d.txt`).
+//! Methods for 3D Lattices* (Bærentzen 2001).
 //!
 //! * **The method** (Sec. 2.1, Fig. 3): voxels are *far*, *narrow band* (trial) or
 //!   *frozen*; the trial voxel with the smallest arrival time is frozen next and its

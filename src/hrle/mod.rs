@@ -1,8 +1,7 @@
-//! The hierarchical run-length encoded (H-RLE) level set (H-RLE paper,
-//! `hierarchical-rle-level-set.txt`, Sec. 4–5): a narrow band stored as one RLE block per
-//! axis over a single array of defined values, with explicit *negative* and *positive*
-//! runs, so that it can also hold **unenclosed** level sets (Sec. 3, Fig. 9) that the
-//! DT-Grid and the tile list cannot.
+//! The hierarchical run-length encoded (H-RLE) level set (Houston et al. 2006, Sec. 4–5):
+//! a narrow band stored as one RLE block per axis over a single array of defined values, with
+//! explicit *negative* and *positive* runs, so that it can also hold **unenclosed** level sets
+//! (Sec. 3, Fig. 9) that the DT-Grid and the tile list cannot.
 //!
 //! # Layout (Sec. 4.1–4.2)
 //! With our coordinate order ([`Coord`]: z first, x fastest) the top block encodes z, the

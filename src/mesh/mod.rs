@@ -1,5 +1,5 @@
-//! Meshes of level sets by simplicial isosurfacing (Min, "Simplicial isosurfacing in
-//! arbitrary dimension and codimension", `simplicial-isosurfacing.txt`).
+//! Meshes of level sets by simplicial isosurfacing (Min 2003, "Simplicial isosurfacing in
+//! arbitrary dimension and codimension").
 //!
 //! * [`isosurface`] (any level set), [`isosurface_dense`]: the φ = iso
 //!   surface of a 3D level set as one welded, outward-oriented [`TriangleMesh`] in world

@@ -1,4 +1,4 @@
-//! Ray-traced images of the zero level set of a sparse grid (H-RLE paper Sec. 6.3,
+//! Ray-traced images of the zero level set of a sparse grid (Houston et al. 2006, Sec. 6.3,
 //! "Direct Ray Tracing"): no mesh is extracted; rays query the grid by random access, read
 //! ±γ outside the band as the paper prescribes, and step by the level-set value.
 //!

@@ -1,4 +1,4 @@
-//! Ray casting against the zero level set of a sparse grid (H-RLE paper Sec. 6.3).
+//! Ray casting against the zero level set of a sparse grid (Houston et al. 2006, Sec. 6.3).
 //!
 //! All of it runs in *voxel space*: the voxel `c` sits at the point `c` (world position
 //! `origin + h c`), so cells are unit cubes and distances are in voxels. The level set is

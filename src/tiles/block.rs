@@ -1,7 +1,7 @@
 //! A tile with a halo of `R` voxels gathered from its 26 neighbours: the stencil window
-//! the kernels read for a whole tile at once (tile paper Sec. 4.7: values at the tile's
-//! borders come from the neighbour tiles, or from a "dummy tile" of ±γ chosen by the
-//! border flag where the neighbour is absent).
+//! the kernels read for a whole tile at once (van der Laan et al. 2011, Sec. 4.7:
+//! values at the tile's borders come from the neighbour tiles, or from a "dummy tile" of ±γ chosen
+//! by the border flag where the neighbour is absent).
 
 use super::{NeighbourRow, Neighbours, Tile, TileGrid, TILE_DIM};
 

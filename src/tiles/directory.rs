@@ -1,6 +1,6 @@
 //! A row directory over the sorted tile list, for random access.
 //!
-//! The tile paper finds a tile by binary search over the whole list (Sec. 4.5). That is
+//! Van der Laan et al. 2011 find a tile by binary search over the whole list (Sec. 4.5). That is
 //! O(log N) dependent loads per lookup, against the DT-Grid's short searches inside one
 //! p-column. The directory narrows the search to one tile row `(tz, ty)` in O(1): a dense
 //! table over the slabs `tz`, each with a dense table over its rows `ty` holding the list

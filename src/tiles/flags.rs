@@ -1,5 +1,5 @@
-//! Border flags (tile paper Sec. 4.1) and activity flags with their guard-band regions
-//! (Sec. 4.7, Fig. 5), and the `neighbour_trigger` masks of Algorithm 3 (Fig. 4).
+//! Border flags (van der Laan et al. 2011, Sec. 4.1) and activity flags with their guard-band
+//! regions (Sec. 4.7, Fig. 5), and the `neighbour_trigger` masks of Algorithm 3 (Fig. 4).
 //!
 //! **Border flags** (`u32` per tile): bit `d` (a direction of
 //! [`crate::coord::NEIGHBOURHOOD`], never [`crate::coord::MID`]) is set when the absent

@@ -7,7 +7,8 @@ use super::{tile_in_range, tile_of, voxel_of, Tile, TILE_LEN};
 use crate::coord::{direction_index, reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
 
-/// A narrow band stored as 4³ tiles behind a sorted tile list (tile paper Sec. 4.1).
+/// A narrow band stored as 4³ tiles behind a sorted tile list (van der Laan et al.
+/// 2011, Sec. 4.1).
 ///
 /// # Invariants
 /// * `coords` is strictly increasing in [`Coord`] order (sorted, no duplicates) and every

@@ -1,4 +1,4 @@
-//! Parallel tile management (tile paper Sec. 4.6, Algorithm 3; its Sec. 5.8 leaves
+//! Parallel tile management (van der Laan et al. 2011, Sec. 4.6, Algorithm 3; its Sec. 5.8 leaves
 //! multicore to future work).
 //!
 //! The paper streams the dilation of the whole list (Algorithm 2) and decides keep /

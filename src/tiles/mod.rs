@@ -1,5 +1,5 @@
-//! The Sorted Tile List (tile paper Sec. 4): 4³ tiles of f32 in a 64-byte-aligned arena
-//! behind a lexicographically sorted list of tile coordinates.
+//! The Sorted Tile List (van der Laan et al. 2011, Sec. 4): 4³ tiles of f32 in a
+//! 64-byte-aligned arena behind a lexicographically sorted list of tile coordinates.
 //!
 //! * [`TileGrid`] holds the list, the arena and the per-tile flags (Sec. 4.1).
 //! * [`NeighbourCursor`] walks the list with the 26-neighbour tracking of Algorithm 1
@@ -95,7 +95,8 @@ fn order_key(c: Coord) -> u128 {
 }
 
 /// First position in the sorted `coords` whose coordinate is not less than `c`
-/// (`coords.len()` if none): a branch-free binary search (tile paper Sec. 4.5).
+/// (`coords.len()` if none): a branch-free binary search (van der Laan et al. 2011,
+/// Sec. 4.5).
 #[inline]
 pub fn lower_bound(coords: &[Coord], c: Coord) -> usize {
     let k = order_key(c);

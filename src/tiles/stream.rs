@@ -1,5 +1,6 @@
 //! Sequential traversal of a sorted coordinate list with neighbour tracking
-//! (tile paper Algorithm 1) and the streaming dilation of a sorted list (Algorithm 2).
+//! (van der Laan et al. 2011, Algorithm 1) and the streaming dilation of a sorted list
+//! (Algorithm 2).
 
 use crate::coord::{Coord, MID, NEIGHBOURHOOD};
 

@@ -1,5 +1,5 @@
 //! Inside or outside by axis-aligned rays with oriented crossings and a majority vote
-//! (hierarchical RLE paper Sec. 6.2.2, after Houston et al. 2003).
+//! (Houston et al. 2006, Sec. 6.2.2, after Houston et al. 2003).
 //!
 //! For each axis `a` the mesh is rasterised onto the lattice of voxel-centre lines along
 //! `a`: every triangle records a *crossing* on each line its projection covers, with the

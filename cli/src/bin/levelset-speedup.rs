@@ -36,7 +36,7 @@ struct BenchArgs {
     /// Pin worker threads to cores.
     #[arg(long)]
     pin: bool,
-    /// The spiral's 1000 iterations (the tile paper's Table 2) instead of 150.
+    /// The spiral's 1000 iterations (van der Laan et al. 2011, Table 2) instead of 150.
     #[arg(long)]
     full: bool,
     /// Repetitions of every measured run; the fastest is reported (the same band every
@@ -67,7 +67,7 @@ struct BenchArgs {
     #[arg(long, value_name = "F", allow_hyphen_values = true,
           conflicts_with_all = ["kernels", "storage"], value_parser = scale)]
     solution_scale: Option<f64>,
-    /// The memory table instead (H-RLE paper, Table II): bytes of the H-RLE, the DT-Grid,
+    /// The memory table instead (Houston et al. 2006, Table II): bytes of the H-RLE, the DT-Grid,
     /// the tiles and the .sls file for the spiral, a sphere of radius 1000 (--memory-radius)
     /// and that sphere clipped by a plane (unenclosed).
     #[arg(long, conflicts_with_all = ["kernels", "storage", "solution"])]
@@ -170,7 +170,7 @@ fn storage(a: &BenchArgs) -> Result<(), String> {
     let spec = GridSpec::default();
     let scale = if a.quick { 0.4 } else { 1.0 };
     let reps = a.reps.unwrap_or(if a.quick { 1 } else { 9 }) as usize;
-    // The tile paper's scenarios: a sphere in a 256³ box (Sec. 5.1) and the extruded
+    // The scenarios of van der Laan et al. 2011: a sphere in a 256³ box (Sec. 5.1) and the extruded
     // spiral of radius 50, depth 40 in a 128³ box (Sec. 5.2).
     let scenarios = [
         ("sphere", Shape::Sphere { center: [0.0; 3], radius: 100.0 * scale }),

@@ -1,4 +1,4 @@
-//! The DT-Grid engine: the stencil iterator (DT-Grid paper Sec. 3.3) feeds the kernels
+//! The DT-Grid engine: the stencil iterator (Nielsen & Museth 2006, Sec. 3.3) feeds the kernels
 //! point by point, scalar and on one thread; after each step the grid is rebuilt
 //! (Sec. 3.6.2) to the voxels within one voxel of the band, so it needs no band mask.
 

@@ -1,6 +1,6 @@
 //! The Sorted Tile List engine: every tile gathered with its halo into a padded block,
 //! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
-//! (tile paper Sec. 4.7), tile management after each step (Sec. 4.6).
+//! (van der Laan et al. 2011, Sec. 4.7), tile management after each step (Sec. 4.6).
 
 use super::{
     growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,

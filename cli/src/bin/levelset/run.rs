@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ScenarioArg {
-    /// Sphere under mean curvature flow (tile paper Sec. 5.1).
+    /// Sphere under mean curvature flow (van der Laan et al. 2011, Sec. 5.1).
     Sphere,
     /// Extruded spiral under volume-conserving mean curvature flow (Sec. 5.2, Table 2).
     Spiral,
@@ -20,7 +20,7 @@ pub enum ScenarioArg {
     Enright,
     /// A sphere growing at constant speed far beyond its initial box.
     Expand,
-    /// A sphere morphing into a torus (H-RLE paper eq. (1)).
+    /// A sphere morphing into a torus (Houston et al. 2006, eq. (1)).
     Morph,
 }
 
@@ -116,8 +116,8 @@ pub struct RunArgs {
     #[arg(allow_hyphen_values = true, long, default_value_t = 3.0)]
     pub half_width: f32,
     /// How φ is kept a signed distance: `sweeps` (Russo–Smereka renormalisation after
-    /// the step), `coupled` (the rescaling term of the tile paper's eq. (3) inside the
-    /// PDE, the papers' route) or `off`.
+    /// the step), `coupled` (the rescaling term of eq. (3) of van der Laan et al. 2011
+    /// inside the PDE, the papers' route) or `off`.
     #[arg(long, value_enum, default_value_t = RenormArg::Sweeps)]
     pub renormalize: RenormArg,
     /// Weight w of the coupled rescaling term (with --renormalize coupled) [default: 1].
