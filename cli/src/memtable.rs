@@ -99,8 +99,8 @@ pub fn mesh_rows(
     Ok(rows)
 }
 
-/// The analytic rows: the spiral (tile paper, radius 50, depth 40), a sphere of radius
-/// `r` (1000 in the table), and that sphere clipped by the plane x = 0: open in the H-RLE,
+/// The analytic rows: the spiral (van der Laan et al. 2011, radius 50, depth 40), a sphere of
+/// radius `r` (1000 in the table), and that sphere clipped by the plane x = 0: open in the H-RLE,
 /// closed (sphere ∩ {x ≤ 0}) in the DT-Grid and the tiles. `progress` is told each row.
 pub fn analytic_rows(r: f64, mut progress: impl FnMut(&str)) -> Result<Vec<MemoryRow>, GridError> {
     let spec = GridSpec::default();

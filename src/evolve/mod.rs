@@ -46,8 +46,8 @@
 //! Values live in `[−γ, γ]`; a voxel with |φ| < γ is a band voxel; a voxel nobody stores
 //! reads −γ inside and +γ outside. A step computes exactly the voxels whose 3×3×3 box
 //! holds a band voxel of φⁿ (the band dilated by one voxel), in every stage; every other
-//! voxel keeps ±γ. The DT-Grid stores exactly that set (rebuilt after every step, DT-Grid
-//! paper Sec. 3.6.2: keep |φ| < γ, dilate by one, new points at ±γ); tiles (tile
+//! voxel keeps ±γ. The DT-Grid stores exactly that set (rebuilt after every step, Nielsen
+//! & Museth 2006, Sec. 3.6.2: keep |φ| < γ, dilate by one, new points at ±γ); tiles (tile
 //! management of Alg. 2–3 from the guard-band activity flags of Fig. 5 keeps every voxel
 //! within one voxel of the band in a tile) and the dense reference store more and mask
 //! with [`levelset_kernels::BandMasked`]. Reductions (κ̄, volume, area) are exact sums

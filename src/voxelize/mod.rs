@@ -1,5 +1,5 @@
-//! Meshes in: triangle meshes to narrow-band level sets (scan conversion, hierarchical RLE
-//! paper Sec. 6.2), and the mesh file readers ([`read_mesh`]).
+//! Meshes in: triangle meshes to narrow-band level sets (scan conversion, Houston et al.
+//! 2006, Sec. 6.2), and the mesh file readers ([`read_mesh`]).
 //!
 //! [`voxelize`] turns a [`TriangleMesh`] into a [`TileGrid`] whose band holds the signed
 //! distance to the mesh:
