@@ -48,7 +48,7 @@ fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
 
 impl TileGrid {
     /// Tile management (Sec. 4.6, Algorithm 3) in parallel chunks (keep/remove by pull,
-    /// creation by push, compaction by a prefix sum; ARCHITECTURE.md, "Speed"): keeps,
+    /// creation by push, compaction by a prefix sum; docs/decisions/0004): keeps,
     /// removes or creates tiles from the activity flags of each tile and its neighbours; a
     /// removed tile writes its classification into the border flags of its neighbours that
     /// face it; a created tile is filled with ±γ from the border flags its neighbours hold
