@@ -7,7 +7,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
 
-#[path = "../tests/common/meshes.rs"]
+#[path = "../tests/integration/common/meshes.rs"]
 mod meshes;
 
 fn torus(c: &mut Criterion) {

@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 if ! { /usr/bin/python3 -c "import pyopenvdb" && command -v vdb_print; } >/dev/null 2>&1; then
-  echo "== installing Debian's OpenVDB (python3-openvdb, libopenvdb-tools)"
+  echo "== [${SECONDS}s] installing Debian's OpenVDB (python3-openvdb, libopenvdb-tools)"
   sudo=""
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
@@ -19,7 +19,7 @@ if ! { /usr/bin/python3 -c "import pyopenvdb" && command -v vdb_print; } >/dev/n
 fi
 
 if ! { command -v mpirun && dpkg -s libopenmpi-dev libclang-dev; } >/dev/null 2>&1; then
-  echo "== installing OpenMPI and libclang (libopenmpi-dev, openmpi-bin, libclang-dev)"
+  echo "== [${SECONDS}s] installing OpenMPI and libclang (libopenmpi-dev, openmpi-bin, libclang-dev)"
   sudo=""
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
@@ -29,19 +29,19 @@ fi
 
 venv=target/py-venv
 if [ ! -x "$venv/bin/python" ]; then
-  echo "== creating $venv"
+  echo "== [${SECONDS}s] creating $venv"
   "${PYTHON:-python3}" -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q -r python/requirements-test.txt
 
-echo "== Rust tests"
+echo "== [${SECONDS}s] Rust tests"
 cargo test --workspace --locked "$@"
 
-echo "== under mpirun (feature mpi): distributed runs on 2 and 3 ranks, batches on 2"
-cargo test -p levelset-cli --features mpi --locked --test mpi --test batch_mpi "$@"
+echo "== [${SECONDS}s] under mpirun (feature mpi): distributed runs on 2 and 3 ranks, batches on 2"
+cargo test -p levelset-cli --features mpi --locked --test distributed "$@"
 
-echo "== the Python package (pip install ./python) and its tests"
+echo "== [${SECONDS}s] the Python package (pip install ./python) and its tests"
 "$venv/bin/python" -m pip install -q --force-reinstall --no-deps ./python
 # Run from python/tests so that the installed package, not the source folder, is imported.
 (cd python/tests && "../../$venv/bin/python" -m pytest -q -p no:cacheprovider .)

@@ -17,9 +17,8 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::Path;
 
-mod common;
 
-use common::tmp;
+use crate::common::tmp;
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.

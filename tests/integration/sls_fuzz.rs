@@ -1,36 +1,16 @@
 //! Fuzzing the `.sls` reader: flipped, truncated, spliced, inserted and deleted bytes, with
 //! and without a re-computed checksum (so the structure checks are reached, not only the
 //! CRC). The reader must never panic, never return an invalid grid, and never make an
-//! allocation much larger than the file (a counting allocator watches; this binary has
-//! one test, so nothing else allocates meanwhile).
+//! allocation much larger than the file (the test binary's allocator records the largest
+//! request of this test's thread; the reader runs on it alone).
 
-mod common;
-use common::crc32;
+use crate::common::alloc::largest_allocation;
+use crate::common::crc32;
 use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::hrle::HrleGrid;
 use sparse_levelset::shapes::Shape;
 use sparse_levelset::sls::{self, SlsError, Source};
 use sparse_levelset::{Coord, GridSpec};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-static LARGEST: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        LARGEST.fetch_max(l.size(), Ordering::Relaxed);
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: `p` came from `alloc` above with this layout.
-        unsafe { System.dealloc(p, l) }
-    }
-}
-
-#[global_allocator]
-static A: Counting = Counting;
 
 #[test]
 fn mutated_files_are_refused_or_valid_never_a_panic_or_a_huge_allocation() {
@@ -82,9 +62,7 @@ fn mutated_files_are_refused_or_valid_never_a_panic_or_a_huge_allocation() {
             let crc = crc32(&b[..n]);
             b[n..].copy_from_slice(&crc.to_le_bytes());
         }
-        LARGEST.store(0, Ordering::Relaxed);
-        let r = sls::decode(&b);
-        let largest = LARGEST.load(Ordering::Relaxed);
+        let (r, largest) = largest_allocation(|| sls::decode(&b));
         assert!(
             largest <= 8 * base.len() + 4096,
             "round {round}: an allocation of {largest} bytes for a {}-byte file",

@@ -3,9 +3,9 @@
 //! band, bit for bit (the checksum), and the same volume and area records.
 #![cfg(feature = "mpi")]
 
-mod common;
+use crate::common;
 
-use common::{stderr, tmp};
+use crate::common::{stderr, tmp};
 use std::path::Path;
 use std::process::Command;
 

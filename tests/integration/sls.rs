@@ -1,7 +1,6 @@
 //! The `.sls` format: round trips bit for bit between every grid, atomic writes, refusals.
 
-mod common;
-use common::crc32;
+use crate::common::crc32;
 use sparse_levelset::build::{dtgrid_from, tiles_from, tiles_from_shape};
 use sparse_levelset::hrle::{FieldData, HrleGrid};
 use sparse_levelset::shapes::Shape;

@@ -1,6 +1,6 @@
 //! The largest single allocation of the current thread, to show that hostile headers are
-//! refused before anything they announce is allocated: a tracking global allocator for the
-//! test binaries that include this file (`#[path = "common/alloc.rs"] mod alloc;`).
+//! refused before anything they announce is allocated: the test binary's global allocator,
+//! which records each thread's largest request (tests run on threads of their own).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

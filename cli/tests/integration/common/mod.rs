@@ -24,7 +24,7 @@ pub fn stdout(o: &Output) -> String {
 }
 
 // The temporary paths, ball fields and `.npy` files of the library's integration tests.
-#[path = "../../../tests/common/mod.rs"]
+#[path = "../../../../tests/integration/common/mod.rs"]
 mod shared;
 #[allow(unused_imports)] // each test file uses some of them
 pub use shared::{ball, npy, tmp};

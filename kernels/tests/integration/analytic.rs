@@ -6,9 +6,8 @@
 //! tests subtract the centre value (φ − φ(p₀) has the same derivatives but entries of size
 //! O(h)).
 
-mod common;
 
-use common::{close, Rng};
+use crate::common::{close, Rng};
 use levelset_kernels::curvature::{curvature_speed, mean_curvature};
 use levelset_kernels::diff::central_norm;
 use levelset_kernels::rk::{

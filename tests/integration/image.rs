@@ -17,9 +17,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-#[path = "common/alloc.rs"]
-mod alloc;
-use alloc::largest_allocation;
+use crate::common::alloc::largest_allocation;
 
 // ---------------------------------------------------------------------------------------
 // Helpers.

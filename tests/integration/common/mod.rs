@@ -1,6 +1,8 @@
-//! Helpers shared by the integration tests (each test binary uses some of them). The
-//! tests of the `levelset` command live with it, in `cli/tests/`.
+//! Helpers shared by the integration tests.
 #![allow(dead_code)]
+
+pub mod alloc;
+pub mod meshes;
 
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::Coord;

@@ -10,9 +10,8 @@ use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::Coord;
 
-mod common;
 
-use common::tmp;
+use crate::common::tmp;
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]

@@ -2,9 +2,9 @@
 //! refusals (bad meshes, unwritable outputs, nonsense flags).
 
 #[allow(unused_imports)] // the shared helpers re-export more than these tests use
-mod common;
+use crate::common;
 
-use common::{levelset, stderr, stdout, tmp};
+use crate::common::{levelset, stderr, stdout, tmp};
 use std::path::PathBuf;
 
 /// An axis-aligned box 0..4 × 0..3 × 0..2 as an OBJ file (12 triangles, outward).

@@ -1,6 +1,6 @@
 //! The API's error paths, the benchmark report and the build information.
 
-mod common;
+use crate::common;
 
 use levelset_kernels::bench::{run_kernel_bench, Fixture, KernelBenchConfig, KERNELS, LANES};
 use levelset_kernels::{

@@ -10,9 +10,9 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-mod common;
+use crate::common;
 
-use common::{levelset, speedup, stderr, stdout, tmp};
+use crate::common::{levelset, speedup, stderr, stdout, tmp};
 
 fn json(o: &Output) -> serde_json::Value {
     assert!(o.status.success(), "failed: {}", stderr(o));
@@ -548,12 +548,12 @@ fn distance_command() {
     fail(&["distance", ins, "-o", outs, "--voxel-size=-1"], "voxel size");
     let mut flat = f.clone();
     flat.data_mut().iter_mut().for_each(|v| *v = 1.0);
-    let flat_path = tmp("flat.npy");
+    let flat_path = tmp("distance-flat.npy");
     npy::write_npy(&flat_path, &flat).unwrap();
     fail(&["distance", flat_path.to_str().unwrap(), "-o", outs], "no zero crossing");
     let mut nan = f.clone();
     nan.data_mut()[17] = f32::NAN;
-    let nan_path = tmp("nan.npy");
+    let nan_path = tmp("distance-nan.npy");
     npy::write_npy(&nan_path, &nan).unwrap();
     fail(&["distance", nan_path.to_str().unwrap(), "-o", outs], "NaN");
     fail(&["distance", "/nonexistent/x.npy", "-o", outs], "error:");
@@ -661,7 +661,7 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
 
     let mut bad = ball.clone();
     bad.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
-    let nan = tmp("nan.npy");
+    let nan = tmp("mesh-nan.npy");
     sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
     fails(&["mesh", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
     let empty = tmp("empty.npy");
@@ -767,10 +767,10 @@ fn cli_renders_shapes_and_fields_and_rejects_bad_input() {
 
     let mut nan = field.clone();
     nan.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
-    let nan_npy = tmp("nan.npy");
+    let nan_npy = tmp("render-nan.npy");
     sparse_levelset::npy::write_npy(&nan_npy, &nan).unwrap();
     let flat = DenseField::new(Coord::new(0, 0, 0), [6, 6, 6], 1.0).unwrap();
-    let flat_npy = tmp("flat.npy");
+    let flat_npy = tmp("render-flat.npy");
     sparse_levelset::npy::write_npy(&flat_npy, &flat).unwrap();
     let o_png = tmp("x.png");
     let o_png = o_png.to_str().unwrap();

@@ -10,9 +10,8 @@
 // Index loops compare several arrays voxel by voxel; they read better than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
 
-use common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMMA};
+use crate::common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMMA};
 use levelset_kernels::diff::{godunov_norms, upwind_norms};
 use levelset_kernels::rk::{cfl_dt_normal, cfl_dt_renorm};
 use levelset_kernels::{

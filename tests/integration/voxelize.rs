@@ -7,11 +7,9 @@
 //! enough (chord error below 0.01 voxel, stated at each mesh) that the mesh's distance is
 //! within 0.05 voxel of the shape's.
 
-mod common;
-#[path = "common/meshes.rs"]
-mod meshes;
+use crate::common;
 
-use meshes::{cube, icosphere, join, uv_sphere, uv_torus};
+use crate::common::meshes::{cube, icosphere, join, uv_sphere, uv_torus};
 use sparse_levelset::mesh::TriangleMesh;
 use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::voxelize::{

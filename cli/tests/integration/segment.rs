@@ -2,8 +2,8 @@
 //! input's header, figures as JSON, bad arguments refused before any work.
 
 #[allow(unused_imports)] // the shared helpers re-export more than these tests use
-mod common;
-use common::{levelset, stderr, stdout};
+use crate::common;
+use crate::common::{levelset, stderr, stdout};
 
 #[test]
 fn phantom_then_segment_finds_the_ball() {

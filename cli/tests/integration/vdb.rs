@@ -1,7 +1,6 @@
 //! `levelset convert` to and from OpenVDB `.vdb` files through the command line.
 
-mod common;
-use common::{ball, levelset, npy, stderr, stdout, tmp};
+use crate::common::{ball, levelset, npy, stderr, stdout, tmp};
 use sparse_levelset::{sls, vdb, LevelSet};
 use std::path::PathBuf;
 

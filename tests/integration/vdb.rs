@@ -2,7 +2,7 @@
 //! `make_fixtures.py`) read bit for bit; our files read back with the same band and spec;
 //! hostile files refused without a panic or a huge allocation.
 
-mod common;
+use crate::common;
 use npyz::WriterBuilder;
 use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::shapes::Shape;

@@ -10,9 +10,9 @@
 // Index loops compare several arrays lane by lane; they read better than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
+use crate::common;
 
-use common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMMA};
+use crate::common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMMA};
 use levelset_kernels::curvature::{curvature_speed, mean_curvature};
 use levelset_kernels::diff::{central_norm, diff_central, diff_minus, diff_plus};
 use levelset_kernels::speed::{kappa_bar_integrands, smoothed_delta, smoothed_sign};

@@ -4,9 +4,9 @@
 #![cfg(feature = "mpi")]
 
 #[allow(unused_imports)] // the shared helpers re-export more than these tests use
-mod common;
+use crate::common;
 
-use common::{box_obj, levelset, stderr, stdout, tmp};
+use crate::common::{box_obj, levelset, stderr, stdout, tmp};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

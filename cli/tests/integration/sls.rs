@@ -1,7 +1,6 @@
 //! `levelset convert` and `.sls` files through the command line.
 
-mod common;
-use common::{ball, levelset, npy, stderr, stdout, tmp};
+use crate::common::{ball, levelset, npy, stderr, stdout, tmp};
 
 #[test]
 fn convert_round_trips_and_every_tool_reads_sls() {
