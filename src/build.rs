@@ -306,6 +306,17 @@ pub enum ExportError {
     Npy(#[from] crate::npy::NpyError),
 }
 
+impl crate::error::Error for ExportError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            ExportError::Empty => InvalidData,
+            ExportError::Grid(e) => e.kind(),
+            ExportError::Npy(e) => e.kind(),
+        }
+    }
+}
+
 /// Writes a grid as a dense float32 `.npy` field (shape `(nz, ny, nx)`, φ < 0 inside,
 /// ±γ outside the band) covering its band voxels plus `margin` voxels on every side (the
 /// same box, hence the same file, for every storage of the same band).

@@ -88,6 +88,16 @@ pub enum CsgError {
     Grid(#[from] GridError),
 }
 
+impl crate::error::Error for CsgError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            CsgError::SpecMismatch { .. } => InvalidInput,
+            CsgError::Grid(e) => e.kind(),
+        }
+    }
+}
+
 /// `op` applied to `a` and `b`, read as a level set (no values are stored: each is
 /// computed from the operands when read). See the [module documentation](self).
 pub struct Csg<'a, A: ?Sized, B: ?Sized> {

@@ -167,6 +167,19 @@ pub enum GridError {
     OutOfMemory { what: String, needed: u64, limit: u64 },
 }
 
+impl crate::error::Error for GridError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            GridError::OutOfRange { .. }
+            | GridError::NotSorted { .. }
+            | GridError::InvalidParameter(_) => InvalidInput,
+            GridError::NaN { .. } => InvalidData,
+            GridError::OutOfMemory { .. } => OutOfMemory,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

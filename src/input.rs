@@ -126,6 +126,23 @@ pub enum InputError {
     Vdb(#[from] crate::vdb::VdbError),
 }
 
+impl crate::error::Error for InputError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            InputError::File(e) => e.kind(),
+            InputError::NaN { .. }
+            | InputError::NoInterface { .. }
+            | InputError::NotDistance { .. } => InvalidData,
+            InputError::OutOfMemory { .. } => OutOfMemory,
+            InputError::IsoOutsideBand { .. } => InvalidInput,
+            InputError::Grid(e) => e.kind(),
+            InputError::Sls(e) => e.kind(),
+            InputError::Vdb(e) => e.kind(),
+        }
+    }
+}
+
 /// Loads a dense level set from a `.npy` file and checks it against `expect` (every rule
 /// of the module docs): the one loader of every tool. `±∞` come back clamped to `±γ`.
 pub fn load_npy(path: &Path, expect: &Expect) -> Result<DenseField, InputError> {

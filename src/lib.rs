@@ -30,6 +30,7 @@ pub mod csg;
 pub mod dense;
 pub mod distributed;
 pub mod dtgrid;
+pub mod error;
 pub mod evolve;
 pub mod fmm;
 pub mod fsutil;
@@ -58,5 +59,6 @@ pub mod voxelize;
 mod readme {}
 
 pub use coord::Coord;
+pub use error::{Error, ErrorKind};
 pub use grid::{GridError, GridSpec, MemoryReport};
 pub use levelset::{Accessor, LevelSet};

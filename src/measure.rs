@@ -75,6 +75,17 @@ pub enum MeasureError {
     Cancelled(#[from] Cancelled),
 }
 
+impl crate::error::Error for MeasureError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            MeasureError::InvalidOption(_) => InvalidInput,
+            MeasureError::NaN { .. } => InvalidData,
+            MeasureError::Cancelled(_) => Cancelled,
+        }
+    }
+}
+
 /// Band voxels, volume and area of any level set (see the [module docs](self)).
 pub fn measure<G: LevelSet + ?Sized>(
     grid: &G,

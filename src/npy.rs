@@ -104,6 +104,24 @@ pub enum NpyError {
     },
 }
 
+impl crate::error::Error for NpyError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            NpyError::Io { source, .. } => crate::error::io_kind(source),
+            NpyError::NotNpy { .. }
+            | NpyError::BadHeader { .. }
+            | NpyError::Truncated { .. }
+            | NpyError::TrailingBytes { .. } => CorruptFile,
+            NpyError::UnsupportedVersion { .. }
+            | NpyError::WrongDtype { .. }
+            | NpyError::NotThreeD { .. } => Unsupported,
+            NpyError::EmptyDimension { .. } | NpyError::NaN { .. } => InvalidData,
+            NpyError::TooLarge { .. } | NpyError::OutOfMemory { .. } => OutOfMemory,
+        }
+    }
+}
+
 /// A shape as NumPy prints it: `(2, 3, 4)`, `(5,)`, `()`.
 fn py_shape(shape: &[u64]) -> String {
     match shape {

@@ -109,6 +109,21 @@ pub enum SlsError {
     Grid(#[from] GridError),
 }
 
+impl crate::error::Error for SlsError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            SlsError::Io { source, .. } => crate::error::io_kind(source),
+            SlsError::NotSls
+            | SlsError::Truncated(_)
+            | SlsError::Checksum { .. }
+            | SlsError::Corrupt(_) => CorruptFile,
+            SlsError::Version(_) => Unsupported,
+            SlsError::Grid(e) => e.kind(),
+        }
+    }
+}
+
 impl SlsError {
     /// The error with the file's path in front (one message per kind of problem).
     fn at(self, path: &Path) -> SlsError {

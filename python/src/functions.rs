@@ -6,7 +6,7 @@ use crate::watch;
 use numpy::{PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
 use sparse_levelset::dense::DenseField;
-use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
+use sparse_levelset::fmm::{self, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::mesh::{self, TriangleMesh};
 use sparse_levelset::Coord;
@@ -18,14 +18,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(load_mesh, m)?)?;
     Ok(())
-}
-
-pub(crate) fn fmm_error(e: FmmError) -> PyErr {
-    match e {
-        FmmError::Grid(g) => crate::grid_error(g),
-        FmmError::Cancelled(_) => pyo3::exceptions::PyKeyboardInterrupt::new_err("cancelled"),
-        e => crate::value_error(e),
-    }
 }
 
 pub(crate) fn order_of(order: u8) -> PyResult<Order> {
@@ -56,12 +48,12 @@ fn distance<'py>(
         None => (vol.dims.iter().map(|&d| (d * d) as f64).sum::<f64>().sqrt() + 2.0) as f32,
     };
     let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
-        .map_err(crate::grid_error)?;
+        .map_err(crate::lib_error)?;
     let out = watch::run(py, progress.as_ref(), "distance", |w8| {
         let opts = FmmOptions { order, half_width: Some(w), progress: w8.progress() };
         fmm::distance_dense(&field, dx, &opts)
     })?
-    .map_err(fmm_error)?;
+    .map_err(crate::lib_error)?;
     vol.to_py(py, out.into_data())
 }
 
@@ -83,7 +75,7 @@ fn isosurface<'py>(
     }
     let mut vol = Volume::from_array(&volume)?;
     let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
-        .map_err(crate::grid_error)?;
+        .map_err(crate::lib_error)?;
     let (lo, hi) = field
         .data()
         .iter()
@@ -208,15 +200,12 @@ fn save_mesh(
     if m.triangles.is_empty() {
         return Err(crate::value_error("the mesh has no triangles"));
     }
-    m.write(&path, None).map_err(|e| match e {
-        mesh::MeshError::UnknownFormat(_) => crate::value_error(e),
-        e => crate::os_error(e),
-    })
+    m.write(&path, None).map_err(crate::lib_error)
 }
 
 /// Reads a triangle mesh (`.obj`, `.ply`, `.stl`): `(verts, faces)`.
 #[pyfunction]
 fn load_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<FacesArrays<'py>> {
-    let m = sparse_levelset::voxelize::read_mesh(&path).map_err(crate::os_error)?;
+    let m = sparse_levelset::voxelize::read_mesh(&path).map_err(crate::lib_error)?;
     Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?))
 }

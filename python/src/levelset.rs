@@ -2,13 +2,12 @@
 //! tools as methods.
 
 use crate::arrays::{rows3, to_rows, Band, MeshArrays};
-use crate::functions::{fmm_error, mesh_from_arrays, order_of};
+use crate::functions::{mesh_from_arrays, order_of};
 use crate::watch;
 use numpy::ndarray::Array3;
 use numpy::{
     IntoPyArray, PyArray1, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -46,24 +45,6 @@ fn extension(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
-fn input_error(e: input::InputError) -> PyErr {
-    use input::InputError as E;
-    match e {
-        E::OutOfMemory { .. } => pyo3::exceptions::PyMemoryError::new_err(e.to_string()),
-        E::File(_) | E::Sls(_) | E::Vdb(_) => crate::os_error(e),
-        e => crate::value_error(e),
-    }
-}
-
-fn cancelled(e: impl std::fmt::Display) -> PyErr {
-    let msg = e.to_string();
-    if msg.contains("cancelled") {
-        PyKeyboardInterrupt::new_err(msg)
-    } else {
-        crate::lib_error(msg)
-    }
-}
-
 impl LevelSet {
     pub fn new(grid: TileGrid) -> PyResult<LevelSet> {
         if grid.band_voxels() == 0 {
@@ -97,11 +78,11 @@ impl LevelSet {
         let dims = [s[2], s[1], s[0]];
         let data = phi.as_slice().map_err(crate::value_error)?.to_vec();
         let mut field =
-            DenseField::from_vec(Coord::new(0, 0, 0), dims, data).map_err(crate::grid_error)?;
+            DenseField::from_vec(Coord::new(0, 0, 0), dims, data).map_err(crate::lib_error)?;
         let grid = py.detach(|| -> Result<TileGrid, PyErr> {
             input::check_field("phi", &mut field, &Expect { copies: 2.0, ..Expect::new(spec) })
-                .map_err(input_error)?;
-            build::tiles_from_dense(&field, spec).map_err(crate::grid_error)
+                .map_err(crate::lib_error)?;
+            build::tiles_from_dense(&field, spec).map_err(crate::lib_error)
         })?;
         LevelSet::new(grid)
     }
@@ -127,7 +108,7 @@ impl LevelSet {
             };
             voxelize(&m, &opts)
         })?
-        .map_err(cancelled)?;
+        .map_err(crate::lib_error)?;
         LevelSet::new(grid)
     }
 
@@ -172,9 +153,8 @@ impl LevelSet {
             }
         };
         let spec = spec(voxel_size, [0.0; 3], half_width)?;
-        input::check_shape(kind, &shape, &Expect::new(spec)).map_err(input_error)?;
-        let grid =
-            py.detach(|| build::tiles_from_shape(&shape, spec)).map_err(crate::grid_error)?;
+        input::check_shape(kind, &shape, &Expect::new(spec)).map_err(crate::lib_error)?;
+        let grid = py.detach(|| build::tiles_from_shape(&shape, spec)).map_err(crate::lib_error)?;
         LevelSet::new(grid)
     }
 
@@ -193,19 +173,19 @@ impl LevelSet {
             match ext.as_str() {
                 "sls" => {
                     let expect = Expect::new(GridSpec::default());
-                    let (h, _) = input::load_sls(&path, &expect).map_err(input_error)?;
+                    let (h, _) = input::load_sls(&path, &expect).map_err(crate::lib_error)?;
                     Ok(build::tiles_from(&h))
                 }
                 "vdb" => {
                     let expect = Expect::new(GridSpec::default());
-                    Ok(input::load_vdb(&path, &expect).map_err(input_error)?.0)
+                    Ok(input::load_vdb(&path, &expect).map_err(crate::lib_error)?.0)
                 }
                 "npy" => {
                     let spec = spec(voxel_size, origin, half_width)?;
                     let field =
                         input::load_npy(&path, &Expect { copies: 2.0, ..Expect::new(spec) })
-                            .map_err(input_error)?;
-                    build::tiles_from_dense(&field, spec).map_err(crate::grid_error)
+                            .map_err(crate::lib_error)?;
+                    build::tiles_from_dense(&field, spec).map_err(crate::lib_error)
                 }
                 _ => Err(crate::value_error(format!(
                     "{}: unknown level-set file type; use .sls, .vdb or .npy",
@@ -223,7 +203,7 @@ impl LevelSet {
         let ext = extension(&path);
         let g = &self.grid;
         py.detach(|| match ext.as_str() {
-            "sls" => sls::save(&path, g).map_err(crate::os_error),
+            "sls" => sls::save(&path, g).map_err(crate::lib_error),
             "vdb" => {
                 let compression = match compression {
                     "zip" => vdb::VdbCompression::Zip,
@@ -235,9 +215,9 @@ impl LevelSet {
                     }
                 };
                 let opts = vdb::VdbOptions { compression, ..Default::default() };
-                vdb::save(&path, g, &opts).map_err(crate::os_error)
+                vdb::save(&path, g, &opts).map_err(crate::lib_error)
             }
-            "npy" => build::export_npy(g, &path, margin).map(|_| ()).map_err(crate::os_error),
+            "npy" => build::export_npy(g, &path, margin).map(|_| ()).map_err(crate::lib_error),
             _ => Err(crate::value_error(format!(
                 "{}: unknown level-set file type; use .sls, .vdb or .npy",
                 path.display()
@@ -261,7 +241,7 @@ impl LevelSet {
         }
         let f = py
             .detach(|| build::to_dense(&self.grid, Coord::new(lo[0], lo[1], lo[2]), dims))
-            .map_err(crate::grid_error)?;
+            .map_err(crate::lib_error)?;
         let arr = Array3::from_shape_vec((dims[2], dims[1], dims[0]), f.into_data())
             .map_err(crate::value_error)?;
         Ok(arr.into_pyarray(py))
@@ -340,7 +320,7 @@ impl LevelSet {
             let opts = MeshOptions { iso: level, coarsen, progress: w.progress() };
             mesh::isosurface(&self.grid, &opts)
         })?
-        .map_err(cancelled)?;
+        .map_err(crate::lib_error)?;
         Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?, to_rows(py, &m.normals)?))
     }
 
@@ -375,7 +355,7 @@ impl LevelSet {
             };
             render::render(&self.grid, &opts)
         })?
-        .map_err(cancelled)?;
+        .map_err(crate::lib_error)?;
         let arr = Array3::from_shape_vec(
             (img.height() as usize, img.width() as usize, 3),
             img.rgb().to_vec(),
@@ -398,7 +378,7 @@ impl LevelSet {
         let g = watch::run(py, progress.as_ref(), "reinitialize", |w| {
             fmm::reinitialize(&self.grid, &FmmOptions { order, half_width, progress: w.progress() })
         })?
-        .map_err(fmm_error)?;
+        .map_err(crate::lib_error)?;
         LevelSet::new(g)
     }
 

@@ -6,9 +6,11 @@
 //! library's types. Long calls run on a worker thread with the GIL released while the
 //! calling thread watches for Ctrl-C and forwards progress (the `watch` module).
 
-use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{
+    PyKeyboardInterrupt, PyMemoryError, PyOSError, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
-use sparse_levelset::grid::GridError;
+use sparse_levelset::{Error, ErrorKind};
 use std::fmt::Display;
 
 mod arrays;
@@ -23,28 +25,20 @@ pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
-/// An `OSError` with the library's message (files: missing, unreadable, corrupt).
-pub(crate) fn os_error(e: impl Display) -> PyErr {
-    PyOSError::new_err(e.to_string())
-}
-
-/// The exception of a grid error: `MemoryError` when the machine cannot hold the result,
-/// `ValueError` otherwise.
-pub(crate) fn grid_error(e: GridError) -> PyErr {
-    match e {
-        GridError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
-        e => value_error(e),
-    }
-}
-
-/// A message that reads as one: "out of memory" errors of any library type become
-/// `MemoryError`, the rest `ValueError`.
-pub(crate) fn lib_error(e: impl Display) -> PyErr {
+/// The exception of a library error, chosen by its kind (never by its message):
+/// `MemoryError` when the process cannot hold the result, `KeyboardInterrupt` when a
+/// progress callback or Ctrl-C stopped the call, `OSError` for files that cannot be read or
+/// written (missing, unreadable, corrupt), `RuntimeError` for a computation that failed (an
+/// interface that collapsed), `ValueError` for arguments, data and requests the library
+/// does not take.
+pub(crate) fn lib_error(e: impl Error) -> PyErr {
     let msg = e.to_string();
-    if msg.contains("more memory than") || msg.contains("out of memory") {
-        PyMemoryError::new_err(msg)
-    } else {
-        PyValueError::new_err(msg)
+    match e.kind() {
+        ErrorKind::OutOfMemory => PyMemoryError::new_err(msg),
+        ErrorKind::Cancelled => PyKeyboardInterrupt::new_err(msg),
+        ErrorKind::Io | ErrorKind::CorruptFile => PyOSError::new_err(msg),
+        ErrorKind::Failed => PyRuntimeError::new_err(msg),
+        _ => PyValueError::new_err(msg),
     }
 }
 

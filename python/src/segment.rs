@@ -7,9 +7,9 @@ use crate::watch;
 use numpy::ndarray::{Array3, ShapeBuilder};
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use sparse_levelset::image::{self, Image as LibImage, ImageError, LoadedImage, IDENTITY};
+use sparse_levelset::image::{self, Image as LibImage, LoadedImage, IDENTITY};
 use sparse_levelset::segment::{
-    self as seglib, Init, Method, Params, Seed, SegmentError, Segmentation as LibSeg,
+    self as seglib, Init, Method, Params, Seed, Segmentation as LibSeg,
 };
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -20,22 +20,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_image, m)?)?;
     m.add_function(wrap_pyfunction!(segment, m)?)?;
     Ok(())
-}
-
-fn image_error(e: ImageError) -> PyErr {
-    let msg = e.to_string();
-    if msg.contains("more memory than") {
-        pyo3::exceptions::PyMemoryError::new_err(msg)
-    } else {
-        crate::os_error(msg)
-    }
-}
-
-fn segment_error(e: SegmentError) -> PyErr {
-    match e {
-        SegmentError::Grid(g) => crate::grid_error(g),
-        e => crate::value_error(e),
-    }
 }
 
 /// A 3-D intensity image: voxels indexed `[i, j, k]` along the lattice axes x, y, z,
@@ -125,7 +109,7 @@ impl Image {
 #[pyfunction]
 #[pyo3(signature = (path, spacing=None))]
 fn load_image(py: Python<'_>, path: PathBuf, spacing: Option<[f64; 3]>) -> PyResult<Image> {
-    let loaded = py.detach(|| image::load(&path, spacing)).map_err(image_error)?;
+    let loaded = py.detach(|| image::load(&path, spacing)).map_err(crate::lib_error)?;
     Ok(Image { loaded: Arc::new(loaded) })
 }
 
@@ -153,7 +137,8 @@ impl Segmentation {
     /// its measures are the segmentation's world volume and area.
     #[getter]
     fn levelset(&self, py: Python<'_>) -> PyResult<LevelSet> {
-        let tiles = py.detach(|| self.seg.level_set(&self.image.image)).map_err(segment_error)?;
+        let tiles =
+            py.detach(|| self.seg.level_set(&self.image.image)).map_err(crate::lib_error)?;
         LevelSet::new(tiles)
     }
 
@@ -171,7 +156,7 @@ impl Segmentation {
 
     /// The surface in the image's world coordinates: `(verts, faces, normals)`.
     fn mesh<'py>(&self, py: Python<'py>) -> PyResult<MeshArrays<'py>> {
-        let m = py.detach(|| self.seg.mesh(&self.image.image)).map_err(segment_error)?;
+        let m = py.detach(|| self.seg.mesh(&self.image.image)).map_err(crate::lib_error)?;
         Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?, to_rows(py, &m.normals)?))
     }
 
@@ -181,7 +166,7 @@ impl Segmentation {
             image::check_output(&path, &self.image, image::Output::Mask)?;
             image::save_mask(&path, &self.seg.mask, &self.image)
         })
-        .map_err(image_error)
+        .map_err(crate::lib_error)
     }
 }
 
@@ -334,7 +319,7 @@ fn segment(
         };
         seglib::segment(&loaded.image, &init, &params, &mut monitor)
     })?
-    .map_err(segment_error)?;
+    .map_err(crate::lib_error)?;
     if seg.report.stop == seglib::Stop::Cancelled {
         return Err(pyo3::exceptions::PyKeyboardInterrupt::new_err("segmentation cancelled"));
     }

@@ -7,8 +7,8 @@ use pyo3::types::PyDict;
 use sparse_levelset::build;
 use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
-    EvolveError, Flow, GridKind, Integrator, Lanes, Renormalization, SampledField, SampledVelocity,
-    Settings, Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
+    Flow, GridKind, Integrator, Lanes, Renormalization, SampledField, SampledVelocity, Settings,
+    Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::Coord;
@@ -16,13 +16,6 @@ use std::sync::Arc;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Simulation>()
-}
-
-fn evolve_error(e: EvolveError) -> PyErr {
-    match e {
-        EvolveError::Grid(g) => crate::grid_error(g),
-        e => crate::value_error(e),
-    }
 }
 
 /// A field on the level set's voxels, array `[z, y, x]` with element `[0, 0, 0]` at voxel
@@ -35,7 +28,7 @@ fn sampled(
 ) -> PyResult<SampledField> {
     let dims = [shape[2], shape[1], shape[0]];
     let f = DenseField::from_vec(Coord::new(origin[0], origin[1], origin[2]), dims, a.to_vec())
-        .map_err(crate::grid_error)?;
+        .map_err(crate::lib_error)?;
     SampledField::new(f, spec).map_err(crate::value_error)
 }
 
@@ -160,15 +153,16 @@ impl Simulation {
             ..Settings::default()
         };
         let tiles = levelset.grid.clone();
-        let sim =
-            py.detach(|| Sim::from_tile_grid(kind, tiles, flow, settings)).map_err(evolve_error)?;
+        let sim = py
+            .detach(|| Sim::from_tile_grid(kind, tiles, flow, settings))
+            .map_err(crate::lib_error)?;
         Ok(Simulation { sim })
     }
 
     /// One step (the CFL-limited Δt, or the fixed one); returns its report.
     fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let sim = &mut self.sim;
-        let r = py.detach(|| sim.step()).map_err(evolve_error)?;
+        let r = py.detach(|| sim.step()).map_err(crate::lib_error)?;
         report(py, &r)
     }
 
@@ -198,7 +192,7 @@ impl Simulation {
             let r = {
                 let mut s = slf.borrow_mut();
                 let sim = &mut s.sim;
-                py.detach(|| sim.step_until(t)).map_err(evolve_error)?
+                py.detach(|| sim.step_until(t)).map_err(crate::lib_error)?
             };
             n += 1;
             py.check_signals()?;
@@ -240,7 +234,7 @@ impl Simulation {
     /// Band voxels, stored, volume, area, bytes, work_bytes.
     fn measure<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let sim = &self.sim;
-        let m = py.detach(|| sim.measure()).map_err(evolve_error)?;
+        let m = py.detach(|| sim.measure()).map_err(crate::lib_error)?;
         let d = PyDict::new(py);
         d.set_item("band_voxels", m.band_voxels)?;
         d.set_item("stored", m.stored)?;

@@ -627,6 +627,26 @@ pub enum EvolveError {
     Output(String),
 }
 
+impl crate::error::Error for EvolveError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            EvolveError::Grid(e) => e.kind(),
+            EvolveError::Kernel(e) => e.kind(),
+            EvolveError::InvalidParameter(_)
+            | EvolveError::CflViolated { .. }
+            | EvolveError::DenseBoxTooSmall { .. } => InvalidInput,
+            EvolveError::EmptyLevelSet => InvalidData,
+            EvolveError::Collapsed { .. }
+            | EvolveError::NonFiniteField { .. }
+            | EvolveError::ReinitFailed { .. }
+            | EvolveError::OtherRank { .. } => Failed,
+            EvolveError::Reinit(e) => e.kind(),
+            EvolveError::Output(_) => Io,
+        }
+    }
+}
+
 /// Voxels of room around the initial band that the dense reference's box gets: the
 /// interface may move this far (less the four-voxel margin the box must keep).
 pub const DENSE_MARGIN: u32 = 16;

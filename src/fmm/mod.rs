@@ -116,6 +116,20 @@ pub enum FmmError {
     Cancelled(#[from] Cancelled),
 }
 
+impl crate::error::Error for FmmError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            FmmError::NonFinite { .. } | FmmError::NoInterface => InvalidData,
+            FmmError::NoSeeds | FmmError::BadSpeed { .. } | FmmError::InvalidParameter(_) => {
+                InvalidInput
+            }
+            FmmError::Grid(e) => e.kind(),
+            FmmError::Cancelled(_) => Cancelled,
+        }
+    }
+}
+
 /// The output spec: the input's with the requested half-width.
 fn output_spec(spec: GridSpec, opts: &FmmOptions) -> Result<GridSpec, FmmError> {
     let w = opts.half_width.unwrap_or(spec.half_width);

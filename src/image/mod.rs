@@ -390,6 +390,30 @@ pub enum ImageError {
     BadMask { path: PathBuf, voxel: [usize; 3], value: u8 },
 }
 
+impl crate::error::Error for ImageError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            ImageError::Io { source, .. } | ImageError::DataFile { source, .. } => {
+                crate::error::io_kind(source)
+            }
+            ImageError::UnsupportedFormat { .. }
+            | ImageError::UnsupportedVoxelType { .. }
+            | ImageError::Unsupported4D { .. }
+            | ImageError::Unsupported { .. }
+            | ImageError::NotGreyscale { .. } => Unsupported,
+            ImageError::Corrupt { .. }
+            | ImageError::Truncated { .. }
+            | ImageError::BadDimensions { .. }
+            | ImageError::BadSpacing { .. }
+            | ImageError::BadTransform { .. } => CorruptFile,
+            ImageError::TooLarge { .. } => OutOfMemory,
+            ImageError::NonFinite { .. } | ImageError::BadMask { .. } => InvalidData,
+            ImageError::CannotWrite { .. } | ImageError::WrongLength { .. } => InvalidInput,
+        }
+    }
+}
+
 /// A file format, by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FileFormat {

@@ -130,6 +130,22 @@ pub enum MeshError {
     Io { path: PathBuf, source: std::io::Error },
 }
 
+impl crate::error::Error for MeshError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            MeshError::InvalidParameter(_) => InvalidInput,
+            MeshError::NonFinite { .. } | MeshError::NaN { .. } | MeshError::Precision { .. } => {
+                InvalidData
+            }
+            MeshError::Cancelled(_) => Cancelled,
+            MeshError::TooLarge(_) => OutOfMemory,
+            MeshError::UnknownFormat(_) => Unsupported,
+            MeshError::Io { source, .. } => crate::error::io_kind(source),
+        }
+    }
+}
+
 impl TriangleMesh {
     pub fn num_vertices(&self) -> usize {
         self.positions.len()

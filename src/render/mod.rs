@@ -62,6 +62,18 @@ pub enum RenderError {
     },
 }
 
+impl crate::error::Error for RenderError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            RenderError::Empty(_) => InvalidData,
+            RenderError::InvalidOption(_) => InvalidInput,
+            RenderError::Cancelled(_) => Cancelled,
+            RenderError::Io { source, .. } => crate::error::io_kind(source),
+        }
+    }
+}
+
 /// An axis-aligned box in world units for the camera to frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameBox {

@@ -308,3 +308,14 @@ pub enum SegmentError {
     #[error(transparent)]
     Evolve(#[from] EvolveError),
 }
+
+impl crate::error::Error for SegmentError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            SegmentError::InvalidParameter(_) | SegmentError::Init(_) => InvalidInput,
+            SegmentError::Grid(e) => e.kind(),
+            SegmentError::Evolve(e) => e.kind(),
+        }
+    }
+}

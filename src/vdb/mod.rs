@@ -214,6 +214,21 @@ pub enum VdbError {
     Grid(#[from] GridError),
 }
 
+impl crate::error::Error for VdbError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            VdbError::Io { source, .. } => crate::error::io_kind(source),
+            VdbError::InFile { error, .. } => error.kind(),
+            VdbError::NotVdb | VdbError::Truncated(_) | VdbError::Corrupt(_) => CorruptFile,
+            VdbError::Version(_) | VdbError::Unsupported(_) => Unsupported,
+            VdbError::NoGrid(_) | VdbError::Option(_) => InvalidInput,
+            VdbError::NaN { .. } | VdbError::NoInterface | VdbError::Empty => InvalidData,
+            VdbError::Grid(e) => e.kind(),
+        }
+    }
+}
+
 impl VdbError {
     /// The error with the file's path in front.
     fn at(self, path: &Path) -> VdbError {

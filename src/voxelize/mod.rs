@@ -146,6 +146,20 @@ pub enum VoxelizeError {
     Cancelled(#[from] Cancelled),
 }
 
+impl crate::error::Error for VoxelizeError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            VoxelizeError::Empty
+            | VoxelizeError::NonFinite { .. }
+            | VoxelizeError::IndexOutOfRange { .. }
+            | VoxelizeError::ZeroExtent => InvalidData,
+            VoxelizeError::Grid(e) => e.kind(),
+            VoxelizeError::Cancelled(_) => Cancelled,
+        }
+    }
+}
+
 /// Half-diagonal of a tile's voxel-centre box (3 voxels a side), in voxels.
 const TILE_RADIUS: f64 = 1.5 * 1.732_050_807_568_877_2;
 /// Half-diagonal of a 2³ sub-block of voxel centres (1 voxel a side), in voxels.

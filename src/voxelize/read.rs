@@ -102,6 +102,21 @@ pub enum MeshInError {
     TooLarge { path: PathBuf, message: String },
 }
 
+impl crate::error::Error for MeshInError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            MeshInError::UnknownFormat { .. } => Unsupported,
+            MeshInError::Io { source, .. } => crate::error::io_kind(source),
+            MeshInError::Parse { .. }
+            | MeshInError::Truncated { .. }
+            | MeshInError::IndexOutOfRange { .. } => CorruptFile,
+            MeshInError::NonFinite { .. } | MeshInError::Empty { .. } => InvalidData,
+            MeshInError::TooLarge { .. } => OutOfMemory,
+        }
+    }
+}
+
 /// Reads a triangle mesh from an OBJ, PLY or STL file, chosen by the extension (see the
 /// [module docs](self) for the checks). Polygons become triangle fans `(v0, vi, vi+1)`;
 /// faces of fewer than three vertices are skipped; normals are left empty. Vertices are

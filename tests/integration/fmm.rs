@@ -12,7 +12,6 @@ use sparse_levelset::Coord;
 use sparse_levelset::LevelSet;
 use std::time::Instant;
 
-
 const AXES: [Coord; 3] = [Coord::new(1, 0, 0), Coord::new(0, 1, 0), Coord::new(0, 0, 1)];
 
 fn add(a: Coord, b: Coord) -> Coord {

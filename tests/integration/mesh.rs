@@ -17,7 +17,6 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::Path;
 
-
 use crate::common::tmp;
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex

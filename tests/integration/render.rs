@@ -10,7 +10,6 @@ use sparse_levelset::shapes::Shape;
 use sparse_levelset::tiles::TileGrid;
 use sparse_levelset::Coord;
 
-
 use crate::common::tmp;
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -6,7 +6,6 @@
 //! tests subtract the centre value (φ − φ(p₀) has the same derivatives but entries of size
 //! O(h)).
 
-
 use crate::common::{close, Rng};
 use levelset_kernels::curvature::{curvature_speed, mean_curvature};
 use levelset_kernels::diff::central_norm;

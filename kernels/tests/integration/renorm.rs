@@ -10,7 +10,6 @@
 // Index loops compare several arrays voxel by voxel; they read better than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-
 use crate::common::{for_lanes, for_simd_lanes, same_bits, value, Fill, Rng, FILLS, GAMMA};
 use levelset_kernels::diff::{godunov_norms, upwind_norms};
 use levelset_kernels::rk::{cfl_dt_normal, cfl_dt_renorm};
