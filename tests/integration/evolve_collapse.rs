@@ -8,11 +8,10 @@
 //! interior — a sphere of radius h lives h²/(2ε), and collapse is seen when only such
 //! sub-voxel blobs are left — and is detected at the end of a step (Δt). ρ is the
 //! scheme's own error in the shrinking rate: 2 % for HJ-WENO5 + TVD-RK3; for first-order
-//! upwind with the rescaling term (the default, tile paper Sec. 4.7) 10 %: its one-sided
-//! gradient norm is off by O(h/r) on a curved surface and the rescaling term turns that
+//! upwind with the rescaling term (the default, van der Laan et al. 2011, Sec. 4.7) 10 %: its
+//! one-sided gradient norm is off by O(h/r) on a curved surface and the rescaling term turns that
 //! into inward motion, so small spheres vanish early (measured: r = 3 centred on a voxel at
-//! t = 3.80 for T = 4.5, r = 8 at t = 28.95 for T = 32; ARCHITECTURE.md, "Measured accuracy
-//! decision").
+//! t = 3.80 for T = 4.5, r = 8 at t = 28.95 for T = 32; docs/decisions/0009, "Evidence").
 
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
 use sparse_levelset::grid::GridSpec;

@@ -1,4 +1,4 @@
-//! Fast marching (Bærentzen, `fast-marching-3d.txt`): the accuracy experiment of Table 1,
+//! Fast marching (Bærentzen 2001): the accuracy experiment of Table 1,
 //! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input.
 //! Run with `--nocapture` to see the errors and timings.
 

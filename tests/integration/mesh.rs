@@ -1,4 +1,4 @@
-//! Simplicial isosurfacing (paper `simplicial-isosurfacing.txt`): closed, manifold,
+//! Simplicial isosurfacing (Min 2003): closed, manifold,
 //! oriented meshes of level sets on tiles, DT-Grid and dense fields, the n-dimensional
 //! codimension-m construction, mesh files, and errors on bad input.
 

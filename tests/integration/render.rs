@@ -1,4 +1,4 @@
-//! Ray-traced images of level sets (H-RLE paper Sec. 6.3): the silhouette and depth of a
+//! Ray-traced images of level sets (Houston et al. 2006, Sec. 6.3): the silhouette and depth of a
 //! sphere against the analytic sphere, bitwise identity across thread counts and between
 //! the two grids, the PNG round trip, and errors on bad input (library and CLI).
 
