@@ -7,7 +7,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::shapes::Shape;
 use std::sync::Arc;
 
 fn steps(c: &mut Criterion) {
@@ -43,7 +43,7 @@ fn steps(c: &mut Criterion) {
         }
         g.finish();
     }
-    let tiles = sparse_levelset::build::tiles_from_shape(
+    let tiles = sparse_levelset::storage::convert::tiles_from_shape(
         &Shape::Sphere { center: [0.0; 3], radius: 60.0 },
         spec,
     )

@@ -3,10 +3,10 @@
 //! so times convert to band voxels per second (criterion prints that as elem/s).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
-use sparse_levelset::fmm::{reinitialize, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_shape};
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::tools::fmm::{reinitialize, FmmOptions, Order};
 
 fn fmm(c: &mut Criterion) {
     let spec = GridSpec::default();

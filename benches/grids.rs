@@ -6,12 +6,12 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use sparse_levelset::bench::{
     dtgrid_smooth7, dtgrid_star19, hrle_smooth7, tiles_smooth7, tiles_star19,
 };
-use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
-use sparse_levelset::csg::{csg, CsgOp};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::{NeighbourTable, PaddedBlock, TileGrid};
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_shape};
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::{NeighbourTable, PaddedBlock, TileGrid};
+use sparse_levelset::tools::csg::{csg, CsgOp};
 use sparse_levelset::Coord;
 
 fn grids(c: &mut Criterion) {

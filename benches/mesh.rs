@@ -4,10 +4,10 @@
 //! `docs/mesh.md`; the benchmark ids also carry the triangle and vertex counts.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::mesh::{isosurface, MeshOptions};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::convert::tiles_from_shape;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::tools::mesh::{isosurface, MeshOptions};
 
 fn mesh(c: &mut Criterion) {
     let sphere = Shape::Sphere { center: [0.0; 3], radius: 100.0 };

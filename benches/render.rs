@@ -3,10 +3,10 @@
 //! (primary rays; shadow rays come on top) so times convert to rays per second.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::render::{self, RenderOptions};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_shape};
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::tools::render::{self, RenderOptions};
 
 fn render(c: &mut Criterion) {
     let opts = RenderOptions { width: 320, height: 240, samples: 2, ..Default::default() };

@@ -5,7 +5,7 @@
 //! carries the band voxel and triangle counts, so times convert to band voxels/s.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
+use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
 
 #[path = "../tests/integration/common/meshes.rs"]
 mod meshes;

@@ -4,8 +4,8 @@
 //! tile traversal with a padded block (van der Laan et al. 2011, Sec. 4.4, 4.7) against the DT-Grid
 //! stencil iterator (Nielsen & Museth 2006, Sec. 3.3) — and not different arithmetic.
 
-use crate::dtgrid::{DtGrid, Stencil, StencilIter};
-use crate::tiles::{tile_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};
+use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
+use crate::storage::tiles::{tile_of, NeighbourCursor, PaddedBlock, Tile, TileGrid};
 
 /// One explicit diffusion step of the 7-point Laplacian, clamped to the band.
 /// `v` is the 7-point star `[centre, -x, +x, -y, +y, -z, +z]`.
@@ -69,8 +69,8 @@ pub fn dtgrid_smooth7(grid: &DtGrid, out: &mut Vec<f32>) {
 }
 
 /// The same 7-point smoothing over an H-RLE level set, read with its stencil iterator
-/// ([`crate::hrle::HrleGrid::for_each_star`]); the output is indexed like the DT-Grid's.
-pub fn hrle_smooth7(grid: &crate::hrle::HrleGrid, out: &mut Vec<f32>) {
+/// ([`crate::storage::hrle::HrleGrid::for_each_star`]); the output is indexed like the DT-Grid's.
+pub fn hrle_smooth7(grid: &crate::storage::hrle::HrleGrid, out: &mut Vec<f32>) {
     out.clear();
     out.resize(grid.len(), 0.0);
     let g = grid.spec().gamma();

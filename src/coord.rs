@@ -3,13 +3,13 @@
 use std::cmp::Ordering;
 use std::fmt;
 
-/// A voxel (or, in [`crate::tiles`], a tile) coordinate on the unbounded integer grid.
+/// A voxel (or, in [`crate::storage::tiles`], a tile) coordinate on the unbounded integer grid.
 ///
 /// # The order
 /// Coordinates compare **z first, then y, then x**, so x is the fastest-varying
 /// component everywhere in this crate:
 /// * along the Sorted Tile List (van der Laan et al. 2011, Sec. 4.1, "lexicographically sorted"),
-/// * inside a tile (`index = x + 4 y + 16 z`, see [`crate::tiles::Tile`]),
+/// * inside a tile (`index = x + 4 y + 16 z`, see [`crate::storage::tiles::Tile`]),
 /// * along a DT-Grid p-column (`x_N` of Nielsen & Museth 2006 is our `x`, its `x_1` our `z`),
 /// * in dense arrays and `.npy` files (C order with shape `(nz, ny, nx)`).
 ///

@@ -3,18 +3,18 @@
 //! Level-set interface tracking on sparse grids. Two storage engines hold a narrow band
 //! of a signed distance field (φ < 0 inside):
 //!
-//! * [`tiles::TileGrid`], the Sorted Tile List: 4³ tiles behind a lexicographically sorted
+//! * [`storage::tiles::TileGrid`], the Sorted Tile List: 4³ tiles behind a lexicographically sorted
 //!   coordinate list (the fast engine);
-//! * [`dtgrid::DtGrid`], the Dynamic Tubular Grid: the reference every speed and
+//! * [`storage::dtgrid::DtGrid`], the Dynamic Tubular Grid: the reference every speed and
 //!   correctness claim is measured against.
 //!
 //! ```
-//! use sparse_levelset::{build, shapes::Shape, grid::GridSpec};
+//! use sparse_levelset::{storage::convert, storage::shapes::Shape, grid::GridSpec};
 //!
 //! let spec = GridSpec::default(); // voxel size 1, half-width 3
 //! let sphere = Shape::Sphere { center: [0.0; 3], radius: 20.0 };
-//! let tiles = build::tiles_from_shape(&sphere, spec).unwrap();
-//! let dt = build::dtgrid_from_shape(&sphere, spec).unwrap();
+//! let tiles = convert::tiles_from_shape(&sphere, spec).unwrap();
+//! let dt = convert::dtgrid_from_shape(&sphere, spec).unwrap();
 //! // Both grids agree with each other and with the analytic field inside the band.
 //! let c = sparse_levelset::Coord::new(20, 0, 0);
 //! assert!(tiles.value(c).abs() < 1e-6 && dt.value(c).abs() < 1e-6);
@@ -23,35 +23,17 @@
 //! ```
 
 pub mod bench;
-pub mod build;
-mod bytes;
 pub mod coord;
-pub mod csg;
-pub mod dense;
 pub mod distributed;
-pub mod dtgrid;
 pub mod error;
 pub mod evolve;
-pub mod fmm;
-pub mod fsutil;
 pub mod grid;
-pub mod hrle;
-pub mod image;
-pub mod input;
-pub mod levelset;
-pub mod measure;
+pub mod io;
 pub mod memory;
-pub mod mesh;
-pub mod npy;
 pub mod progress;
-pub mod render;
-pub mod sample;
 pub mod segment;
-pub mod shapes;
-pub mod sls;
-pub mod tiles;
-pub mod vdb;
-pub mod voxelize;
+pub mod storage;
+pub mod tools;
 
 /// The README's code is compiled and run as a test.
 #[cfg(doctest)]
@@ -61,4 +43,4 @@ mod readme {}
 pub use coord::Coord;
 pub use error::{Error, ErrorKind};
 pub use grid::{GridError, GridSpec, MemoryReport};
-pub use levelset::{Accessor, LevelSet};
+pub use storage::levelset::{Accessor, LevelSet};

@@ -2,15 +2,15 @@
 //! input, with their voxel counts and bytes by part, and the size of its `.sls` file.
 
 use serde::Serialize;
-use sparse_levelset::build::{
+use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
+use sparse_levelset::storage::convert::{
     dtgrid_from, dtgrid_from_dense, tiles_from, tiles_from_dense, tiles_from_shape,
 };
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::dtgrid::DtGrid;
-use sparse_levelset::grid::{GridError, GridSpec, MemoryReport};
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::dtgrid::DtGrid;
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
 use sparse_levelset::LevelSet;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -126,7 +126,7 @@ fn hrle_info<G: LevelSet>(g: &G) -> Result<(HrleGrid, GridInfo, usize), GridErro
     };
     h.shrink_to_fit();
     let info = grid_info("hrle", &h, 0, t0.elapsed().as_secs_f64());
-    let bytes = sparse_levelset::sls::encode(&h, sparse_levelset::sls::Source::Hrle).len();
+    let bytes = sparse_levelset::io::sls::encode(&h, sparse_levelset::io::sls::Source::Hrle).len();
     Ok((h, info, bytes))
 }
 
@@ -138,7 +138,7 @@ struct Parts<'a> {
     grids: [GridInfo; 3],
     hrle: HrleGrid,
     sls_bytes: usize,
-    header: Option<&'a sparse_levelset::sls::Header>,
+    header: Option<&'a sparse_levelset::io::sls::Header>,
     warnings: Vec<String>,
 }
 
@@ -179,7 +179,7 @@ fn assemble(p: Parts) -> InfoReport {
 pub fn info_from_sparse(
     name: &str,
     grid: &HrleGrid,
-    header: Option<&sparse_levelset::sls::Header>,
+    header: Option<&sparse_levelset::io::sls::Header>,
 ) -> Result<InfoReport, GridError> {
     let t0 = Instant::now();
     let mut tiles = tiles_from(grid);
@@ -272,7 +272,7 @@ impl Built<'_> {
 }
 
 /// Builds both grids of a dense field and reports them. The field is expected to have
-/// passed the library's checks ([`sparse_levelset::input::check_field`]: an interface, a
+/// passed the library's checks ([`sparse_levelset::io::input::check_field`]: an interface, a
 /// distance field at this half-width).
 pub fn info_from_dense(
     source: &str,

@@ -6,7 +6,7 @@
 //! progress bars, worker pinning and the output helpers of the two binaries, `levelset`
 //! (one module per subcommand) and `levelset-speedup` (the report, what
 //! `cargo run --release` runs). It adds no numerics: every computation and
-//! every input check is the library's ([`sparse_levelset::input`] is the one loader).
+//! every input check is the library's ([`sparse_levelset::io::input`] is the one loader).
 //!
 //! ```
 //! use levelset_cli::scenario::{Scenario, ScenarioKind, ScenarioOptions};

@@ -8,14 +8,14 @@
 
 use crate::info::human_bytes;
 use serde::Serialize;
-use sparse_levelset::build::{dtgrid_from, tiles_from_sdf, tiles_from_shape};
 use sparse_levelset::grid::{GridError, GridSpec};
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::mesh::TriangleMesh;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::sls::{self, Source};
-use sparse_levelset::tiles::TileGrid;
-use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
+use sparse_levelset::io::sls::{self, Source};
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_sdf, tiles_from_shape};
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::mesh::TriangleMesh;
+use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
 use sparse_levelset::{Coord, LevelSet};
 use std::fmt::Write as _;
 
@@ -71,7 +71,7 @@ fn row(model: &str, h: &HrleGrid, dtgrid_bytes: usize, tiles_bytes: usize) -> Me
     }
 }
 
-/// Rows of a mesh voxelised (exact distances, [`sparse_levelset::voxelize`]) so that the
+/// Rows of a mesh voxelised (exact distances, [`sparse_levelset::tools::voxelize`]) so that the
 /// longest side of its bounding box spans each of `sizes` voxels. `progress` is told each
 /// size.
 pub fn mesh_rows(

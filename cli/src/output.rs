@@ -26,7 +26,7 @@ macro_rules! outln {
 /// says so on standard output.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let text = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
-    sparse_levelset::fsutil::write_atomic(path, |w| {
+    sparse_levelset::io::fsutil::write_atomic(path, |w| {
         use std::io::Write;
         w.write_all(text.as_bytes())
     })
@@ -36,15 +36,15 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Str
 }
 
 /// Checks, before any work, that the file `path` can be written
-/// ([`sparse_levelset::fsutil::check_writable`]); the error names the path.
+/// ([`sparse_levelset::io::fsutil::check_writable`]); the error names the path.
 pub fn check_output(path: &Path) -> Result<(), String> {
-    sparse_levelset::fsutil::check_writable(path)
+    sparse_levelset::io::fsutil::check_writable(path)
         .map_err(|e| format!("{}: cannot write the output here: {e}", path.display()))
 }
 
 /// Checks, before any work, that the output directory `dir` can be created and written
-/// ([`sparse_levelset::fsutil::check_writable_dir`]); nothing is created.
+/// ([`sparse_levelset::io::fsutil::check_writable_dir`]); nothing is created.
 pub fn check_output_dir(dir: &Path) -> Result<(), String> {
-    sparse_levelset::fsutil::check_writable_dir(dir)
+    sparse_levelset::io::fsutil::check_writable_dir(dir)
         .map_err(|e| format!("{}: cannot write the output here: {e}", dir.display()))
 }

@@ -25,8 +25,8 @@ use sparse_levelset::evolve::{
     Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::input::{self, Expect, InputError};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::io::input::{self, Expect, InputError};
+use sparse_levelset::storage::shapes::Shape;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -104,7 +104,7 @@ pub struct ScenarioOptions {
     /// Keep a record every this many steps (and of the first and last step).
     pub record_every: u64,
     /// Start from this dense `.npy` field instead of the scenario's shape (loaded and
-    /// checked by [`sparse_levelset::input::load_npy`]).
+    /// checked by [`sparse_levelset::io::input::load_npy`]).
     pub init: Option<PathBuf>,
     /// Voxel size of an `init` field (default: the scenario's).
     pub voxel_size: Option<f32>,
@@ -343,7 +343,7 @@ fn positive(what: &str, v: f64) -> Result<f64, EvolveError> {
 /// [`sparse_levelset::evolve::DENSE_MARGIN`] voxels) the machine cannot hold.
 fn check_dense_box(shape: &Shape, spec: &GridSpec) -> Result<(), ScenarioError> {
     let (lo, hi) = shape.bounds();
-    let (vlo, vhi) = sparse_levelset::sample::band_voxel_box(lo, hi, spec)?;
+    let (vlo, vhi) = sparse_levelset::storage::sample::band_voxel_box(lo, hi, spec)?;
     let m = 2.0 * sparse_levelset::evolve::DENSE_MARGIN as f64;
     let n = |a: i32, b: i32| b as f64 - a as f64 + 1.0 + m;
     let voxels = n(vlo.x, vhi.x) * n(vlo.y, vhi.y) * n(vlo.z, vhi.z);
@@ -379,7 +379,7 @@ pub fn fastest_of(
 impl Scenario {
     /// Resolves the options: defaults, shape, flow, settings, the simulation. Everything is
     /// checked before the grid is built: the parameters, the `init` field (the library's
-    /// loader, [`sparse_levelset::input`]) and the memory of the run.
+    /// loader, [`sparse_levelset::io::input`]) and the memory of the run.
     pub fn resolve(o: ScenarioOptions) -> Result<Scenario, ScenarioError> {
         let invalid = |m: String| ScenarioError::from(EvolveError::InvalidParameter(m));
         let kind = o.kind;
@@ -560,8 +560,8 @@ impl Scenario {
             record_every: o.record_every,
             reinit: o.reinit.map(|r| {
                 let name = match r.order {
-                    sparse_levelset::fmm::Order::First => "fmm",
-                    sparse_levelset::fmm::Order::Second => "fmm2",
+                    sparse_levelset::tools::fmm::Order::First => "fmm",
+                    sparse_levelset::tools::fmm::Order::Second => "fmm2",
                 };
                 format!("{name} every {}", r.every)
             }),
@@ -578,8 +578,10 @@ impl Scenario {
                     .into());
                 };
                 let tiles = match init {
-                    Some(field) => sparse_levelset::build::tiles_from_dense(field, spec)?,
-                    None => sparse_levelset::build::tiles_from_shape(&shape, spec)?,
+                    Some(field) => {
+                        sparse_levelset::storage::convert::tiles_from_dense(field, spec)?
+                    }
+                    None => sparse_levelset::storage::convert::tiles_from_shape(&shape, spec)?,
                 };
                 Simulation::distributed(t.clone(), tiles, lanes, flow, settings, o.rebalance)?
             }

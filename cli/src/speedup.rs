@@ -165,15 +165,17 @@ pub fn run_tools(
     cfg: &SpeedupConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ToolBench>, String> {
-    use sparse_levelset::fmm::{FmmOptions, Order};
+    use sparse_levelset::tools::fmm::{FmmOptions, Order};
     let n = if cfg.quick { 64.0 } else { 256.0 };
     let c = n / 2.0;
-    let shape =
-        sparse_levelset::shapes::Shape::Sphere { center: [c, c, c], radius: 100.0 * n / 256.0 };
+    let shape = sparse_levelset::storage::shapes::Shape::Sphere {
+        center: [c, c, c],
+        radius: 100.0 * n / 256.0,
+    };
     let spec = sparse_levelset::grid::GridSpec::default();
-    let tiles =
-        sparse_levelset::build::tiles_from_shape(&shape, spec).map_err(|e| e.to_string())?;
-    let dt = sparse_levelset::build::dtgrid_from(&tiles);
+    let tiles = sparse_levelset::storage::convert::tiles_from_shape(&shape, spec)
+        .map_err(|e| e.to_string())?;
+    let dt = sparse_levelset::storage::convert::dtgrid_from(&tiles);
     let band = tiles.band_voxels();
     let mut out = Vec::new();
     let reps = if cfg.quick { 1 } else { 3 };
@@ -194,12 +196,12 @@ pub fn run_tools(
         let opts = FmmOptions { order, ..Default::default() };
         progress(&format!("{name} (tiles)"));
         let (s, g) = best_of(reps, || {
-            sparse_levelset::fmm::reinitialize(&tiles, &opts).map_err(|e| e.to_string())
+            sparse_levelset::tools::fmm::reinitialize(&tiles, &opts).map_err(|e| e.to_string())
         })?;
         push(name, "tiles", s, format!("{} band voxels", g.band_voxels()));
         progress(&format!("{name} (DT-Grid)"));
         let (s, g) = best_of(reps, || {
-            sparse_levelset::fmm::reinitialize(&dt, &opts).map_err(|e| e.to_string())
+            sparse_levelset::tools::fmm::reinitialize(&dt, &opts).map_err(|e| e.to_string())
         })?;
         push(name, "dtgrid", s, format!("{} band voxels", g.band_voxels()));
     }
@@ -210,7 +212,7 @@ pub fn run_tools(
         .build()
         .map_err(|e| format!("thread pool: {e}"))?;
     let (s, m) = best_of(reps, || {
-        pool.install(|| sparse_levelset::mesh::isosurface(&tiles, &Default::default()))
+        pool.install(|| sparse_levelset::tools::mesh::isosurface(&tiles, &Default::default()))
             .map_err(|e| e.to_string())
     })?;
     push(name, "tiles", s, format!("{} triangles, {} thread(s)", m.triangles.len(), cfg.threads));

@@ -8,10 +8,10 @@ use serde::Serialize;
 use sparse_levelset::bench::{
     dtgrid_smooth7, dtgrid_star19, max_abs_diff, tiles_smooth7, tiles_star19,
 };
-use sparse_levelset::build::{dtgrid_from, tiles_from_shape};
-use sparse_levelset::dtgrid::DtGrid;
 use sparse_levelset::grid::{GridError, GridSpec};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_shape};
+use sparse_levelset::storage::dtgrid::DtGrid;
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::Coord;
 use std::time::Instant;
 

@@ -5,10 +5,10 @@ use crate::arrays::{rows3, to_rows, FacesArrays, IsoArrays, Volume};
 use crate::watch;
 use numpy::{PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::prelude::*;
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::fmm::{self, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::mesh::{self, TriangleMesh};
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::tools::fmm::{self, FmmOptions, Order};
+use sparse_levelset::tools::mesh::{self, TriangleMesh};
 use sparse_levelset::Coord;
 use std::path::PathBuf;
 
@@ -200,12 +200,12 @@ fn save_mesh(
     if m.triangles.is_empty() {
         return Err(crate::value_error("the mesh has no triangles"));
     }
-    m.write(&path, None).map_err(crate::lib_error)
+    sparse_levelset::io::mesh::save_mesh(&path, &m, None).map_err(crate::lib_error)
 }
 
 /// Reads a triangle mesh (`.obj`, `.ply`, `.stl`): `(verts, faces)`.
 #[pyfunction]
 fn load_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<FacesArrays<'py>> {
-    let m = sparse_levelset::voxelize::read_mesh(&path).map_err(crate::lib_error)?;
+    let m = sparse_levelset::io::mesh::load_mesh(&path).map_err(crate::lib_error)?;
     Ok((to_rows(py, &m.positions)?, to_rows(py, &m.triangles)?))
 }

@@ -11,20 +11,20 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
-use sparse_levelset::build;
-use sparse_levelset::csg::{self, CsgOp};
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::fmm::{self, FmmOptions};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::input::{self, Expect};
-use sparse_levelset::levelset::{Accessor, LevelSet as _};
-use sparse_levelset::measure::{self, MeasureOptions};
-use sparse_levelset::mesh::{self, MeshOptions};
-use sparse_levelset::render::{self, RenderOptions};
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
-use sparse_levelset::voxelize::{voxelize, VoxelizeOptions};
-use sparse_levelset::{sls, vdb, Coord};
+use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::storage::convert;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::levelset::{Accessor, LevelSet as _};
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::csg::{self, CsgOp};
+use sparse_levelset::tools::fmm::{self, FmmOptions};
+use sparse_levelset::tools::measure::{self, MeasureOptions};
+use sparse_levelset::tools::mesh::{self, MeshOptions};
+use sparse_levelset::tools::render::{self, RenderOptions};
+use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
+use sparse_levelset::{io::sls, io::vdb, Coord};
 use std::path::{Path, PathBuf};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -57,7 +57,7 @@ impl LevelSet {
 
     fn combine(&self, other: &LevelSet, op: CsgOp) -> PyResult<LevelSet> {
         let view = csg::csg(&self.grid, &other.grid, op).map_err(crate::value_error)?;
-        LevelSet::new(build::tiles_from(&view))
+        LevelSet::new(convert::tiles_from(&view))
     }
 }
 
@@ -82,7 +82,7 @@ impl LevelSet {
         let grid = py.detach(|| -> Result<TileGrid, PyErr> {
             input::check_field("phi", &mut field, &Expect { copies: 2.0, ..Expect::new(spec) })
                 .map_err(crate::lib_error)?;
-            build::tiles_from_dense(&field, spec).map_err(crate::lib_error)
+            convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)
         })?;
         LevelSet::new(grid)
     }
@@ -154,7 +154,8 @@ impl LevelSet {
         };
         let spec = spec(voxel_size, [0.0; 3], half_width)?;
         input::check_shape(kind, &shape, &Expect::new(spec)).map_err(crate::lib_error)?;
-        let grid = py.detach(|| build::tiles_from_shape(&shape, spec)).map_err(crate::lib_error)?;
+        let grid =
+            py.detach(|| convert::tiles_from_shape(&shape, spec)).map_err(crate::lib_error)?;
         LevelSet::new(grid)
     }
 
@@ -174,7 +175,7 @@ impl LevelSet {
                 "sls" => {
                     let expect = Expect::new(GridSpec::default());
                     let (h, _) = input::load_sls(&path, &expect).map_err(crate::lib_error)?;
-                    Ok(build::tiles_from(&h))
+                    Ok(convert::tiles_from(&h))
                 }
                 "vdb" => {
                     let expect = Expect::new(GridSpec::default());
@@ -185,7 +186,7 @@ impl LevelSet {
                     let field =
                         input::load_npy(&path, &Expect { copies: 2.0, ..Expect::new(spec) })
                             .map_err(crate::lib_error)?;
-                    build::tiles_from_dense(&field, spec).map_err(crate::lib_error)
+                    convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)
                 }
                 _ => Err(crate::value_error(format!(
                     "{}: unknown level-set file type; use .sls, .vdb or .npy",
@@ -217,7 +218,7 @@ impl LevelSet {
                 let opts = vdb::VdbOptions { compression, ..Default::default() };
                 vdb::save(&path, g, &opts).map_err(crate::lib_error)
             }
-            "npy" => build::export_npy(g, &path, margin).map(|_| ()).map_err(crate::lib_error),
+            "npy" => convert::export_npy(g, &path, margin).map(|_| ()).map_err(crate::lib_error),
             _ => Err(crate::value_error(format!(
                 "{}: unknown level-set file type; use .sls, .vdb or .npy",
                 path.display()
@@ -240,7 +241,7 @@ impl LevelSet {
             dims[d] = (hi[d] as i64 - lo[d] as i64 + 1) as usize;
         }
         let f = py
-            .detach(|| build::to_dense(&self.grid, Coord::new(lo[0], lo[1], lo[2]), dims))
+            .detach(|| convert::to_dense(&self.grid, Coord::new(lo[0], lo[1], lo[2]), dims))
             .map_err(crate::lib_error)?;
         let arr = Array3::from_shape_vec((dims[2], dims[1], dims[0]), f.into_data())
             .map_err(crate::value_error)?;

@@ -7,7 +7,7 @@ use crate::watch;
 use numpy::ndarray::{Array3, ShapeBuilder};
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use sparse_levelset::image::{self, Image as LibImage, LoadedImage, IDENTITY};
+use sparse_levelset::io::image::{self, Image as LibImage, LoadedImage, IDENTITY};
 use sparse_levelset::segment::{
     self as seglib, Init, Method, Params, Seed, Segmentation as LibSeg,
 };

@@ -4,13 +4,13 @@ use crate::levelset::LevelSet;
 use numpy::{PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sparse_levelset::build;
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
     Flow, GridKind, Integrator, Lanes, Renormalization, SampledField, SampledVelocity, Settings,
     Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
+use sparse_levelset::storage::convert;
+use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::Coord;
 use std::sync::Arc;
 
@@ -227,7 +227,7 @@ impl Simulation {
         let sim = &self.sim;
         LevelSet::new(py.detach(|| match sim.tiles() {
             Some(t) => t.clone(),
-            None => build::tiles_from(sim),
+            None => convert::tiles_from(sim),
         }))
     }
 

@@ -47,10 +47,10 @@
 //! Two ranks as threads of this process; with MPI, every process of `mpirun` makes its
 //! transport with `Arc::new(Mpi::init()?)` (feature `mpi`) and runs the closure's body.
 //! ```
-//! use sparse_levelset::build::tiles_from_shape;
+//! use sparse_levelset::storage::convert::tiles_from_shape;
 //! use sparse_levelset::distributed::LocalRanks;
 //! use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
-//! use sparse_levelset::{grid::GridSpec, shapes::Shape};
+//! use sparse_levelset::{grid::GridSpec, storage::shapes::Shape};
 //! use std::sync::Arc;
 //!
 //! let shape = Shape::Sphere { center: [0.0; 3], radius: 12.0 };
@@ -93,7 +93,7 @@ pub use self::mpi::Mpi;
 
 use crate::coord::Coord;
 use crate::evolve::exact::ExactSum;
-use crate::tiles::{Tile, TileGrid};
+use crate::storage::tiles::{Tile, TileGrid};
 use serde::Serialize;
 use std::ops::Range;
 use std::sync::mpsc::{channel, Receiver, Sender};

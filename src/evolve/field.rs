@@ -230,7 +230,7 @@ impl std::fmt::Debug for Velocity {
 /// positions beyond the grid take the value of its nearest face.
 #[derive(Clone, Debug)]
 pub struct SampledField {
-    field: crate::dense::DenseField,
+    field: crate::storage::dense::DenseField,
     spec: GridSpec,
 }
 
@@ -238,7 +238,7 @@ impl SampledField {
     /// `field` placed in the world by `spec` (voxel size and origin; the half-width is
     /// not used). Non-finite values are an error.
     pub fn new(
-        field: crate::dense::DenseField,
+        field: crate::storage::dense::DenseField,
         spec: GridSpec,
     ) -> Result<SampledField, crate::grid::GridError> {
         if let Some(i) = field.data().iter().position(|v| !v.is_finite()) {
@@ -310,7 +310,7 @@ impl VectorFn for SampledVelocity {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dense::DenseField;
+    use crate::storage::dense::DenseField;
 
     #[test]
     fn enright_tiles_runs_and_time_scale_agree() {

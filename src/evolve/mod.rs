@@ -69,7 +69,7 @@
 //! runs the steps.
 //!
 //! ```
-//! use sparse_levelset::{build, evolve::{Flow, Settings, Simulation, GridKind, Lanes}, grid::GridSpec, shapes::Shape};
+//! use sparse_levelset::{storage::convert, evolve::{Flow, Settings, Simulation, GridKind, Lanes}, grid::GridSpec, storage::shapes::Shape};
 //!
 //! let spec = GridSpec::default();
 //! let shape = Shape::Sphere { center: [0.0; 3], radius: 12.0 };
@@ -388,7 +388,7 @@ impl Lattice {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Reinit {
     /// First-order or high-accuracy fast marching.
-    pub order: crate::fmm::Order,
+    pub order: crate::tools::fmm::Order,
     /// After every this many steps (≥ 1).
     pub every: u64,
 }
@@ -612,7 +612,7 @@ pub enum EvolveError {
     )]
     DenseBoxTooSmall { voxel: Coord },
     #[error("reinitialisation: {0}")]
-    Reinit(#[from] crate::fmm::FmmError),
+    Reinit(#[from] crate::tools::fmm::FmmError),
     /// The periodic reinitialisation due after step `step` failed; it is part of the step,
     /// so the step was undone: the simulation is as before it (time, step count and band
     /// unchanged).

@@ -10,12 +10,12 @@ use super::{
     Settings, StepReport, Sweeps, TimeStep, Velocity, DENSE_MARGIN,
 };
 use crate::coord::Coord;
-use crate::dense::DenseField;
 use crate::distributed::{Comm, HaloStats, RankPart, Transport};
-use crate::dtgrid::DtGrid;
 use crate::grid::{GridError, GridSpec};
-use crate::shapes::Shape;
-use crate::tiles::TileGrid;
+use crate::storage::dense::DenseField;
+use crate::storage::dtgrid::DtGrid;
+use crate::storage::shapes::Shape;
+use crate::storage::tiles::TileGrid;
 use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3, cfl_rate_image};
 use std::sync::Arc;
 
@@ -52,7 +52,7 @@ impl Simulation {
         flow: Flow,
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
-        let tiles = crate::build::tiles_from_shape(shape, spec)?;
+        let tiles = crate::storage::convert::tiles_from_shape(shape, spec)?;
         Simulation::from_tile_grid(kind, tiles, flow, settings)
     }
 
@@ -71,12 +71,12 @@ impl Simulation {
                 Rep::Tiles(in_pool(&settings.pool, || TilesRep::new(tiles, lanes)))
             }
             GridKind::DtGrid => {
-                Rep::DtGrid(Box::new(DtRep::new(crate::build::dtgrid_from(&tiles))))
+                Rep::DtGrid(Box::new(DtRep::new(crate::storage::convert::dtgrid_from(&tiles))))
             }
             GridKind::Dense => {
                 let (lo, hi) = tiles.bounding_box().ok_or(EvolveError::EmptyLevelSet)?;
-                let (origin, dims) = crate::build::margin_box(lo, hi, DENSE_MARGIN);
-                let field = crate::build::to_dense(&tiles, origin, dims)?;
+                let (origin, dims) = crate::storage::convert::margin_box(lo, hi, DENSE_MARGIN);
+                let field = crate::storage::convert::to_dense(&tiles, origin, dims)?;
                 Rep::Dense(DenseRep::new(field, spec)?)
             }
         };
@@ -174,7 +174,7 @@ impl Simulation {
 
     /// A simulation starting from a dense field (φ < 0 inside, world units, values
     /// clamped to ±γ), on representation `kind`. ±∞ is a far-away distance (clamped like
-    /// any value beyond ±γ, the rule of [`crate::input`]); NaN is an error.
+    /// any value beyond ±γ, the rule of [`crate::io::input`]); NaN is an error.
     pub fn from_dense(
         kind: GridKind,
         field: &DenseField,
@@ -194,7 +194,7 @@ impl Simulation {
                 Simulation::start(Rep::Dense(DenseRep::new(f, spec)?), kind, flow, settings)
             }
             _ => {
-                let tiles = crate::build::tiles_from_dense(field, spec)?;
+                let tiles = crate::storage::convert::tiles_from_dense(field, spec)?;
                 Simulation::from_tile_grid(kind, tiles, flow, settings)
             }
         }
@@ -365,12 +365,12 @@ impl Simulation {
     }
 
     /// Reinitialises the band to a signed distance by fast marching
-    /// ([`crate::fmm::reinitialize`], the same values on both grids), keeping the half-width, then brings the band to the band rule
+    /// ([`crate::tools::fmm::reinitialize`], the same values on both grids), keeping the half-width, then brings the band to the band rule
     /// again. The interface stays where it is (its voxels keep their distance estimates);
     /// the rest of the band becomes an exact marched distance. Sparse grids only. On an
     /// error (including a second band that [`Settings::memory_limit`] does not admit) the
     /// simulation is unchanged.
-    pub fn reinitialize(&mut self, order: crate::fmm::Order) -> Result<(), EvolveError> {
+    pub fn reinitialize(&mut self, order: crate::tools::fmm::Order) -> Result<(), EvolveError> {
         if self.rep.get().comm().is_some() {
             return Err(EvolveError::InvalidParameter(
                 "reinitialisation by fast marching is not distributed".into(),
@@ -382,8 +382,8 @@ impl Simulation {
 
     /// The current band reinitialised (see [`Simulation::reinitialize`]), as a new
     /// representation: the current one is not touched.
-    fn reinitialized(&self, order: crate::fmm::Order) -> Result<Rep, EvolveError> {
-        let opts = crate::fmm::FmmOptions { order, ..Default::default() };
+    fn reinitialized(&self, order: crate::tools::fmm::Order) -> Result<Rep, EvolveError> {
+        let opts = crate::tools::fmm::FmmOptions { order, ..Default::default() };
         let pool = &self.settings.pool;
         let budget = self.budget();
         // The new band is built next to the current one: the marched band and the grid
@@ -393,11 +393,13 @@ impl Simulation {
         budget.admit(needed, current, "the reinitialised band")?;
         let mut rep = match &self.rep {
             Rep::Tiles(t) => {
-                let grid = in_pool(pool, || crate::fmm::reinitialize(&t.grid, &opts))?;
+                let grid = in_pool(pool, || crate::tools::fmm::reinitialize(&t.grid, &opts))?;
                 Rep::Tiles(in_pool(pool, || TilesRep::new(grid, t.lanes)))
             }
             Rep::DtGrid(d) => {
-                let grid = crate::build::dtgrid_from(&crate::fmm::reinitialize(&d.grid, &opts)?);
+                let grid = crate::storage::convert::dtgrid_from(&crate::tools::fmm::reinitialize(
+                    &d.grid, &opts,
+                )?);
                 Rep::DtGrid(Box::new(DtRep::new(grid)))
             }
             Rep::Dense(_) => {

@@ -20,7 +20,7 @@
 //! [`Image`] invariants exclude) propagates as NaN or ∞ and never panics.
 //!
 //! ```
-//! use sparse_levelset::image::{Image, IDENTITY};
+//! use sparse_levelset::io::image::{Image, IDENTITY};
 //! use sparse_levelset::segment::features;
 //!
 //! // A step along x: 0 for x < 64, 100 from x = 64 on.
@@ -37,7 +37,7 @@
 //! ```
 
 use crate::grid::GridError;
-use crate::image::Image;
+use crate::io::image::Image;
 use rayon::prelude::*;
 
 /// A Gaussian kernel reaches `TRUNCATE` standard deviations: its radius is

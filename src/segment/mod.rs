@@ -92,7 +92,7 @@ pub enum Init {
     /// Balls around seed points (their union).
     Seeds {
         seeds: Vec<Seed>,
-        /// Centres and radii in the image's world coordinates ([`crate::image::Image::to_world`]).
+        /// Centres and radii in the image's world coordinates ([`crate::io::image::Image::to_world`]).
         world: bool,
     },
     /// A mask of the image's size (x fastest), nonzero inside.
@@ -173,7 +173,7 @@ pub struct Params {
     /// GAC alone, the edge potential g itself (1 in flat regions, near 0 on edges; no
     /// sigmoid, no smoothing); for the threshold and Chan–Vese methods, the intensities
     /// they compare in place of the image (smoothed only when `sigma` is given).
-    pub feature: Option<Arc<crate::image::Image>>,
+    pub feature: Option<Arc<crate::io::image::Image>>,
     /// Stop a run that leaks ([`Stop::Leaked`]): one whose region covers 0.5 % (at least
     /// 16 voxels) of a face of the image that the initial region did not touch, or grows past half the image. On by
     /// default; turn it off for objects that fill the image or cross its border.

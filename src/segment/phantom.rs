@@ -25,7 +25,7 @@
 //! ```
 
 use crate::grid::GridError;
-use crate::image::{Image, IDENTITY};
+use crate::io::image::{Image, IDENTITY};
 use rayon::prelude::*;
 use std::fmt;
 use std::str::FromStr;

@@ -5,16 +5,16 @@ use super::features;
 use super::speed::{CurvatureSum, Lookup, RegionForce, SumField, VoxelField, VoxelVector};
 use super::stats::{self, Normalization};
 use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
-use crate::build::tiles_from_dense;
 use crate::coord::Coord;
-use crate::dense::DenseField;
 use crate::evolve::{
     Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
     Velocity,
 };
 use crate::grid::{GridError, GridSpec};
-use crate::image::Image;
-use crate::tiles::TileGrid;
+use crate::io::image::Image;
+use crate::storage::convert::tiles_from_dense;
+use crate::storage::dense::DenseField;
+use crate::storage::tiles::TileGrid;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -35,10 +35,10 @@ pub struct Segmentation {
 
 impl Segmentation {
     /// The surface of the segmentation (φ = 0, simplicial isosurfacing of the final level
-    /// set, [`crate::mesh::isosurface`]) in `image`'s world coordinates
+    /// set, [`crate::tools::mesh::isosurface`]) in `image`'s world coordinates
     /// ([`Image::to_world`]): vertices are placed on the lattice and mapped through the
     /// placement, normals through its inverse transpose. A 2D image has no surface.
-    pub fn mesh(&self, image: &Image) -> Result<crate::mesh::TriangleMesh, SegmentError> {
+    pub fn mesh(&self, image: &Image) -> Result<crate::tools::mesh::TriangleMesh, SegmentError> {
         if image.is_2d() {
             return Err(SegmentError::InvalidParameter(
                 "a 2D image's segmentation is a region, not a surface".into(),
@@ -47,8 +47,9 @@ impl Segmentation {
         let tiles = self.simulation.tiles().ok_or_else(|| {
             SegmentError::InvalidParameter("the segmentation holds no tile grid".into())
         })?;
-        let mut mesh = crate::mesh::isosurface(tiles, &crate::mesh::MeshOptions::default())
-            .map_err(|e| SegmentError::InvalidParameter(e.to_string()))?;
+        let mut mesh =
+            crate::tools::mesh::isosurface(tiles, &crate::tools::mesh::MeshOptions::default())
+                .map_err(|e| SegmentError::InvalidParameter(e.to_string()))?;
         let h = tiles.spec().voxel_size as f64;
         let s = image.spacing;
         let m = &image.to_world;
@@ -81,7 +82,7 @@ impl Segmentation {
 
     /// The final level set as a band of cubic voxels of the image's **smallest** spacing in
     /// the lattice frame (world units along the image's axes, voxel (0, 0, 0)'s centre at
-    /// the origin), so that its measures ([`crate::measure::measure`]) are the world
+    /// the origin), so that its measures ([`crate::tools::measure::measure`]) are the world
     /// volume and area of the segmentation whatever the spacing. An isotropic image's is
     /// the evolved band itself; an anisotropic one's is resampled from it by trilinear
     /// interpolation of φ (a distance in world units, so no rescaling), at the cost of

@@ -14,7 +14,7 @@
 //!   first edge they cross and the gradient magnitude on it.
 
 use crate::grid::GridError;
-use crate::image::Image;
+use crate::io::image::Image;
 use rayon::prelude::*;
 
 /// An affine map of intensities onto a scale of their own: `v ↦ (v − center) / scale`.
@@ -294,7 +294,7 @@ pub(crate) fn quantile(v: &[f64], q: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::IDENTITY;
+    use crate::io::image::IDENTITY;
 
     #[test]
     fn normalization_is_exact_under_exact_affine_maps() {

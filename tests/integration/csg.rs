@@ -3,12 +3,12 @@
 //! and on the DT-Grid; the result's band, values and inside/outside regions must equal
 //! the reference's bit for bit.
 
-use sparse_levelset::build::{dtgrid_from, tiles_from_shape, to_dense};
-use sparse_levelset::csg::{csg, Csg, CsgError, CsgOp};
-use sparse_levelset::dtgrid::DtGrid;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_shape, to_dense};
+use sparse_levelset::storage::dtgrid::DtGrid;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::csg::{csg, Csg, CsgError, CsgOp};
 use sparse_levelset::{Coord, LevelSet};
 
 const OPS: [CsgOp; 3] = [CsgOp::Union, CsgOp::Intersection, CsgOp::Difference];

@@ -3,14 +3,14 @@
 //! for bit, with the same Δt, volume and area after every step, and rebalancing keeps the
 //! ranks' tile counts close. (The same over MPI processes: `cli/tests/mpi.rs`.)
 
-use sparse_levelset::build::tiles_from_shape;
 use sparse_levelset::distributed::LocalRanks;
 use sparse_levelset::evolve::{
     EnrightVelocity, EvolveError, Flow, GridKind, Lanes, Reinit, Renormalization, Settings,
     Simulation, SpatialScheme, Speed, Sweeps, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::convert::tiles_from_shape;
+use sparse_levelset::storage::shapes::Shape;
 use std::sync::Arc;
 
 /// What one run ends with: per step (Δt, κ̄ bits), then checksum, band voxels, volume and
@@ -197,7 +197,7 @@ fn bad_distributed_settings_are_errors() {
     let out = LocalRanks::run(2, |t| {
         let tiles = tiles_from_shape(&shape, GridSpec::default()).unwrap();
         let reinit = Settings {
-            reinit: Some(Reinit { order: sparse_levelset::fmm::Order::First, every: 5 }),
+            reinit: Some(Reinit { order: sparse_levelset::tools::fmm::Order::First, every: 5 }),
             ..Settings::default()
         };
         let flow = Flow::mean_curvature(1.0);

@@ -6,7 +6,7 @@ use sparse_levelset::evolve::{
     SpatialScheme, Speed, StaticSdf, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::Coord;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -353,7 +353,8 @@ fn bad_input_is_an_error_not_a_panic() {
     // An empty level set: a shape far smaller than a voxel's band has no band voxels
     // when it lies between voxel centres... use an all-outside dense field instead.
     let field =
-        sparse_levelset::dense::DenseField::new(Coord::new(0, 0, 0), [8, 8, 8], 3.0).unwrap();
+        sparse_levelset::storage::dense::DenseField::new(Coord::new(0, 0, 0), [8, 8, 8], 3.0)
+            .unwrap();
     for kind in KINDS {
         assert!(matches!(
             Simulation::from_dense(
@@ -386,7 +387,7 @@ fn bad_input_is_an_error_not_a_panic() {
 #[test]
 fn reinitialisation_in_the_loop_agrees_on_sparse_grids() {
     use sparse_levelset::evolve::Reinit;
-    use sparse_levelset::fmm::Order;
+    use sparse_levelset::tools::fmm::Order;
     let shape = Shape::Torus { center: [0.3, -0.6, 0.2], major_radius: 12.0, minor_radius: 5.0 };
     let spec = GridSpec::default();
     for order in [Order::First, Order::Second] {

@@ -3,14 +3,14 @@
 //! memory, time, step count and the collapsed flag — on every representation where the
 //! error can happen. One test per error path.
 
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
     EvolveError, Flow, GridKind, Lanes, Reinit, Settings, Simulation, Speed, TimeStep, VectorFn,
     Velocity,
 };
-use sparse_levelset::fmm::Order;
 use sparse_levelset::grid::{GridError, GridSpec};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::tools::fmm::Order;
 use sparse_levelset::Coord;
 use std::sync::Arc;
 

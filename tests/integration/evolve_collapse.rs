@@ -15,7 +15,7 @@
 
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::shapes::Shape;
 
 /// Runs a sphere of radius `r` (world units) at `center` under mean curvature flow ε on
 /// tiles and DT-Grid until it collapses; returns (time, last Δt, steps).

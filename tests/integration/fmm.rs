@@ -2,12 +2,12 @@
 //! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input.
 //! Run with `--nocapture` to see the errors and timings.
 
-use sparse_levelset::build::{dense_box, dtgrid_from, tiles_from_sdf, tiles_from_shape};
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::convert::{dense_box, dtgrid_from, tiles_from_sdf, tiles_from_shape};
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::fmm::{self, FmmError, FmmOptions, Order};
 use sparse_levelset::Coord;
 use sparse_levelset::LevelSet;
 use std::time::Instant;
@@ -23,9 +23,9 @@ fn sub(a: Coord, b: Coord) -> Coord {
 
 /// The DT-Grid reinitialised through the one generic function, back as a DT-Grid.
 fn reinit_dt(
-    dt: &sparse_levelset::dtgrid::DtGrid,
+    dt: &sparse_levelset::storage::dtgrid::DtGrid,
     o: &FmmOptions,
-) -> Result<sparse_levelset::dtgrid::DtGrid, FmmError> {
+) -> Result<sparse_levelset::storage::dtgrid::DtGrid, FmmError> {
     fmm::reinitialize(dt, o).map(|g| dtgrid_from(&g))
 }
 
@@ -512,7 +512,7 @@ fn noisy_fields_give_the_same_result_on_every_representation() {
     // Many small components and sign changes everywhere: no panic, and tiles = DT-Grid
     // = the dense path. A shell of +2.5 around the noise keeps the band valid (every
     // voxel a grid does not store is outside on both grids).
-    use sparse_levelset::build::{dtgrid_from_dense, tiles_from_dense};
+    use sparse_levelset::storage::convert::{dtgrid_from_dense, tiles_from_dense};
     let mut rng = fastrand::Rng::with_seed(11);
     let lo = Coord::new(-9, 4, -13);
     let dims = [19, 14, 17];

@@ -1,13 +1,13 @@
 //! Construction and conversion of both grids against each other and against the analytic
 //! field: shapes, dense fields, round trips, far coordinates.
 
-use sparse_levelset::build::{
+use sparse_levelset::grid::{GridError, GridSpec};
+use sparse_levelset::storage::convert::{
     dense_box, dtgrid_from, dtgrid_from_dense, dtgrid_from_shape, tiles_from, tiles_from_dense,
     tiles_from_shape, to_dense,
 };
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::grid::{GridError, GridSpec};
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::Coord;
 use sparse_levelset::LevelSet;
 
@@ -196,15 +196,15 @@ fn export_npy_round_trips_through_the_dense_reader() {
     let shape = Shape::Torus { center: [-4.0, 3.0, 2.0], major_radius: 9.0, minor_radius: 3.0 };
     let tiles = tiles_from_shape(&shape, spec).unwrap();
     let path = std::env::temp_dir().join(format!("levelset-export-{}.npy", std::process::id()));
-    let origin = sparse_levelset::build::export_npy(&tiles, &path, 2).unwrap();
-    let mut field = sparse_levelset::npy::read_npy(&path).unwrap();
+    let origin = sparse_levelset::storage::convert::export_npy(&tiles, &path, 2).unwrap();
+    let mut field = sparse_levelset::io::npy::read_npy(&path).unwrap();
     std::fs::remove_file(&path).unwrap();
     field = DenseField::from_vec(origin, field.dims(), field.into_data()).unwrap();
     let back = tiles_from_dense(&field, spec).unwrap();
     assert_eq!(back.tile_coords(), tiles.tile_coords());
     assert_same(&tiles, &back, 3);
     let empty = tiles_from_dense(&DenseField::new(origin, [2, 2, 2], 9.0).unwrap(), spec).unwrap();
-    assert!(sparse_levelset::build::export_npy(&empty, &path, 0).is_err());
+    assert!(sparse_levelset::storage::convert::export_npy(&empty, &path, 0).is_err());
     assert!(!path.exists());
 }
 
@@ -217,10 +217,11 @@ fn closures_build_the_same_tiles_as_shapes() {
     let hi =
         Coord::new(lo.x + dims[0] as i32 - 1, lo.y + dims[1] as i32 - 1, lo.z + dims[2] as i32 - 1);
     let from_closure =
-        sparse_levelset::build::tiles_from_sdf(|p| shape.sdf(p), 1.0, lo, hi, spec).unwrap();
+        sparse_levelset::storage::convert::tiles_from_sdf(|p| shape.sdf(p), 1.0, lo, hi, spec)
+            .unwrap();
     assert_eq!(from_closure.tile_coords(), from_shape.tile_coords());
     assert_same(&from_shape, &from_closure, 3);
-    let nan = sparse_levelset::build::tiles_from_sdf(|_| f64::NAN, 1.0, lo, hi, spec);
+    let nan = sparse_levelset::storage::convert::tiles_from_sdf(|_| f64::NAN, 1.0, lo, hi, spec);
     assert!(matches!(nan, Err(GridError::NaN { .. })));
 }
 

@@ -1,4 +1,4 @@
-//! Image input/output (`sparse_levelset::image`): every format read and written, the
+//! Image input/output (`sparse_levelset::io::image`): every format read and written, the
 //! NIfTI placements (sform, qform, none), scaling, and every kind of bad input, including
 //! hostile headers refused without allocating. Input files are made by hand here, byte by
 //! byte from the formats' specifications (NIfTI-1: the offsets of `nifti1.h`), so that the
@@ -7,7 +7,7 @@
 
 use flate2::write::GzEncoder;
 use nifti::NiftiObject;
-use sparse_levelset::image::{
+use sparse_levelset::io::image::{
     self, check_output, save_f32, save_mask, FileFormat, Image, ImageError, LoadedImage, Output,
     Source, IDENTITY,
 };

@@ -1,11 +1,11 @@
-//! MetaImage (`.mha`, `.mhd`) and NRRD (`.nrrd`, `.nhdr`) in `sparse_levelset::image`:
+//! MetaImage (`.mha`, `.mhd`) and NRRD (`.nrrd`, `.nhdr`) in `sparse_levelset::io::image`:
 //! files written by SimpleITK read as SimpleITK reads them (`tests/data/itk`, with the
 //! values SimpleITK reports in `reference.json`), masks and float volumes written back with
 //! exactly the input's geometry, hand-made headers for what SimpleITK does not write
 //! (big-endian data, every type name, skips, a leading axis), and every kind of bad input:
 //! hostile sizes refused without allocating, truncated and fuzzed files never panicking.
 
-use sparse_levelset::image::{
+use sparse_levelset::io::image::{
     self, save_f32, save_mask, FileFormat, Image, ImageError, LoadedImage, Source, WorldFrame,
     IDENTITY,
 };

@@ -2,14 +2,14 @@
 //! varies in space: exact answers in world units, and every representation computing the
 //! same bits.
 
-use sparse_levelset::build::tiles_from_dense;
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
     Flow, GridKind, Lanes, Lattice, Renormalization, Settings, Simulation, Speed, VectorClosure,
     Velocity,
 };
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::convert::tiles_from_dense;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::tiles::TileGrid;
 use sparse_levelset::Coord;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;

@@ -2,16 +2,18 @@
 //! state through the same function and gives the same result; the interface's contract
 //! (band voxels in order, accessors equal to random access); progress and cancellation.
 
-use sparse_levelset::build::{dtgrid_from, export_npy, tiles_from, tiles_from_shape, to_dense};
-use sparse_levelset::dtgrid::DtGrid;
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation};
-use sparse_levelset::fmm::{self, FmmError, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::measure::{measure, MeasureError, MeasureOptions};
 use sparse_levelset::progress::Progress;
-use sparse_levelset::render::{render, RenderError, RenderOptions};
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::convert::{
+    dtgrid_from, export_npy, tiles_from, tiles_from_shape, to_dense,
+};
+use sparse_levelset::storage::dtgrid::DtGrid;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::fmm::{self, FmmError, FmmOptions, Order};
+use sparse_levelset::tools::measure::{measure, MeasureError, MeasureOptions};
+use sparse_levelset::tools::render::{render, RenderError, RenderOptions};
 use sparse_levelset::{Accessor, Coord, LevelSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;

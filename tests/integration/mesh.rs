@@ -2,22 +2,23 @@
 //! oriented meshes of level sets on tiles, DT-Grid and dense fields, the n-dimensional
 //! codimension-m construction, mesh files, and errors on bad input.
 
-use sparse_levelset::build::{
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::storage::convert::{
     dtgrid_from_dense, dtgrid_from_shape, tiles_from_dense, tiles_from_shape, to_dense,
 };
-use sparse_levelset::dense::DenseField;
-use sparse_levelset::grid::GridSpec;
-use sparse_levelset::mesh::{
-    cell_simplex_bound, isosurface, isosurface_dense, isosurface_nd, MeshError, MeshFormat,
-    MeshOptions, NdField, TriangleMesh,
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::tools::mesh::{
+    cell_simplex_bound, isosurface, isosurface_dense, isosurface_nd, MeshError, MeshOptions,
+    NdField, TriangleMesh,
 };
-use sparse_levelset::shapes::Shape;
 use sparse_levelset::Coord;
 use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::Path;
 
 use crate::common::tmp;
+use sparse_levelset::io::mesh::{load_mesh, save_mesh, MeshFormat};
 
 /// Triangles as position bit patterns, each rotated to start at its smallest vertex
 /// (orientation kept), sorted: equal sets ⇔ same triangles, whatever the vertex order.
@@ -25,7 +26,7 @@ use crate::common::tmp;
 fn mesh_at<G: sparse_levelset::LevelSet>(
     g: &G,
     iso: f64,
-) -> Result<sparse_levelset::mesh::TriangleMesh, sparse_levelset::mesh::MeshError> {
+) -> Result<sparse_levelset::tools::mesh::TriangleMesh, sparse_levelset::tools::mesh::MeshError> {
     isosurface(g, &MeshOptions { iso, ..Default::default() })
 }
 
@@ -50,7 +51,7 @@ fn close(what: &str, got: f64, exact: f64, rel: f64) {
     assert!((got - exact).abs() <= 1e-9 + rel * exact.abs(), "{what}: error {err:.3e} > {rel}");
 }
 
-/// A PLY file as `TriangleMesh::write` writes it, read back (binary little-endian or
+/// A PLY file as `save_mesh` writes it, read back (binary little-endian or
 /// ASCII; positions `float` or `double`, normals `float`, faces `list uchar int`), and
 /// whether its positions were `double`.
 fn read_ply(path: &Path) -> (TriangleMesh, bool) {
@@ -159,9 +160,9 @@ fn check_as_written(m: &TriangleMesh, name: &str, chi: i64) -> bool {
     assert_eq!(m.degenerate_triangles(), 0, "{name}");
     assert!(m.weld_coincident() == *m, "{name}: the library's weld merges vertices");
     let mut double = None;
-    for format in [MeshFormat::PlyBinary, MeshFormat::PlyAscii] {
+    for format in [MeshFormat::Ply { ascii: false }, MeshFormat::Ply { ascii: true }] {
         let path = tmp(&format!("{name}-{format:?}.ply"));
-        m.write(&path, Some(format)).unwrap();
+        save_mesh(&path, m, Some(format)).unwrap();
         let (read, d) = read_ply(&path);
         std::fs::remove_file(&path).unwrap();
         assert_eq!(*double.get_or_insert(d), d);
@@ -275,7 +276,7 @@ fn same_bytes_for_one_and_two_threads() {
         let m = pool.install(|| mesh_at(&tiles, 0.0)).unwrap();
         assert!(m.is_closed_manifold());
         let p = tmp(&format!("spiral{threads}.ply"));
-        m.write(&p, None).unwrap();
+        save_mesh(&p, &m, None).unwrap();
         files.push(std::fs::read(&p).unwrap());
     }
     assert_eq!(files[0], files[1]);
@@ -401,7 +402,7 @@ fn exact_zeros_on_tiles_dtgrid_and_dense_give_closed_manifolds() {
             assert_eq!(mt, md, "{name}: tiles vs dense, {threads} threads");
             assert_eq!(mt, mg, "{name}: tiles vs DT-Grid, {threads} threads");
             let p = tmp(&format!("zeros-{threads}.ply"));
-            mt.write(&p, None).unwrap();
+            save_mesh(&p, &mt, None).unwrap();
             files.push(std::fs::read(&p).unwrap());
             if threads == 1 {
                 assert!(!check_as_written(&mt, name, chi), "{name}: f32 holds this mesh");
@@ -455,7 +456,7 @@ fn far_from_the_origin_positions_keep_voxel_accuracy() {
         close(&format!("volume at {x}"), far.enclosed_volume(), near.enclosed_volume(), 1e-6);
         // OBJ text reads back to the same f64 values.
         let obj = tmp("far.obj");
-        far.write(&obj, None).unwrap();
+        save_mesh(&obj, &far, None).unwrap();
         let text = std::fs::read_to_string(&obj).unwrap();
         let vs: Vec<[f64; 3]> = text
             .lines()
@@ -668,7 +669,7 @@ fn mesh_files() {
         bytes.windows(s.len()).position(|w| w == s).unwrap() + s.len()
     };
     let p = tmp("s.ply");
-    m.write(&p, None).unwrap();
+    save_mesh(&p, &m, None).unwrap();
     let b = std::fs::read(&p).unwrap();
     let h = header_end(&b);
     let head = std::str::from_utf8(&b[..h]).unwrap();
@@ -683,7 +684,7 @@ fn mesh_files() {
     assert_eq!((x as f64).to_bits(), m.positions[0][0].to_bits());
 
     let p = tmp("s_ascii.ply");
-    m.write(&p, Some(MeshFormat::from_path(&p, true).unwrap())).unwrap();
+    save_mesh(&p, &m, Some(MeshFormat::Ply { ascii: true })).unwrap();
     let t = std::fs::read_to_string(&p).unwrap();
     let body: Vec<&str> = t.split("end_header\n").nth(1).unwrap().lines().collect();
     assert_eq!(body.len(), nv + nf);
@@ -692,7 +693,7 @@ fn mesh_files() {
     assert_eq!(first[3..], m.normals[0][..]);
 
     let p = tmp("s.OBJ");
-    m.write(&p, None).unwrap();
+    save_mesh(&p, &m, None).unwrap();
     let t = std::fs::read_to_string(&p).unwrap();
     assert_eq!(t.lines().filter(|l| l.starts_with("v ")).count(), nv);
     assert_eq!(t.lines().filter(|l| l.starts_with("vn ")).count(), nv);
@@ -731,7 +732,7 @@ fn bad_input_is_an_error() {
     assert!(mesh_at(&tiles, f64::NAN).is_err());
     assert!(mesh_at(&tiles, 3.0).is_err(), "iso at γ");
     // Empty level sets give empty meshes, which are not closed manifolds.
-    let m = mesh_at(&sparse_levelset::tiles::TileGrid::new(spec), 0.0).unwrap();
+    let m = mesh_at(&sparse_levelset::storage::tiles::TileGrid::new(spec), 0.0).unwrap();
     assert!(m.is_empty() && !m.is_closed_manifold());
     let m = isosurface_dense(
         &DenseField::new(Coord::new(0, 0, 0), [3, 3, 3], 2.0).unwrap(),
@@ -741,14 +742,20 @@ fn bad_input_is_an_error() {
     .unwrap();
     assert!(m.is_empty());
     let m = mesh_at(&tiles, 0.0).unwrap();
-    assert!(matches!(m.write(&tmp("x.stl"), None), Err(MeshError::UnknownFormat(_))));
-    assert!(matches!(m.write(&tmp("noext"), None), Err(MeshError::UnknownFormat(_))));
-    assert!(matches!(m.write(&tmp("no/such/dir/x.ply"), None), Err(MeshError::Io { .. })));
+    assert!(matches!(save_mesh(&tmp("x.xyz"), &m, None), Err(MeshError::UnknownFormat(_))));
+    // Binary STL: f32 positions (exact here), the triangles in order, read back as they were.
+    save_mesh(&tmp("x.stl"), &m, None).unwrap();
+    let back = load_mesh(&tmp("x.stl")).unwrap();
+    assert_eq!(back.triangles.len(), m.triangles.len());
+    let at = |mesh: &TriangleMesh, t: usize| mesh.triangles[t].map(|v| mesh.positions[v as usize]);
+    assert!((0..m.triangles.len()).all(|t| at(&back, t) == at(&m, t)));
+    assert!(matches!(save_mesh(&tmp("noext"), &m, None), Err(MeshError::UnknownFormat(_))));
+    assert!(matches!(save_mesh(&tmp("no/such/dir/x.ply"), &m, None), Err(MeshError::Io { .. })));
     // A corrupt mesh is refused before anything is written.
     let mut bad = m.clone();
     bad.triangles[0][1] = bad.positions.len() as u32;
     assert!(!bad.is_closed_manifold());
-    assert!(bad.write(&tmp("bad.ply"), None).is_err());
+    assert!(save_mesh(&tmp("bad.ply"), &bad, None).is_err());
     assert!(!tmp("bad.ply").exists());
 }
 
@@ -761,7 +768,7 @@ fn bad_input_is_an_error() {
 /// triangles as the dense field of the values the grid reads.
 #[test]
 fn absent_tiles_next_to_the_surface_are_meshed_like_the_dense_field() {
-    use sparse_levelset::tiles::TileGrid;
+    use sparse_levelset::storage::tiles::TileGrid;
     let spec = GridSpec::default();
     let (c, r) = ([0.6, -0.3, 0.2], 17.3);
     let phi = |p: [f64; 3]| {

@@ -2,12 +2,12 @@
 //! sphere against the analytic sphere, bitwise identity across thread counts and between
 //! the two grids, the PNG round trip, and errors on bad input (library and CLI).
 
-use sparse_levelset::build::{dtgrid_from, tiles_from_dense, tiles_from_shape};
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::render::{self, FrameBox, Image, RenderError, RenderOptions};
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::TileGrid;
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from_dense, tiles_from_shape};
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::render::{self, FrameBox, Image, RenderError, RenderOptions};
 use sparse_levelset::Coord;
 
 use crate::common::tmp;

@@ -3,13 +3,13 @@
 //! |∇φ| = 1, every representation computes the same bits, bad parameters are refused and
 //! a failed renormalisation changes nothing.
 
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::evolve::{
     EvolveError, Flow, GridKind, Lanes, Renormalization, Settings, Simulation, SpatialScheme,
     Sweeps,
 };
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::{Coord, GridError};
 use std::collections::BTreeMap;
 

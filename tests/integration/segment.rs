@@ -1,7 +1,7 @@
 //! Segmentation of seeded noisy phantoms against their truth, thread-count determinism,
 //! 2D images, and refusals of bad input.
 
-use sparse_levelset::image::{Image, IDENTITY};
+use sparse_levelset::io::image::{Image, IDENTITY};
 use sparse_levelset::segment::metrics::dice;
 use sparse_levelset::segment::phantom::{phantom, PhantomKind};
 use sparse_levelset::segment::{segment, Init, Method, Params, Seed, Segmentation, Stop};

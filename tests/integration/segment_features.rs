@@ -2,7 +2,7 @@
 //!
 //! Tolerances are stated as absolute + relative where the result is rounded from `f64`.
 
-use sparse_levelset::image::{Image, IDENTITY};
+use sparse_levelset::io::image::{Image, IDENTITY};
 use sparse_levelset::segment::features::{
     edge_potential, edge_scale, gaussian, gaussian_kernel, gradient_magnitude, mean_std,
     percentile, sigmoid,

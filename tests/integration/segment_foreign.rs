@@ -6,10 +6,10 @@
 //! binomial kernel [1, 2, 1]/4 along each axis, plus Gaussian noise from `fastrand`, every
 //! intensity rounded to a multiple of 1/1024 so that 1000·I − 500 is exact in `f32`.
 
-use sparse_levelset::image::{Image, IDENTITY};
-use sparse_levelset::measure::measure;
+use sparse_levelset::io::image::{Image, IDENTITY};
 use sparse_levelset::segment::metrics::dice;
 use sparse_levelset::segment::{segment, Init, Method, Params, Seed, Segmentation, Stop};
+use sparse_levelset::tools::measure::measure;
 use std::sync::Arc;
 
 /// A blurred, noisy image of `inside` (world positions) on `dims` voxels of `spacing`.

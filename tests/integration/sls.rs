@@ -1,13 +1,13 @@
 //! The `.sls` format: round trips bit for bit between every grid, atomic writes, refusals.
 
 use crate::common::crc32;
-use sparse_levelset::build::{dtgrid_from, tiles_from, tiles_from_shape};
-use sparse_levelset::hrle::{FieldData, HrleGrid};
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::sls::{self, SlsError, Source, HEADER_BYTES, MAGIC};
+use sparse_levelset::io::sls::{self, SlsError, Source, HEADER_BYTES, MAGIC};
+use sparse_levelset::storage::convert::{dtgrid_from, tiles_from, tiles_from_shape};
+use sparse_levelset::storage::hrle::{FieldData, HrleGrid};
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::{Accessor, Coord, GridSpec, LevelSet};
 
-fn torus() -> sparse_levelset::tiles::TileGrid {
+fn torus() -> sparse_levelset::storage::tiles::TileGrid {
     let spec = GridSpec::new(0.5, [1.0, -2.0, 0.25], 3.0).unwrap();
     let t = Shape::Torus { center: [1.2, -1.9, 0.4], major_radius: 6.0, minor_radius: 2.2 };
     tiles_from_shape(&t, spec).unwrap()

@@ -6,10 +6,10 @@
 
 use crate::common::alloc::largest_allocation;
 use crate::common::crc32;
-use sparse_levelset::build::tiles_from_shape;
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::sls::{self, SlsError, Source};
+use sparse_levelset::io::sls::{self, SlsError, Source};
+use sparse_levelset::storage::convert::tiles_from_shape;
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::{Coord, GridSpec};
 
 #[test]

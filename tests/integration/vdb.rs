@@ -4,10 +4,10 @@
 
 use crate::common;
 use npyz::WriterBuilder;
-use sparse_levelset::build::tiles_from_shape;
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::tiles::{voxel_of, Tile, TileGrid};
-use sparse_levelset::vdb::{self, VdbCompression, VdbError, VdbOptions};
+use sparse_levelset::io::vdb::{self, VdbCompression, VdbError, VdbOptions};
+use sparse_levelset::storage::convert::tiles_from_shape;
+use sparse_levelset::storage::shapes::Shape;
+use sparse_levelset::storage::tiles::{voxel_of, Tile, TileGrid};
 use sparse_levelset::{Coord, GridSpec, LevelSet};
 use std::path::PathBuf;
 
@@ -274,7 +274,7 @@ fn round_trips_keep_the_band_and_the_spec() {
     // Other storages write the same file.
     let (_, shape, spec) = shapes().remove(1);
     let tiles = tiles_from_shape(&shape, spec).unwrap();
-    let dt = sparse_levelset::build::dtgrid_from(&tiles);
+    let dt = sparse_levelset::storage::convert::dtgrid_from(&tiles);
     let opts = VdbOptions::default();
     assert_eq!(vdb::encode(&dt, &opts).unwrap(), vdb::encode(&tiles, &opts).unwrap());
 }

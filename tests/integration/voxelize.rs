@@ -10,11 +10,11 @@
 use crate::common;
 
 use crate::common::meshes::{cube, icosphere, join, uv_sphere, uv_torus};
-use sparse_levelset::mesh::TriangleMesh;
-use sparse_levelset::tiles::TileGrid;
-use sparse_levelset::voxelize::{
-    default_voxel_size, read_mesh, voxelize, MeshInError, SignMethod, VoxelizeError,
-    VoxelizeOptions,
+use sparse_levelset::io::mesh::{load_mesh as read_mesh, MeshInError};
+use sparse_levelset::storage::tiles::TileGrid;
+use sparse_levelset::tools::mesh::TriangleMesh;
+use sparse_levelset::tools::voxelize::{
+    default_voxel_size, voxelize, SignMethod, VoxelizeError, VoxelizeOptions,
 };
 use sparse_levelset::{Coord, GridError, LevelSet};
 use std::path::{Path, PathBuf};
@@ -261,7 +261,7 @@ fn assert_closed(name: &str, grid: &TileGrid) {
 /// unstored voxels agree only when the band separates inside from outside).
 fn assert_contract(name: &str, grid: &TileGrid) {
     grid.check_invariants().unwrap();
-    let dt = sparse_levelset::build::dtgrid_from(grid);
+    let dt = sparse_levelset::storage::convert::dtgrid_from(grid);
     assert_eq!(dt.band_voxels(), grid.band_voxels(), "{name}");
     for c in voxels_around(grid, 2) {
         assert_eq!(dt.value(c), grid.value(c), "{name}: {c}");

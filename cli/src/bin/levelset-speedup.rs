@@ -9,7 +9,7 @@ use levelset_cli::output::{check_output, write_json};
 use levelset_cli::storage::{cpu_name, kernels_text, run_scenario, StorageBench};
 use levelset_cli::{out, outln, progress};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::shapes::Shape;
+use sparse_levelset::storage::shapes::Shape;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -150,7 +150,7 @@ fn memory(a: &BenchArgs) -> Result<(), String> {
     let bar = progress::spinner(false);
     let mut rows = Vec::new();
     if let Some(path) = &a.memory_mesh {
-        let mesh = sparse_levelset::voxelize::read_mesh(path).map_err(|e| e.to_string())?;
+        let mesh = sparse_levelset::io::mesh::load_mesh(path).map_err(|e| e.to_string())?;
         let name = path.file_stem().map_or("mesh".into(), |s| s.to_string_lossy().into_owned());
         rows = levelset_cli::memtable::mesh_rows(&name, &mesh, &a.memory_sizes, |m| {
             bar.set_message(m.to_string())

@@ -2,9 +2,9 @@
 //! on shapes and `.npy` fields, JSON output, and clear errors with a non-zero exit on bad
 //! input — before any work, never a panic or an abort, nothing written.
 
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::mesh::isosurface_dense;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::tools::mesh::isosurface_dense;
 use sparse_levelset::Coord;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
@@ -340,7 +340,7 @@ fn run_writes_the_summary_the_issue_asks_for() {
     assert_eq!(s["collapsed"], false);
     assert_eq!(s["checksum"].as_str().unwrap().len(), 16);
     // The exported field reads back and holds the shrunken sphere.
-    let f = sparse_levelset::npy::read_npy(&dir.join("final.npy")).unwrap();
+    let f = sparse_levelset::io::npy::read_npy(&dir.join("final.npy")).unwrap();
     assert!(f.data().iter().any(|&v| v < 0.0) && f.data().iter().any(|&v| v > 0.0));
 
     // The same run on the DT-Grid and on one thread ends with the same checksum.
@@ -502,7 +502,7 @@ fn shape_vectors_take_comma_separated_negative_numbers() {
 
 #[test]
 fn distance_command() {
-    use sparse_levelset::npy;
+    use sparse_levelset::io::npy;
     let input = tmp("in.npy");
     let f = DenseField::from_fn(Coord::new(0, 0, 0), [24, 20, 22], |c| {
         let d = ((c.x as f32 - 11.5).powi(2)
@@ -566,8 +566,8 @@ fn distance_command() {
 /// both arrays; different voxel lattices are refused.
 #[test]
 fn csg_command() {
-    use sparse_levelset::csg::CsgOp;
-    use sparse_levelset::npy;
+    use sparse_levelset::io::npy;
+    use sparse_levelset::tools::csg::CsgOp;
     let a = common::ball([20, 20, 20], [8.5, 9.0, 10.2], 6.0, 1.0);
     let b = common::ball([26, 18, 22], [14.0, 9.5, 10.0], 5.0, 1.0);
     let (pa, pb) = (common::npy("csg-a.npy", &a), common::npy("csg-b.npy", &b));
@@ -662,10 +662,10 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let mut bad = ball.clone();
     bad.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
     let nan = tmp("mesh-nan.npy");
-    sparse_levelset::npy::write_npy(&nan, &bad).unwrap();
+    sparse_levelset::io::npy::write_npy(&nan, &bad).unwrap();
     fails(&["mesh", nan.to_str().unwrap(), "-o", ply.to_str().unwrap()], "NaN");
     let empty = tmp("empty.npy");
-    sparse_levelset::npy::write_npy(
+    sparse_levelset::io::npy::write_npy(
         &empty,
         &DenseField::new(Coord::new(0, 0, 0), [5, 5, 5], 1.0).unwrap(),
     )
@@ -768,10 +768,10 @@ fn cli_renders_shapes_and_fields_and_rejects_bad_input() {
     let mut nan = field.clone();
     nan.set(Coord::new(3, 4, 5), f32::NAN).unwrap();
     let nan_npy = tmp("render-nan.npy");
-    sparse_levelset::npy::write_npy(&nan_npy, &nan).unwrap();
+    sparse_levelset::io::npy::write_npy(&nan_npy, &nan).unwrap();
     let flat = DenseField::new(Coord::new(0, 0, 0), [6, 6, 6], 1.0).unwrap();
     let flat_npy = tmp("render-flat.npy");
-    sparse_levelset::npy::write_npy(&flat_npy, &flat).unwrap();
+    sparse_levelset::io::npy::write_npy(&flat_npy, &flat).unwrap();
     let o_png = tmp("x.png");
     let o_png = o_png.to_str().unwrap();
     let bad_dir = tmp("no/such/dir/x.png");

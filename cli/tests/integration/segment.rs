@@ -36,7 +36,7 @@ fn phantom_then_segment_finds_the_ball() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert!(v["dice"].as_f64().unwrap() > 0.95, "{v}");
     assert!(v["iterations"].as_u64().unwrap() > 10);
-    let m = sparse_levelset::image::load(std::path::Path::new(&mask), None).unwrap();
+    let m = sparse_levelset::io::image::load(std::path::Path::new(&mask), None).unwrap();
     assert_eq!(m.image.dims, [40, 40, 40]);
     assert!(m.image.data.iter().all(|&x| x == 0.0 || x == 1.0));
     assert!(std::path::Path::new(&ls).exists());
@@ -117,7 +117,7 @@ fn batch_mode_segments_a_folder_and_skips_a_broken_file() {
 /// A bright shell with a hole around a dark cavity, as `.npy` (0–1 intensities): GAC
 /// seeded in the cavity leaves through the hole.
 fn write_shell(path: &std::path::Path) {
-    use sparse_levelset::image::{save_f32, Image, LoadedImage, IDENTITY};
+    use sparse_levelset::io::image::{save_f32, Image, LoadedImage, IDENTITY};
     let n = 40usize;
     let c = 20.0f64;
     let data: Vec<f32> = (0..n * n * n)

@@ -27,7 +27,7 @@ fn convert_round_trips_and_every_tool_reads_sls() {
         "--quiet",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let d = sparse_levelset::npy::read_npy(&back).unwrap();
+    let d = sparse_levelset::io::npy::read_npy(&back).unwrap();
     // The array starts at the band's lowest corner (margin 0).
     let mut o0 = sparse_levelset::Coord::new(i32::MAX, i32::MAX, i32::MAX);
     for z in 0..24 {

@@ -1,7 +1,7 @@
 //! `levelset convert` to and from OpenVDB `.vdb` files through the command line.
 
 use crate::common::{ball, levelset, npy, stderr, stdout, tmp};
-use sparse_levelset::{sls, vdb, LevelSet};
+use sparse_levelset::{io::sls, io::vdb, LevelSet};
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> PathBuf {

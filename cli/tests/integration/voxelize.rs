@@ -51,7 +51,7 @@ fn voxelize_writes_the_signed_distance_of_a_mesh() {
     // The box spans voxels 0..=8 × 0..=6 × 0..=4; the band (|φ| < γ = 1.5, 3 voxels)
     // starts at voxel -2, and the array one voxel before it.
     assert!(text.contains("element [0, 0, 0] is voxel (-3, -3, -3)"), "{text}");
-    let field = sparse_levelset::npy::read_npy(&out).unwrap();
+    let field = sparse_levelset::io::npy::read_npy(&out).unwrap();
     let data = field.data();
     let g = 1.5f32;
     // The box is 2 units thick: no voxel is deeper than 1 (< γ).

@@ -3,7 +3,6 @@
 
 use super::{growth_bytes, vec_bytes, KappaBarTerm, MemoryBudget, Representation, Undo};
 use crate::coord::Coord;
-use crate::dense::DenseField;
 use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
@@ -11,6 +10,7 @@ use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
 use crate::grid::GridSpec;
+use crate::storage::dense::DenseField;
 use levelset_kernels::{BandMasked, BoxMinAbs, DenseBlock, VoxelKernel};
 use std::ops::Range;
 

@@ -6,7 +6,6 @@ use super::{
     growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
 };
 use crate::coord::Coord;
-use crate::dtgrid::{DtGrid, Stencil, StencilIter};
 use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
@@ -14,6 +13,7 @@ use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
 use crate::grid::GridSpec;
+use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
 use levelset_kernels::{BoxFarWindow, BoxWindow, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS};
 use std::ops::Range;
 
@@ -295,7 +295,7 @@ impl Representation for DtRep {
     }
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f)
+        crate::storage::levelset::LevelSet::for_each_band_voxel(&self.grid, f)
     }
 
     fn any_voxel(&self, f: &mut dyn FnMut(Coord, f32) -> bool) -> bool {

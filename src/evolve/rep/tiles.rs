@@ -15,7 +15,7 @@ use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme};
 use crate::grid::GridSpec;
 use crate::memory::grown_capacity;
-use crate::tiles::{
+use crate::storage::tiles::{
     compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
 use levelset_kernels::{BandMasked, DefaultLane, Lane, TileBlock, VoxelKernel};
@@ -646,9 +646,9 @@ impl Representation for TilesRep {
 
     fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
         if self.part.is_none() {
-            return crate::levelset::LevelSet::for_each_band_voxel(&self.grid, f);
+            return crate::storage::levelset::LevelSet::for_each_band_voxel(&self.grid, f);
         }
-        crate::levelset::LevelSet::for_each_band_voxel(&self.grid, &mut |c, v| {
+        crate::storage::levelset::LevelSet::for_each_band_voxel(&self.grid, &mut |c, v| {
             if self.owns_z(c.z >> 2) {
                 f(c, v)
             }

@@ -2,7 +2,7 @@
 //! consistently oriented (counter-clockwise seen from outside), vertices shared.
 #![allow(dead_code)]
 
-use sparse_levelset::mesh::TriangleMesh;
+use sparse_levelset::tools::mesh::TriangleMesh;
 use std::f64::consts::PI;
 
 /// A UV torus around the z axis: `n_major` segments along the centre circle of radius

@@ -4,7 +4,7 @@
 pub mod alloc;
 pub mod meshes;
 
-use sparse_levelset::dense::DenseField;
+use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::Coord;
 use std::path::PathBuf;
 
@@ -28,7 +28,7 @@ pub fn ball(dims: [usize; 3], centre: [f64; 3], radius: f64, scale: f64) -> Dens
 /// Writes `field` to the temporary `.npy` file `name` and returns its path.
 pub fn npy(name: &str, field: &DenseField) -> PathBuf {
     let path = tmp(name);
-    sparse_levelset::npy::write_npy(&path, field).unwrap();
+    sparse_levelset::io::npy::write_npy(&path, field).unwrap();
     path
 }
 

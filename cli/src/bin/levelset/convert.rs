@@ -7,14 +7,15 @@ use crate::source::{is_sls, is_vdb};
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::build::{self, tiles_from_dense};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::input::{self, Expect};
-use sparse_levelset::mesh::{self, MeshFormat};
-use sparse_levelset::sls;
-use sparse_levelset::vdb::{self, VdbCompression, VdbOptions};
-use sparse_levelset::voxelize::{read_mesh, voxelize, MeshFileFormat, VoxelizeOptions};
+use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::io::mesh::{load_mesh, save_mesh, MeshFormat};
+use sparse_levelset::io::sls;
+use sparse_levelset::io::vdb::{self, VdbCompression, VdbOptions};
+use sparse_levelset::storage::convert::{self, tiles_from_dense};
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::tools::mesh;
+use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
@@ -76,14 +77,14 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     } else if is_npy(&a.output) {
         Out::Npy
     } else {
-        Out::Mesh(MeshFormat::from_path(&a.output, false).map_err(|_| {
+        Out::Mesh(MeshFormat::from_path(&a.output).ok_or_else(|| {
             format!(
-                "{}: unknown output type; use .sls, .vdb, .npy, .ply or .obj",
+                "{}: unknown output type; use .sls, .vdb, .npy, .ply, .obj or .stl",
                 a.output.display()
             )
         })?)
     };
-    let is_mesh = MeshFileFormat::from_path(&a.input).is_some();
+    let is_mesh = MeshFormat::from_path(&a.input).is_some();
     if !(is_sls(&a.input) || is_vdb(&a.input) || is_npy(&a.input) || is_mesh) {
         return Err(format!(
             "{}: unknown input type; use .npy, .sls, .vdb, .obj, .ply or .stl",
@@ -110,7 +111,7 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     // The input and the grid made from it are held at once.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
     let grid: HrleGrid = if is_mesh {
-        let mesh = read_mesh(&a.input).map_err(|e| e.to_string())?;
+        let mesh = load_mesh(&a.input).map_err(|e| e.to_string())?;
         bar.set_message(format!("voxelising {name}"));
         let opts = VoxelizeOptions {
             voxel_size: a.voxel_size,
@@ -140,7 +141,7 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
             format!("{} band voxels", grid.band_voxels())
         }
         Out::Npy => {
-            let origin = build::export_npy(&grid, &a.output, a.margin)
+            let origin = convert::export_npy(&grid, &a.output, a.margin)
                 .map_err(|e| format!("{}: {e}", a.output.display()))?;
             format!("{} band voxels, array origin voxel {origin}", grid.band_voxels())
         }
@@ -150,7 +151,7 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
             if m.is_empty() {
                 return Err(format!("{name}: the level set has no surface to mesh"));
             }
-            m.write(&a.output, Some(format)).map_err(|e| e.to_string())?;
+            save_mesh(&a.output, &m, Some(format)).map_err(|e| e.to_string())?;
             format!("{} triangles", m.num_triangles())
         }
     };

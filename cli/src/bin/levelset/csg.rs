@@ -1,14 +1,14 @@
 //! `levelset csg`: the union, intersection or difference of two dense level sets,
-//! computed on their sparse bands ([`sparse_levelset::csg`]).
+//! computed on their sparse bands ([`sparse_levelset::tools::csg`]).
 
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::build::{tiles_from_dense, to_dense};
 use sparse_levelset::coord::Coord;
-use sparse_levelset::csg::{csg, CsgOp};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::input::{self, Expect};
+use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::storage::convert::{tiles_from_dense, to_dense};
+use sparse_levelset::tools::csg::{csg, CsgOp};
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -74,7 +74,7 @@ pub fn run(a: &CsgArgs) -> Result<(), String> {
     drop(grids);
     bar.set_message(format!("writing {}", a.output.display()));
     let out = to_dense(&result, Coord::new(0, 0, 0), dims).map_err(|e| e.to_string())?;
-    sparse_levelset::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())?;
+    sparse_levelset::io::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     outln!(
         "wrote {}: {} of {} and {}, {} band voxels, {seconds:.3} s",

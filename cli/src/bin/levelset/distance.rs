@@ -4,9 +4,9 @@
 use clap::Args;
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::fmm::{distance_dense, FmmOptions, Order};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::input::{self, Expect};
+use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::tools::fmm::{distance_dense, FmmOptions, Order};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -46,7 +46,7 @@ pub fn run(a: &DistanceArgs) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", a.field.display()))?;
     let seconds = start.elapsed().as_secs_f64();
     bar.set_message(format!("writing {}", a.output.display()));
-    sparse_levelset::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())?;
+    sparse_levelset::io::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let g = spec.gamma();
     let band = out.data().iter().filter(|v| v.abs() < g).count();

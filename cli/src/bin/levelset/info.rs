@@ -5,7 +5,7 @@ use crate::source::{Input, SourceArgs};
 use clap::Args;
 use levelset_cli::info::{info_from_dense, info_from_shape, info_from_sparse};
 use levelset_cli::{out, outln};
-use sparse_levelset::input::Expect;
+use sparse_levelset::io::input::Expect;
 
 #[derive(Args)]
 pub struct InfoArgs {

@@ -1,5 +1,5 @@
 //! The `levelset` command: one module per subcommand. Every input goes through the
-//! library's one loader ([`sparse_levelset::input`]) and every output path is checked
+//! library's one loader ([`sparse_levelset::io::input`]) and every output path is checked
 //! before the work starts. The speed-up report is its own binary, `levelset-speedup`.
 
 mod convert;

@@ -5,8 +5,9 @@ use crate::source::{Input, SourceArgs};
 use clap::Args;
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::input::Expect;
-use sparse_levelset::mesh::{self, MeshFormat};
+use sparse_levelset::io::input::Expect;
+use sparse_levelset::io::mesh::{save_mesh, MeshFormat};
+use sparse_levelset::tools::mesh;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -33,10 +34,20 @@ pub struct MeshArgs {
 }
 
 pub fn run(a: &MeshArgs) -> Result<(), String> {
-    let format = MeshFormat::from_path(&a.output, a.ascii).map_err(|e| e.to_string())?;
+    let format = match MeshFormat::from_path(&a.output) {
+        Some(MeshFormat::Ply { .. }) => MeshFormat::Ply { ascii: a.ascii },
+        Some(f) => f,
+        None => {
+            return Err(format!(
+                "{}: unknown mesh format (use {})",
+                a.output.display(),
+                MeshFormat::EXTENSIONS
+            ))
+        }
+    };
     let spec = a.source.spec()?;
     check_output(&a.output)?;
-    // Positions far from the origin are written as f64 (see `sparse_levelset::mesh`), so
+    // Positions far from the origin are written as f64 (see `sparse_levelset::tools::mesh`), so
     // no position limit applies.
     let expect = Expect { iso: a.iso, ..Expect::new(spec) };
     let bar = progress::spinner(a.quiet);
@@ -59,7 +70,7 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
             // Coarsening samples a level set: the field's band as tiles (the loader has
             // checked that it is a distance at the half-width).
             bar.set_message("building tiles");
-            let tiles = sparse_levelset::build::tiles_from_dense(field, spec)
+            let tiles = sparse_levelset::storage::convert::tiles_from_dense(field, spec)
                 .map_err(|e| format!("{name}: {e}"))?;
             bar.set_message("meshing");
             let opts = mesh::MeshOptions { iso: a.iso, coarsen: a.coarsen, ..Default::default() };
@@ -67,8 +78,8 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
         }
         Input::Shape { shape, .. } => {
             bar.set_message("building tiles");
-            let tiles =
-                sparse_levelset::build::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?;
+            let tiles = sparse_levelset::storage::convert::tiles_from_shape(shape, spec)
+                .map_err(|e| e.to_string())?;
             bar.set_length(tiles.len() as u64);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(
@@ -91,7 +102,7 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
         return Err(format!("{source}: the level set has no surface at iso = {}", a.iso));
     }
     let seconds = start.elapsed().as_secs_f64();
-    m.write(&a.output, Some(format)).map_err(|e| e.to_string())?;
+    save_mesh(&a.output, &m, Some(format)).map_err(|e| e.to_string())?;
     let closed = m.is_closed_manifold();
     outln!(
         "{source}: {} vertices, {} triangles, area {:.6e}, enclosed volume {:.6e}, closed \

@@ -4,7 +4,7 @@
 use clap::{Args, ValueEnum};
 use levelset_cli::outln;
 use levelset_cli::output::{check_output_dir, write_json};
-use sparse_levelset::image::{self, LoadedImage};
+use sparse_levelset::io::image::{self, LoadedImage};
 use sparse_levelset::segment::phantom::{phantom, PhantomKind, BACKGROUND, CONTRAST};
 use std::path::PathBuf;
 

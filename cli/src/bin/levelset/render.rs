@@ -5,8 +5,8 @@ use crate::source::{Input, SourceArgs};
 use clap::Args;
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::input::Expect;
-use sparse_levelset::{build, render};
+use sparse_levelset::io::input::Expect;
+use sparse_levelset::{storage::convert, tools::render};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -78,12 +78,12 @@ pub fn run(a: &RenderArgs) -> Result<(), String> {
     let name = input.name().to_string();
     let tiles = match &input {
         Input::Field { field, .. } => {
-            build::tiles_from_dense(field, spec).map_err(|e| format!("{name}: {e}"))?
+            convert::tiles_from_dense(field, spec).map_err(|e| format!("{name}: {e}"))?
         }
         Input::Shape { shape, .. } => {
-            build::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?
+            convert::tiles_from_shape(shape, spec).map_err(|e| e.to_string())?
         }
-        Input::Sparse { grid, .. } => build::tiles_from(grid.as_ref()),
+        Input::Sparse { grid, .. } => convert::tiles_from(grid.as_ref()),
     };
     drop(input);
     let build_seconds = start.elapsed().as_secs_f64();
@@ -100,7 +100,7 @@ pub fn run(a: &RenderArgs) -> Result<(), String> {
     let opts = render::RenderOptions { progress, ..opts };
     let start = Instant::now();
     let (grid, image) = match a.grid {
-        GridArg::Dtgrid => ("dtgrid", render::render(&build::dtgrid_from(&tiles), &opts)),
+        GridArg::Dtgrid => ("dtgrid", render::render(&convert::dtgrid_from(&tiles), &opts)),
         _ => ("tiles", render::render(&tiles, &opts)),
     };
     let image = image.map_err(|e| format!("{name}: {e}"))?;

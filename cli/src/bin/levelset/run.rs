@@ -198,7 +198,7 @@ struct Frames {
     render_every: Option<u64>,
     mesh_every: Option<u64>,
     /// The camera's frame box, fixed at the first frame.
-    frame: Option<sparse_levelset::render::FrameBox>,
+    frame: Option<sparse_levelset::tools::render::FrameBox>,
     written: usize,
 }
 
@@ -226,8 +226,9 @@ impl Frames {
         sim: &sparse_levelset::evolve::Simulation,
     ) -> Result<(), sparse_levelset::evolve::EvolveError> {
         use sparse_levelset::evolve::EvolveError;
-        use sparse_levelset::mesh::{isosurface, MeshFormat};
-        use sparse_levelset::render::{render, FrameBox, RenderOptions};
+        use sparse_levelset::io::mesh::{save_mesh, MeshFormat};
+        use sparse_levelset::tools::mesh::isosurface;
+        use sparse_levelset::tools::render::{render, FrameBox, RenderOptions};
         let step = sim.steps();
         let due = |every: Option<u64>| every.is_some_and(|k| step.is_multiple_of(k));
         let (mesh_due, render_due) = (due(self.mesh_every), due(self.render_every));
@@ -239,7 +240,8 @@ impl Frames {
         if mesh_due {
             let mesh = isosurface(sim, &Default::default()).map_err(|e| output(&e))?;
             let path = self.dir.join(format!("mesh-{step:06}.ply"));
-            mesh.write(&path, Some(MeshFormat::PlyBinary)).map_err(|e| output(&e))?;
+            save_mesh(&path, &mesh, Some(MeshFormat::Ply { ascii: false }))
+                .map_err(|e| output(&e))?;
             self.written += 1;
         }
         if render_due {
@@ -309,8 +311,8 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     o.voxel_size = a.voxel_size;
     o.reinit = a.reinit.map(|r| sparse_levelset::evolve::Reinit {
         order: match r {
-            ReinitArg::Fmm => sparse_levelset::fmm::Order::First,
-            ReinitArg::Fmm2 => sparse_levelset::fmm::Order::Second,
+            ReinitArg::Fmm => sparse_levelset::tools::fmm::Order::First,
+            ReinitArg::Fmm2 => sparse_levelset::tools::fmm::Order::Second,
         },
         every: a.every,
     });
@@ -394,7 +396,7 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
 }
 
 /// Writes the final band as a dense field with a margin of 4 voxels
-/// ([`sparse_levelset::build::export_npy`]), through a DT-Grid of the band voxels so that
+/// ([`sparse_levelset::storage::convert::export_npy`]), through a DT-Grid of the band voxels so that
 /// every representation writes the same file.
 /// The renormalisation the flags ask for (`None`: the scenario's default); a flag of
 /// another mode is an error.
@@ -440,7 +442,7 @@ fn export_final(
     sim: &sparse_levelset::evolve::Simulation,
     path: &std::path::Path,
 ) -> Result<sparse_levelset::Coord, String> {
-    let mut dt = sparse_levelset::dtgrid::DtGrid::new(sim.spec());
+    let mut dt = sparse_levelset::storage::dtgrid::DtGrid::new(sim.spec());
     let mut pushed = Ok(());
     sim.for_each_band_voxel(|c, v| {
         if pushed.is_ok() {
@@ -448,8 +450,8 @@ fn export_final(
         }
     });
     pushed.map_err(|e| e.to_string())?;
-    sparse_levelset::build::export_npy(&dt, path, 4).map_err(|e| match e {
-        sparse_levelset::build::ExportError::Empty => {
+    sparse_levelset::storage::convert::export_npy(&dt, path, 4).map_err(|e| match e {
+        sparse_levelset::storage::convert::ExportError::Empty => {
             "the final level set has no band voxels: nothing to export".to_string()
         }
         e => format!("{}: {e}", path.display()),

@@ -6,7 +6,7 @@
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{batch, outln, progress};
-use sparse_levelset::image::{self, LoadedImage, Output};
+use sparse_levelset::io::image::{self, LoadedImage, Output};
 use sparse_levelset::segment::{metrics::dice, segment, Init, Method, Params, Seed, Stop};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -129,8 +129,8 @@ pub struct SegmentArgs {
     #[arg(long, value_name = "OUT")]
     pub level_set: Option<PathBuf>,
     /// The surface (φ = 0) as a triangle mesh in the image's world coordinates (NIfTI:
-    /// scanner millimetres): .ply or .obj.
-    #[arg(long, value_name = "OUT.ply|OUT.obj")]
+    /// scanner millimetres): .ply, .obj or .stl.
+    #[arg(long, value_name = "OUT.ply|OUT.obj|OUT.stl")]
     pub mesh: Option<PathBuf>,
     /// A truth mask: its Dice coefficient goes into the figures.
     #[arg(long, value_name = "MASK")]
@@ -199,7 +199,7 @@ struct Job {
     /// Methods added with their weights.
     terms: Vec<(Method, f32)>,
     /// The user's feature image.
-    feature: Option<Arc<sparse_levelset::image::Image>>,
+    feature: Option<Arc<sparse_levelset::io::image::Image>>,
 }
 
 /// The method from the flags, the thresholds from `window` when the flags give none.
@@ -421,7 +421,7 @@ fn execute(
     }
     if let Some(path) = &j.mesh {
         let mesh = result.mesh(img).map_err(|e| e.to_string())?;
-        mesh.write(path, None).map_err(|e| format!("{}: {e}", path.display()))?;
+        sparse_levelset::io::mesh::save_mesh(path, &mesh, None).map_err(|e| e.to_string())?;
     }
     let r = &result.report;
     let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;

@@ -1,14 +1,14 @@
 //! The level set a subcommand reads: a dense `.npy` field (positional) or an analytic shape
 //! (`--shape ...`), with the grid's voxel size and half-width, loaded and checked by the
-//! library's one loader ([`sparse_levelset::input`]).
+//! library's one loader ([`sparse_levelset::io::input`]).
 
 use clap::{Args, ValueEnum};
-use sparse_levelset::dense::DenseField;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::hrle::HrleGrid;
-use sparse_levelset::input::{self, Expect};
-use sparse_levelset::shapes::Shape;
-use sparse_levelset::sls;
+use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::io::sls;
+use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::storage::shapes::Shape;
 use std::path::{Path, PathBuf};
 
 /// A path with the `.vdb` extension (any case): an OpenVDB level set.

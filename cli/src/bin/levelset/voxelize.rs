@@ -1,5 +1,5 @@
 //! `levelset voxelize`: a triangle mesh (OBJ, PLY or STL) to a narrow-band signed distance
-//! field ([`sparse_levelset::voxelize`]), written as a dense `.npy` around the band (or a
+//! field ([`sparse_levelset::tools::voxelize`]), written as a dense `.npy` around the band (or a
 //! sparse `.sls`); a folder of meshes into a folder of `.npy` fields with one summary.
 
 use clap::{Args, ValueEnum};
@@ -7,10 +7,8 @@ use levelset_cli::output::check_output;
 use levelset_cli::{batch, outln, progress};
 use serde::{Deserialize, Serialize};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::sample::band_voxel_box;
-use sparse_levelset::voxelize::{
-    default_voxel_size, read_mesh, voxelize, SignMethod, VoxelizeOptions,
-};
+use sparse_levelset::storage::sample::band_voxel_box;
+use sparse_levelset::tools::voxelize::{default_voxel_size, voxelize, SignMethod, VoxelizeOptions};
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -60,9 +58,9 @@ pub struct VoxelizeArgs {
 /// The output formats, by extension.
 #[derive(Clone, Copy, Debug)]
 enum Output {
-    /// The sparse band as a `.sls` file ([`sparse_levelset::sls::save`]).
+    /// The sparse band as a `.sls` file ([`sparse_levelset::io::sls::save`]).
     Sls,
-    /// A dense `.npy` around the band ([`sparse_levelset::build::export_npy`]).
+    /// A dense `.npy` around the band ([`sparse_levelset::storage::convert::export_npy`]).
     Npy,
 }
 
@@ -145,7 +143,7 @@ fn voxelize_one(
     check_output(output)?;
     let name = path.display().to_string();
     bar.set_message(format!("reading {name}"));
-    let mesh = read_mesh(path).map_err(|e| e.to_string())?;
+    let mesh = sparse_levelset::io::mesh::load_mesh(path).map_err(|e| e.to_string())?;
     let chosen = a.voxel_size.is_none();
     let h = match a.voxel_size {
         Some(h) => h,
@@ -204,13 +202,13 @@ fn voxelize_one(
     bar.set_message(format!("writing {}", output.display()));
     let (dims, origin) = match kind {
         Output::Sls => {
-            sparse_levelset::sls::save(output, &grid).map_err(|e| e.to_string())?;
+            sparse_levelset::io::sls::save(output, &grid).map_err(|e| e.to_string())?;
             (None, None)
         }
         Output::Npy => {
-            let origin = sparse_levelset::build::export_npy(&grid, output, MARGIN)
+            let origin = sparse_levelset::storage::convert::export_npy(&grid, output, MARGIN)
                 .map_err(|e| format!("{}: {e}", output.display()))?;
-            let dims = sparse_levelset::build::dense_box(&grid, MARGIN).map(|(_, d)| d);
+            let dims = sparse_levelset::storage::convert::dense_box(&grid, MARGIN).map(|(_, d)| d);
             (dims, Some([origin.x, origin.y, origin.z]))
         }
     };

@@ -1,0 +1,178 @@
+//! Writing files safely: to a temporary file in the target's directory, flushed to disk,
+//! then renamed into place, so the target never holds a partial file; and checking, before
+//! any work, that an output can be written at all ([`check_writable`],
+//! [`check_writable_dir`]), so that a long computation never ends in a failed write.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Writes a file through `write` into a temporary file next to `path`, `fsync`s it and
+/// renames it over `path`. On any error the temporary file is removed and `path` is left
+/// as it was.
+pub fn write_atomic<F>(path: &Path, write: F) -> io::Result<()>
+where
+    F: FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+{
+    let name = path.file_name().ok_or_else(|| {
+        io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file")
+    })?;
+    let dir = parent_dir(path);
+    let tmp = temp_path(&dir, name);
+    let result = (|| -> io::Result<()> {
+        let file = fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+        let mut w = BufWriter::with_capacity(1 << 20, file);
+        write(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(&tmp, path)?;
+        // Make the rename durable (best effort: not every platform can sync a directory).
+        #[cfg(unix)]
+        if let Ok(d) = File::open(&dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// The directory a file `path` lives in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// A fresh hidden name next to `name` in `dir`: `.NAME.PID.N.tmp`.
+fn temp_path(dir: &Path, name: &std::ffi::OsStr) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(
+        ".{}.{}.tmp",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    dir.join(tmp_name)
+}
+
+/// Creates and removes a temporary file in `dir`: what [`write_atomic`] will do there.
+fn probe_dir(dir: &Path, name: &std::ffi::OsStr) -> io::Result<()> {
+    let tmp = temp_path(dir, name);
+    fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+    fs::remove_file(&tmp)
+}
+
+/// Checks, before any work, that [`write_atomic`] can write the file `path`: it names a
+/// file, not a directory, and a file can be created in its directory (a temporary file is
+/// created there and removed again; nothing else is written). Disk space is not checked.
+///
+/// ```
+/// use sparse_levelset::io::fsutil::check_writable;
+/// let dir = std::env::temp_dir();
+/// assert!(check_writable(&dir.join("result.npy")).is_ok());
+/// assert!(check_writable(&dir.join("no-such-dir/result.npy")).is_err());
+/// ```
+pub fn check_writable(path: &Path) -> io::Result<()> {
+    let name = path.file_name().ok_or_else(|| {
+        io::Error::new(io::ErrorKind::InvalidInput, "the path does not name a file")
+    })?;
+    if path.is_dir() {
+        return Err(io::Error::new(io::ErrorKind::IsADirectory, "it is a directory"));
+    }
+    let dir = parent_dir(path);
+    if !dir.is_dir() {
+        let what = if dir.exists() { "is not a directory" } else { "does not exist" };
+        return Err(io::Error::new(
+            io::ErrorKind::NotFound,
+            format!("the directory {} {what}", dir.display()),
+        ));
+    }
+    probe_dir(&dir, name)
+}
+
+/// Checks, before any work, that files can be written in the directory `dir`, creating
+/// nothing: an existing `dir` must be a directory in which a file can be created (probed
+/// with a temporary file, removed again); a missing one must be creatable, i.e. its nearest
+/// existing ancestor is a directory in which an entry can be created. Create it with
+/// [`fs::create_dir_all`] when the work starts.
+pub fn check_writable_dir(dir: &Path) -> io::Result<()> {
+    let not_dir = |p: &Path| {
+        io::Error::new(
+            io::ErrorKind::NotADirectory,
+            format!("{} exists and is not a directory", p.display()),
+        )
+    };
+    if dir.exists() {
+        if !dir.is_dir() {
+            return Err(not_dir(dir));
+        }
+        return probe_dir(dir, std::ffi::OsStr::new("write-check"));
+    }
+    let mut ancestor = dir;
+    loop {
+        ancestor = match ancestor.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        if ancestor.exists() {
+            if !ancestor.is_dir() {
+                return Err(not_dir(ancestor));
+            }
+            return probe_dir(ancestor, std::ffi::OsStr::new("mkdir-check"));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn writes_whole_file_or_nothing() {
+        let dir = std::env::temp_dir().join(format!("levelset-fsutil-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("out.txt");
+        write_atomic(&p, |w| w.write_all(b"first")).unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"first");
+        let err = write_atomic(&p, |w| {
+            w.write_all(b"partial")?;
+            Err(io::Error::other("fails half-way"))
+        });
+        assert!(err.is_err());
+        assert_eq!(fs::read(&p).unwrap(), b"first", "target untouched");
+        let left: Vec<_> = fs::read_dir(&dir).unwrap().collect();
+        assert_eq!(left.len(), 1, "no temporary file left behind");
+        assert!(write_atomic(&dir.join("no/such/dir/x"), |_| Ok(())).is_err());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn outputs_are_checked_without_writing_anything() {
+        let dir = std::env::temp_dir().join(format!("levelset-fsutil-w-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("a-file");
+        fs::write(&file, b"x").unwrap();
+        assert!(check_writable(&dir.join("out.npy")).is_ok());
+        assert!(check_writable(&file).is_ok(), "an existing file is replaced");
+        for bad in [dir.clone(), dir.join("missing/out.npy"), file.join("out.npy")] {
+            let e = check_writable(&bad).unwrap_err();
+            assert!(!e.to_string().is_empty(), "{}", bad.display());
+        }
+        assert!(check_writable_dir(&dir).is_ok());
+        assert!(check_writable_dir(&dir.join("new/sub")).is_ok(), "creatable");
+        assert!(check_writable_dir(&file).is_err());
+        assert!(check_writable_dir(&file.join("sub/deeper")).is_err());
+        // Nothing was created or left behind.
+        let left: Vec<_> = fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(left, ["a-file"]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

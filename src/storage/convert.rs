@@ -1,0 +1,348 @@
+//! Construction of both grids — from an analytic shape or signed-distance closure, from a
+//! dense field — and conversion between the grids and to dense fields.
+//!
+//! Construction from a closure evaluates only near the band (van der Laan et al. 2011,
+//! Sec. 4.2, "compute the distance transform up to ±γ"): [`crate::storage::sample::sample_band_tiles`] culls
+//! tile-aligned blocks with a Lipschitz bound, so the work scales with the surface, not the
+//! bounding box. Both grids are built from the same samples.
+
+use crate::coord::Coord;
+use crate::grid::{GridError, GridSpec};
+use crate::storage::dense::DenseField;
+use crate::storage::dtgrid::DtGrid;
+use crate::storage::levelset::{Accessor, LevelSet};
+use crate::storage::sample::{sample_band_tiles, sample_shape_tiles};
+use crate::storage::shapes::Shape;
+use crate::storage::tiles::{tile_of, voxel_of, Tile, TileGrid};
+use rayon::prelude::*;
+
+/// Tiles of the band of a signed distance closure `phi(world position)` (world units,
+/// φ < 0 inside) with Lipschitz constant `lipschitz`, over the voxel box `lo..=hi` which must
+/// hold the whole band. Border flags come from `phi` at one voxel of each absent neighbour
+/// tile (absent tiles hold no band voxel, so they are uniformly signed).
+pub fn tiles_from_sdf<F>(
+    phi: F,
+    lipschitz: f64,
+    lo: Coord,
+    hi: Coord,
+    spec: GridSpec,
+) -> Result<TileGrid, GridError>
+where
+    F: Fn([f64; 3]) -> f64 + Sync,
+{
+    let at_voxel = |c: Coord| phi(spec.world(c)) as f32;
+    let tiles = sample_band_tiles(at_voxel, lipschitz as f32, lo, hi, &spec)?;
+    TileGrid::from_sorted_tiles(spec, tiles.into_iter().map(|(c, v)| (c, Tile(v))), |t| {
+        at_voxel(voxel_of(t, 0)) < 0.0
+    })
+}
+
+/// The tile grid of an analytic shape (its parameters are validated first).
+pub fn tiles_from_shape(shape: &Shape, spec: GridSpec) -> Result<TileGrid, GridError> {
+    let tiles = sample_shape_tiles(shape, &spec)?;
+    TileGrid::from_sorted_tiles(spec, tiles.into_iter().map(|(c, v)| (c, Tile(v))), |t| {
+        shape.sdf(spec.world(voxel_of(t, 0))) < 0.0
+    })
+}
+
+/// The DT-Grid of an analytic shape: the band voxels of the same culled samples.
+pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridError> {
+    Ok(dtgrid_from(&tiles_from_shape(shape, spec)?))
+}
+
+/// The DT-Grid of any level set: its band voxels (|φ| < γ) pushed in [`Coord`] order,
+/// O(band voxels) plus the level set's own pass over them. A tile grid whose band does
+/// not separate inside from outside (the interior of a dense field touching the array's
+/// edge) also gets the closing layer of [`dtgrid_from_dense`], so that the DT-Grid reads
+/// what the tiles read at every voxel.
+pub fn dtgrid_from<G: LevelSet + ?Sized>(grid: &G) -> DtGrid {
+    if let Some(tiles) = grid.as_tiles() {
+        return dtgrid_closed_from_tiles(tiles)
+            .expect("tile voxels are visited in order, are finite and lie in the i32 range");
+    }
+    let mut dt = DtGrid::new(grid.spec());
+    grid.for_each_band_voxel(&mut |c, v| {
+        dt.push(c, v).expect("band voxels are visited in order and are finite");
+    });
+    dt
+}
+
+/// The tile grid of any level set: the tiles holding a band voxel, filled with the level
+/// set's values (±γ where it stores nothing), border flags from its sign at each absent
+/// neighbour. A tile grid is copied as it is.
+pub fn tiles_from<G: LevelSet + ?Sized>(grid: &G) -> TileGrid {
+    if let Some(t) = grid.as_tiles() {
+        return t.clone();
+    }
+    let mut coords: Vec<Coord> = Vec::new();
+    grid.for_each_band_voxel(&mut |c, _| {
+        let t = tile_of(c).0;
+        if coords.last() != Some(&t) {
+            coords.push(t);
+        }
+    });
+    coords.par_sort_unstable();
+    coords.dedup();
+    let tiles: Vec<(Coord, Tile)> = coords
+        .par_iter()
+        .map_init(
+            || grid.accessor(),
+            |acc, &t| {
+                let mut tile = Tile::splat(0.0);
+                for (l, v) in tile.0.iter_mut().enumerate() {
+                    *v = acc.value(voxel_of(t, l));
+                }
+                (t, tile)
+            },
+        )
+        .collect();
+    TileGrid::from_sorted_tiles(grid.spec(), tiles, |t| grid.value(voxel_of(t, 0)) < 0.0)
+        .expect("tiles of band voxels are sorted, in range and finite")
+}
+
+/// Value of a dense field at a voxel, `+γ` (outside) beyond the array, clamped to ±γ.
+fn dense_value(field: &DenseField, c: Coord, g: f32) -> f32 {
+    field.get(c).map_or(g, |v| v.clamp(-g, g))
+}
+
+/// The tile grid of a dense level-set field (φ < 0 inside, world units, voxel size and
+/// origin from `spec`; the field's own `origin` places it on the voxel grid). Voxels
+/// beyond the array read as outside (`+γ`): a band or interior that touches the array's
+/// boundary is closed there (see [`DenseField::boundary_touches`]). NaN is an error;
+/// ±∞ clamp to ±γ.
+pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, GridError> {
+    let g = spec.gamma();
+    let (tlo, _) = tile_of(field.origin());
+    let (thi, _) = tile_of(field.max_coord());
+    if let Some((i, _)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
+        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    let slabs: Vec<Vec<(Coord, Tile)>> = (tlo.z..=thi.z)
+        .into_par_iter()
+        .map(|tz| {
+            let mut out = Vec::new();
+            for ty in tlo.y..=thi.y {
+                for tx in tlo.x..=thi.x {
+                    let t = Coord::new(tx, ty, tz);
+                    let mut tile = Tile::splat(0.0);
+                    let mut band = false;
+                    for (l, v) in tile.0.iter_mut().enumerate() {
+                        *v = dense_value(field, voxel_of(t, l), g);
+                        band |= v.abs() < g;
+                    }
+                    if band {
+                        out.push((t, tile));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flatten(), |t| {
+        dense_value(field, voxel_of(t, 0), g) < 0.0
+    })
+}
+
+/// The DT-Grid of a dense level-set field (same conventions as [`tiles_from_dense`],
+/// beyond the array included): it reads the same value as the tile grid of the same field
+/// at every voxel. It stores the voxels with |φ| < γ and, where the tile grid's sign
+/// changes between two voxels of an x-row without a band voxel in between, the voxel
+/// after the change (±γ): the closing layer. That happens where the band or the interior
+/// touches the array's boundary (the tile grid reads `+γ` beyond the array, the DT-Grid's
+/// sign rule would otherwise carry the row's last value on), and for fields that are not
+/// a signed distance at this half-width; for a band that stays inside the array the
+/// DT-Grid holds exactly the band voxels. O(voxels of the band tiles) after
+/// [`tiles_from_dense`].
+pub fn dtgrid_from_dense(field: &DenseField, spec: GridSpec) -> Result<DtGrid, GridError> {
+    dtgrid_closed_from_tiles(&tiles_from_dense(field, spec)?)
+}
+
+/// A DT-Grid that reads what `tiles` reads at every voxel (see [`dtgrid_from_dense`]).
+///
+/// Per voxel row (z, y) of a tile row holding tiles, the tile grid reads: the tile values
+/// inside present tiles; ±γ with the sign of the absent tile before the first tile (`L`),
+/// after the last one, and in each gap between tiles (the border flags). Every voxel
+/// row outside such tile rows reads `+γ`, as an absent DT-Grid column does. Along the
+/// row, a voxel is stored when |φ| < γ or when its sign differs from the voxel before
+/// it; the DT-Grid's sign rule (the last stored value before a voxel, or the first
+/// stored value for voxels before it) then gives every unstored voxel its sign. Two
+/// fix-ups make the ends right: when the first stored voxel's sign is not `L`, the voxel
+/// before it is stored too (with `L`'s ±γ); a row that stores nothing yet reads inside
+/// stores one voxel of −γ.
+fn dtgrid_closed_from_tiles(tiles: &TileGrid) -> Result<DtGrid, GridError> {
+    let spec = *tiles.spec();
+    let g = spec.gamma();
+    let bg = |inside: bool| if inside { -g } else { g };
+    let coords = tiles.tile_coords();
+    // Tile rows (list ranges of one (z, y)), then slabs of rows with one z.
+    let mut rows: Vec<(usize, usize)> = Vec::new();
+    for (i, c) in coords.iter().enumerate() {
+        match rows.last_mut() {
+            Some(r) if coords[r.0].z == c.z && coords[r.0].y == c.y => r.1 = i + 1,
+            _ => rows.push((i, i + 1)),
+        }
+    }
+    let mut dt = DtGrid::new(spec);
+    let mut out: Vec<(i64, f32)> = Vec::new();
+    for slab in rows.chunk_by(|a, b| coords[a.0].z == coords[b.0].z) {
+        let tz = coords[slab[0].0].z;
+        for lz in 0..4 {
+            for &(s, e) in slab {
+                let first = coords[s];
+                let left_inside = tiles.tile_inside(Coord::new(first.x - 1, first.y, first.z));
+                for ly in 0..4 {
+                    out.clear();
+                    let mut inside = left_inside;
+                    for p in s..e {
+                        let t = coords[p];
+                        if p > s && t.x > coords[p - 1].x + 1 {
+                            // A gap of absent tiles, one sign (the +x flag of the tile before).
+                            let gap = coords[p - 1].x + 1;
+                            let gi = tiles.tile_inside(Coord::new(gap, t.y, t.z));
+                            if gi != inside {
+                                out.push((4 * gap as i64, bg(gi)));
+                                inside = gi;
+                            }
+                        }
+                        let values = &tiles.tile(p).0[16 * lz + 4 * ly..16 * lz + 4 * ly + 4];
+                        for (lx, &v) in values.iter().enumerate() {
+                            if v.abs() < g || (v < 0.0) != inside {
+                                out.push((4 * t.x as i64 + lx as i64, v));
+                            }
+                            inside = v < 0.0;
+                        }
+                    }
+                    let last = coords[e - 1];
+                    let right =
+                        tiles.tile_inside(Coord::new(last.x.wrapping_add(1), last.y, last.z));
+                    if right != inside {
+                        out.push((4 * last.x as i64 + 4, bg(right)));
+                    }
+                    match out.first() {
+                        Some(&(x0, v0)) if (v0 < 0.0) != left_inside => {
+                            out.insert(0, (x0 - 1, bg(left_inside)))
+                        }
+                        None if left_inside => out.push((4 * first.x as i64, bg(true))),
+                        _ => {}
+                    }
+                    let (y, z) = (4 * first.y + ly as i32, 4 * tz + lz as i32);
+                    for &(x, v) in &out {
+                        // Voxels beyond the i32 range do not exist: nothing reads them.
+                        if let Ok(x) = i32::try_from(x) {
+                            dt.push(Coord::new(x, y, z), v)?;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(dt)
+}
+
+/// Samples any level set on a dense box (`origin`, `dims = [nx, ny, nz]`): stored values
+/// inside the band, ±γ elsewhere. The box's memory is checked first
+/// ([`crate::memory::check`]).
+pub fn to_dense<G: LevelSet + ?Sized>(
+    grid: &G,
+    origin: Coord,
+    dims: [usize; 3],
+) -> Result<DenseField, GridError> {
+    let n = dims.iter().map(|&d| d as u128).product::<u128>();
+    crate::memory::check(crate::memory::bytes_of(n, 4), "the dense box")?;
+    DenseField::from_fn(origin, dims, |c| grid.value(c))
+}
+
+/// The dense box around a level set's band voxels grown by `margin` voxels on every side
+/// (each side clamped to the i32 range), or `None` for an empty grid.
+pub fn dense_box<G: LevelSet + ?Sized>(grid: &G, margin: u32) -> Option<(Coord, [usize; 3])> {
+    let (lo, hi) = grid.band_bounding_box()?;
+    Some(margin_box(lo, hi, margin))
+}
+
+/// The inclusive box `lo..=hi` grown by `margin` voxels on every side (each side clamped
+/// to the i32 range), as an origin and dimensions.
+pub(crate) fn margin_box(lo: Coord, hi: Coord, margin: u32) -> (Coord, [usize; 3]) {
+    let m = margin as i64;
+    let clamp = |v: i64| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+    let lo = Coord::new(clamp(lo.x as i64 - m), clamp(lo.y as i64 - m), clamp(lo.z as i64 - m));
+    let hi = Coord::new(clamp(hi.x as i64 + m), clamp(hi.y as i64 + m), clamp(hi.z as i64 + m));
+    let n = |a: i32, b: i32| (b as i64 - a as i64 + 1) as usize;
+    (lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)])
+}
+
+/// Counts neighbouring voxel pairs of a dense field whose signs differ while both lie
+/// outside the band (|φ| ≥ γ): such a field is not a distance field at that width, and
+/// its zero crossing there would be lost. Tools warn about it.
+pub fn dense_sign_jumps(field: &DenseField, gamma: f32) -> usize {
+    let [nx, ny, nz] = field.dims();
+    let d = field.data();
+    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let jump = |a: f32, b: f32| a.abs() >= gamma && b.abs() >= gamma && (a < 0.0) != (b < 0.0);
+    (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let mut n = 0;
+            for y in 0..ny {
+                for x in 0..nx {
+                    let v = d[idx(x, y, z)];
+                    n += (x + 1 < nx && jump(v, d[idx(x + 1, y, z)])) as usize;
+                    n += (y + 1 < ny && jump(v, d[idx(x, y + 1, z)])) as usize;
+                    n += (z + 1 < nz && jump(v, d[idx(x, y, z + 1)])) as usize;
+                }
+            }
+            n
+        })
+        .sum()
+}
+
+/// Errors of [`export_npy`].
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("the grid is empty: nothing to export")]
+    Empty,
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Npy(#[from] crate::io::npy::NpyError),
+}
+
+impl crate::error::Error for ExportError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        use crate::error::ErrorKind::*;
+        match self {
+            ExportError::Empty => InvalidData,
+            ExportError::Grid(e) => e.kind(),
+            ExportError::Npy(e) => e.kind(),
+        }
+    }
+}
+
+/// Writes a grid as a dense float32 `.npy` field (shape `(nz, ny, nx)`, φ < 0 inside,
+/// ±γ outside the band) covering its band voxels plus `margin` voxels on every side (the
+/// same box, hence the same file, for every storage of the same band).
+/// The file is written atomically (temporary file, then rename). Returns the voxel
+/// coordinate of element `[0, 0, 0]`, which `.npy` cannot store.
+pub fn export_npy<G: LevelSet + ?Sized>(
+    grid: &G,
+    path: &std::path::Path,
+    margin: u32,
+) -> Result<Coord, ExportError> {
+    let (origin, dims) = dense_box(grid, margin).ok_or(ExportError::Empty)?;
+    let field = to_dense(grid, origin, dims)?;
+    crate::io::npy::write_npy(path, &field)?;
+    Ok(origin)
+}
+
+/// Refuses a shape whose band would not fit in memory, before building it: `copies` is how
+/// many grid-sized arrays the caller will hold (1 for a grid; an evolution keeps about 5:
+/// the grid, the double buffer, φⁿ, the band mask and the per-voxel fields). The estimate is
+/// the band of the bounding box's surface: an upper bound for convex shapes, within a small
+/// factor for the others.
+pub fn check_band_fits(shape: &Shape, spec: &GridSpec, copies: f64) -> Result<(), GridError> {
+    let (lo, hi) = shape.bounds();
+    let e: Vec<f64> = (0..3).map(|i| (hi[i] - lo[i]).max(0.0) / spec.voxel_size as f64).collect();
+    let area = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[0] * e[2]);
+    // Tiles pad the band to whole tiles: about 4 tile layers of 64 voxels per 16 voxels of area.
+    let tile_bytes = area * (2.0 * spec.half_width as f64 + 8.0) * 4.0 * 1.5;
+    crate::memory::check(tile_bytes * copies.max(1.0), "the band of this shape")
+}

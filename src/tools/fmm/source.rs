@@ -1,0 +1,197 @@
+//! Reading the input level set and initialising the frozen set at the interface.
+//!
+//! Two kinds of input offer their candidate voxels with their six neighbours: any
+//! narrow-band level set ([`LevelSet`]: its band voxels, neighbours through its cached
+//! accessor) and a dense field (every voxel, neighbours by index arithmetic).
+
+use super::march::{Cost, Marcher};
+use super::FmmError;
+use crate::coord::Coord;
+use crate::storage::dense::DenseField;
+use crate::storage::levelset::{Accessor, LevelSet};
+
+/// Six neighbour values in the order −x, +x, −y, +y, −z, +z; `None` beyond the domain.
+pub(crate) type Star = [Option<f32>; 6];
+
+use crate::coord::FACE_OFFSETS as OFFSETS;
+
+/// An input level set (φ < 0 inside, world units).
+pub(crate) trait Source {
+    /// Values with `|φ| ≥ clamp` are band-edge values (clamped to ±γ) and carry a sign
+    /// only; `∞` for a dense field.
+    fn clamp(&self) -> f32;
+    /// φ at any voxel, `None` beyond the domain.
+    fn value(&self, c: Coord) -> Option<f32>;
+    /// Inclusive voxel box the march may enter; `None` for the unbounded grids.
+    fn domain(&self) -> Option<(Coord, Coord)>;
+    /// Visits every voxel that can be next to the interface (the band voxels of a grid,
+    /// every voxel of a dense field) with its value and six neighbours.
+    fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star));
+
+    /// Whether `c` is inside (φ < 0); beyond the domain: outside.
+    fn inside(&self, c: Coord) -> bool {
+        self.value(c).is_some_and(|v| v < 0.0)
+    }
+
+    /// The six neighbours of `c` by random access.
+    fn star(&self, c: Coord) -> Star {
+        OFFSETS.map(|o| c.checked_add(o).and_then(|n| self.value(n)))
+    }
+}
+
+/// Any narrow-band level set as a source: its band voxels in order, the six neighbours
+/// of each through one cached [`Accessor`] (inside a tile they come from the same cached
+/// tile). The march is unbounded: beyond the band every voxel reads ±γ.
+pub(crate) struct GridSource<'a, G: ?Sized>(pub &'a G);
+
+impl<G: LevelSet + ?Sized> Source for GridSource<'_, G> {
+    fn clamp(&self) -> f32 {
+        self.0.spec().gamma()
+    }
+    fn value(&self, c: Coord) -> Option<f32> {
+        Some(self.0.value(c))
+    }
+    fn domain(&self) -> Option<(Coord, Coord)> {
+        None
+    }
+    fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star)) {
+        let mut acc = self.0.accessor();
+        self.0.for_each_band_voxel(&mut |c, v| {
+            // A neighbour beyond the i32 range does not exist.
+            let star = OFFSETS.map(|o| c.checked_add(o).map(|n| acc.value(n)));
+            f(c, v, &star);
+        });
+    }
+}
+
+/// A dense field as a source: every voxel is a candidate, the march stays in its box.
+pub(crate) struct DenseSource<'a> {
+    pub field: &'a DenseField,
+}
+
+impl Source for DenseSource<'_> {
+    fn clamp(&self) -> f32 {
+        f32::INFINITY
+    }
+    fn value(&self, c: Coord) -> Option<f32> {
+        self.field.get(c)
+    }
+    fn domain(&self) -> Option<(Coord, Coord)> {
+        Some((self.field.origin(), self.field.max_coord()))
+    }
+    fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star)) {
+        let [nx, ny, nz] = self.field.dims();
+        let d = self.field.data();
+        let o = self.field.origin();
+        let mut i = 0;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let star = [
+                        (x > 0).then(|| d[i - 1]),
+                        (x + 1 < nx).then(|| d[i + 1]),
+                        (y > 0).then(|| d[i - nx]),
+                        (y + 1 < ny).then(|| d[i + nx]),
+                        (z > 0).then(|| d[i - nx * ny]),
+                        (z + 1 < nz).then(|| d[i + nx * ny]),
+                    ];
+                    // In range: the field's box is representable (DenseField invariant).
+                    let c = Coord::new(o.x + x as i32, o.y + y as i32, o.z + z as i32);
+                    f(c, d[i], &star);
+                    i += 1;
+                }
+            }
+        }
+    }
+}
+
+/// The distance (in voxels, ≥ 0) from an interface voxel to the zero level set, or
+/// `None` when no 6-neighbour differs in sign (Bærentzen Sec. 4: "the voxel has a
+/// 6-neighbour on the other side of the surface").
+///
+/// The paper gives these voxels exact foot-point distances; a sampled field has no
+/// surface to project on, so the distance is estimated as `|φ| / |∇φ|` with the gradient
+/// from central differences (one-sided where a neighbour is missing or a clamped band-edge
+/// value; exact for a linear φ, second order for a smooth one, and blind to a uniform
+/// scaling of φ), and capped by the distance to the nearest zero crossing on the voxel's
+/// edges, found by linear interpolation `θ = φ_v / (φ_v − φ_n)` — that crossing lies on
+/// the interface, so the true distance can be no larger.
+pub(crate) fn interface_distance(v: f32, star: &Star, clamp: f32) -> Option<f64> {
+    let vi = v < 0.0;
+    let v = v as f64;
+    let mut theta = f64::INFINITY;
+    for n in star.iter().flatten() {
+        if (*n < 0.0) != vi {
+            // ±∞ is a far-away distance: the interpolant's crossing between it and a finite
+            // neighbour lies at the neighbour (θ = 1 from an infinite voxel, 0 towards one).
+            let t = if v.is_infinite() { 1.0 } else { v / (v - *n as f64) };
+            theta = theta.min(t);
+        }
+    }
+    if theta == f64::INFINITY {
+        return None;
+    }
+    let usable = |n: Option<f32>| n.filter(|n| n.abs() < clamp).map(|n| n as f64);
+    let mut g2 = 0.0;
+    if (v.abs() as f32) < clamp {
+        for a in 0..3 {
+            let g = match (usable(star[2 * a]), usable(star[2 * a + 1])) {
+                (Some(m), Some(p)) => 0.5 * (p - m),
+                (Some(m), None) => v - m,
+                (None, Some(p)) => p - v,
+                (None, None) => 0.0,
+            };
+            g2 += g * g;
+        }
+    }
+    let d = if g2 > 0.0 { v.abs() / g2.sqrt() } else { f64::INFINITY };
+    Some(d.min(theta))
+}
+
+/// Freezes every interface voxel of `src` with its initial distance (voxel units,
+/// signed): the band voxels with a neighbour of the other sign, and those neighbours
+/// even when they are band-edge voxels themselves. Non-finite input values are errors.
+/// Returns the number of frozen voxels.
+pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
+    src: &S,
+    marcher: &mut Marcher<C>,
+) -> Result<usize, FmmError> {
+    let clamp = src.clamp();
+    let mut extra: Vec<Coord> = Vec::new();
+    let mut err = None;
+    src.for_each_candidate(&mut |c, v, star| {
+        if err.is_some() {
+            return;
+        }
+        if v.is_nan() {
+            err = Some(FmmError::NonFinite { coord: c, value: v });
+            return;
+        }
+        if let Some(d) = interface_distance(v, star, clamp) {
+            for (i, n) in star.iter().enumerate() {
+                if let Some(n) = n {
+                    if (*n < 0.0) != (v < 0.0) && n.abs() >= clamp {
+                        extra.push(c.wrapping_add(OFFSETS[i]));
+                    }
+                }
+            }
+            let inside = v < 0.0;
+            if let Err(e) = marcher.freeze_initial(c, if inside { -d } else { d }, inside) {
+                err = Some(e);
+            }
+        }
+    });
+    if let Some(e) = err {
+        return Err(e);
+    }
+    extra.sort_unstable();
+    extra.dedup();
+    for c in extra {
+        let v = src.value(c).expect("a neighbour that was read exists");
+        if let Some(d) = interface_distance(v, &src.star(c), clamp) {
+            let inside = v < 0.0;
+            marcher.freeze_initial(c, if inside { -d } else { d }, inside)?;
+        }
+    }
+    Ok(marcher.initial_len())
+}
