@@ -20,8 +20,10 @@ pub enum ErrorKind {
     InvalidData,
     /// A file is not what its name or header says: truncated, corrupt, a wrong signature.
     CorruptFile,
-    /// A valid file or request this library does not handle: an unknown extension, a format
-    /// version, a voxel type.
+    /// A file name whose extension names no format this library reads or writes.
+    UnknownFormat,
+    /// A file in a variant of its format this library does not handle: a format version, a
+    /// voxel type, a 4-D image.
     Unsupported,
     /// The operating system refused: a missing file, a permission, a full disk.
     Io,
@@ -41,6 +43,7 @@ impl ErrorKind {
             ErrorKind::InvalidInput => "invalid input",
             ErrorKind::InvalidData => "invalid data",
             ErrorKind::CorruptFile => "corrupt file",
+            ErrorKind::UnknownFormat => "unknown format",
             ErrorKind::Unsupported => "unsupported",
             ErrorKind::Io => "i/o",
             ErrorKind::OutOfMemory => "out of memory",

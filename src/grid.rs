@@ -161,8 +161,8 @@ pub enum GridError {
     /// ([`crate::memory::check`]).
     #[error(
         "{what} needs about {} but only about {} of memory may be used",
-        crate::memory::gib(*needed),
-        crate::memory::gib(*limit)
+        gib(*needed),
+        gib(*limit)
     )]
     OutOfMemory { what: String, needed: u64, limit: u64 },
 }
@@ -177,6 +177,16 @@ impl crate::error::Error for GridError {
             GridError::NaN { .. } => InvalidData,
             GridError::OutOfMemory { .. } => OutOfMemory,
         }
+    }
+}
+
+/// `bytes` as GiB with one decimal, for the messages of [`GridError::OutOfMemory`] and
+/// its kin.
+pub(crate) fn gib(bytes: u64) -> String {
+    if bytes == u64::MAX {
+        "more than the address space".to_string()
+    } else {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
     }
 }
 

@@ -27,6 +27,7 @@ pub mod coord;
 pub mod distributed;
 pub mod error;
 pub mod evolve;
+pub mod exact;
 pub mod grid;
 pub mod io;
 pub mod memory;

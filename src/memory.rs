@@ -43,7 +43,6 @@ pub fn bytes_of(n: u128, elem: usize) -> f64 {
     n as f64 * elem as f64
 }
 
-/// `bytes` as GiB with one decimal, for messages.
 /// The capacity a buffer of a band takes when it has to grow to `n` elements: `n` plus a
 /// sixteenth. A band changes by a few tiles per step; allocating exactly would reallocate
 /// (copying the buffer and faulting in fresh pages) at every step in which it grows by one
@@ -54,14 +53,6 @@ pub fn bytes_of(n: u128, elem: usize) -> f64 {
 /// with the headroom the run took 1.00 → 0.94 s (medians of four alternated runs).
 pub(crate) const fn grown_capacity(n: usize) -> usize {
     n.saturating_add(n / 16)
-}
-
-pub(crate) fn gib(bytes: u64) -> String {
-    if bytes == u64::MAX {
-        "more than the address space".to_string()
-    } else {
-        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
-    }
 }
 
 #[cfg(test)]

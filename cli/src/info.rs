@@ -120,7 +120,7 @@ fn grid_info<G: LevelSet>(name: &'static str, g: &G, tiles: usize, secs: f64) ->
 /// The H-RLE line and the `.sls` size of a level set.
 fn hrle_info<G: LevelSet>(g: &G) -> Result<(HrleGrid, GridInfo, usize), GridError> {
     let t0 = Instant::now();
-    let mut h = match g.as_hrle() {
+    let mut h = match sparse_levelset::storage::hrle::HrleGrid::of(g) {
         Some(h) => h.clone(),
         None => HrleGrid::from_level_set(g)?,
     };

@@ -13,6 +13,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::io::{self, vdb, AnyLevelSet};
 use sparse_levelset::storage::convert;
 use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::storage::levelset::{Accessor, LevelSet as _};
@@ -24,8 +25,8 @@ use sparse_levelset::tools::measure::{self, MeasureOptions};
 use sparse_levelset::tools::mesh::{self, MeshOptions};
 use sparse_levelset::tools::render::{self, RenderOptions};
 use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
-use sparse_levelset::{io::sls, io::vdb, Coord};
-use std::path::{Path, PathBuf};
+use sparse_levelset::Coord;
+use std::path::PathBuf;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<LevelSet>()
@@ -39,10 +40,6 @@ pub struct LevelSet {
 
 fn spec(voxel_size: f32, origin: [f64; 3], half_width: f32) -> PyResult<GridSpec> {
     GridSpec::new(voxel_size, origin, half_width).map_err(crate::value_error)
-}
-
-fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
 impl LevelSet {
@@ -169,30 +166,15 @@ impl LevelSet {
         origin: [f64; 3],
         half_width: f32,
     ) -> PyResult<LevelSet> {
-        let ext = extension(&path);
+        let spec = spec(voxel_size, origin, half_width)?;
         let grid = py.detach(|| -> PyResult<TileGrid> {
-            match ext.as_str() {
-                "sls" => {
-                    let expect = Expect::new(GridSpec::default());
-                    let (h, _) = input::load_sls(&path, &expect).map_err(crate::lib_error)?;
-                    Ok(convert::tiles_from(&h))
-                }
-                "vdb" => {
-                    let expect = Expect::new(GridSpec::default());
-                    Ok(input::load_vdb(&path, &expect).map_err(crate::lib_error)?.0)
-                }
-                "npy" => {
-                    let spec = spec(voxel_size, origin, half_width)?;
-                    let field =
-                        input::load_npy(&path, &Expect { copies: 2.0, ..Expect::new(spec) })
-                            .map_err(crate::lib_error)?;
-                    convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)
-                }
-                _ => Err(crate::value_error(format!(
-                    "{}: unknown level-set file type; use .sls, .vdb or .npy",
-                    path.display()
-                ))),
-            }
+            // A dense field and the tiles built from it are held at once.
+            let expect = Expect { copies: 2.0, ..Expect::new(spec) };
+            let loaded = io::load_level_set(&path, &expect).map_err(crate::lib_error)?;
+            Ok(match loaded.level_set {
+                AnyLevelSet::Tiles(tiles) => tiles,
+                AnyLevelSet::Hrle(h) => convert::tiles_from(&h),
+            })
         })?;
         LevelSet::new(grid)
     }
@@ -201,29 +183,20 @@ impl LevelSet {
     /// atomically.
     #[pyo3(signature = (path, margin, compression))]
     fn save(&self, py: Python<'_>, path: PathBuf, margin: u32, compression: &str) -> PyResult<()> {
-        let ext = extension(&path);
-        let g = &self.grid;
-        py.detach(|| match ext.as_str() {
-            "sls" => sls::save(&path, g).map_err(crate::lib_error),
-            "vdb" => {
-                let compression = match compression {
-                    "zip" => vdb::VdbCompression::Zip,
-                    "none" => vdb::VdbCompression::None,
-                    c => {
-                        return Err(crate::value_error(format!(
-                            "compression must be \"zip\" or \"none\", got {c:?}"
-                        )))
-                    }
-                };
-                let opts = vdb::VdbOptions { compression, ..Default::default() };
-                vdb::save(&path, g, &opts).map_err(crate::lib_error)
+        let compression = match compression {
+            "zip" => vdb::VdbCompression::Zip,
+            "none" => vdb::VdbCompression::None,
+            c => {
+                return Err(crate::value_error(format!(
+                    "compression must be \"zip\" or \"none\", got {c:?}"
+                )))
             }
-            "npy" => convert::export_npy(g, &path, margin).map(|_| ()).map_err(crate::lib_error),
-            _ => Err(crate::value_error(format!(
-                "{}: unknown level-set file type; use .sls, .vdb or .npy",
-                path.display()
-            ))),
-        })
+        };
+        let opts =
+            io::SaveOptions { margin, vdb: vdb::VdbOptions { compression, ..Default::default() } };
+        py.detach(|| io::save_level_set(&path, &self.grid, &opts))
+            .map(|_| ())
+            .map_err(crate::lib_error)
     }
 
     /// φ on the inclusive voxel box `lo`–`hi` (x, y, z) as an array `[z, y, x]`.

@@ -28,15 +28,15 @@ pub(crate) fn value_error(e: impl Display) -> PyErr {
 /// The exception of a library error, chosen by its kind (never by its message):
 /// `MemoryError` when the process cannot hold the result, `KeyboardInterrupt` when a
 /// progress callback or Ctrl-C stopped the call, `OSError` for files that cannot be read or
-/// written (missing, unreadable, corrupt), `RuntimeError` for a computation that failed (an
-/// interface that collapsed), `ValueError` for arguments, data and requests the library
-/// does not take.
+/// written (missing, unreadable, corrupt, in a variant of their format that is not read),
+/// `RuntimeError` for a computation that failed (an interface that collapsed), and
+/// `ValueError` for arguments, data and file names (extensions) the library does not take.
 pub(crate) fn lib_error(e: impl Error) -> PyErr {
     let msg = e.to_string();
     match e.kind() {
         ErrorKind::OutOfMemory => PyMemoryError::new_err(msg),
         ErrorKind::Cancelled => PyKeyboardInterrupt::new_err(msg),
-        ErrorKind::Io | ErrorKind::CorruptFile => PyOSError::new_err(msg),
+        ErrorKind::Io | ErrorKind::CorruptFile | ErrorKind::Unsupported => PyOSError::new_err(msg),
         ErrorKind::Failed => PyRuntimeError::new_err(msg),
         _ => PyValueError::new_err(msg),
     }

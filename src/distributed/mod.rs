@@ -92,7 +92,7 @@ mod mpi;
 pub use self::mpi::Mpi;
 
 use crate::coord::Coord;
-use crate::evolve::exact::ExactSum;
+use crate::exact::ExactSum;
 use crate::storage::tiles::{Tile, TileGrid};
 use serde::Serialize;
 use std::ops::Range;

@@ -14,11 +14,11 @@
 //! and the result goes to the representation's [`Sweep`], which runs it over its voxels
 //! (the tile sweep then picks the lane type, the DT-Grid sweep its point window).
 
-use super::rep::dtgrid::PointWindow;
 use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
-    AdvectionRate, AnchoredRenormRate, Eq3Rate, Euler, ImageRate, InterfaceAnchor, RenormRate, Rk3,
-    ScalarField, ScaledVelocity, Scheme, Sum, Upwind1, VoxelKernel, Weno5,
+    AdvectionRate, AnchoredRenormRate, BoxFarWindow, BoxWindow, Eq3Rate, Euler, ImageRate,
+    InterfaceAnchor, RenormRate, Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1,
+    VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -62,12 +62,45 @@ pub(crate) trait Sweep {
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: PointWindow;
+        Halo<R>: Reach;
 }
 
 /// A stencil reach `R` (1: the 3×3×3 box; 3: the box and ±3 along the axes) as a type, so
-/// that the DT-Grid's sweep picks its point window at compile time.
+/// that a sweep that gathers each voxel's values (the DT-Grid's) picks its point window at
+/// compile time.
 pub(crate) struct Halo<const R: usize>;
+
+/// The point windows over one voxel's gathered values.
+pub(crate) enum PointWindow {
+    /// The 3×3×3 box (27 values, [`levelset_kernels::BOX27_OFFSETS`]).
+    Box27,
+    /// The box and ±2, ±3 along the axes (39 values, [`levelset_kernels::BOX_FAR39_OFFSETS`]).
+    BoxFar39,
+}
+
+/// What a kernel of a reach reads per voxel when its values are gathered point by point.
+pub(crate) trait Reach {
+    /// The window of the gathered values.
+    const WINDOW: PointWindow;
+    /// The kernel's value at voxel `i` from its window's `values`.
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32;
+}
+
+impl Reach for Halo<1> {
+    const WINDOW: PointWindow = PointWindow::Box27;
+    #[inline(always)]
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        k.eval::<f32, _>(&BoxWindow::new(values.try_into().expect("27 values")), i)
+    }
+}
+
+impl Reach for Halo<3> {
+    const WINDOW: PointWindow = PointWindow::BoxFar39;
+    #[inline(always)]
+    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        k.eval::<f32, _>(&BoxFarWindow::new(values.try_into().expect("39 values")), i)
+    }
+}
 
 /// Level 1: the scheme, with its reach.
 pub(crate) fn dispatch<V: Sweep>(
@@ -88,7 +121,7 @@ fn inputs<'a, S: Scheme, const R: usize, V: Sweep>(
     sweep: V,
 ) -> Result<(), EvolveError>
 where
-    Halo<R>: PointWindow,
+    Halo<R>: Reach,
 {
     if p.lattice.is_some() || p.curvature.is_some() {
         return image::<S, R, V>(p, sweep);
@@ -123,7 +156,7 @@ fn image<'a, S: Scheme, const R: usize, V: Sweep>(
     sweep: V,
 ) -> Result<(), EvolveError>
 where
-    Halo<R>: PointWindow,
+    Halo<R>: Reach,
 {
     let (inv, sign_width, factor) = match p.lattice {
         Some(l) => (l.inv_spacing(), l.min_spacing(), l.curvature_factor()),
@@ -161,7 +194,7 @@ where
     F: ScalarField + 'a,
     E: ScalarField + 'a,
     V: Sweep,
-    Halo<R>: PointWindow,
+    Halo<R>: Reach,
 {
     let w = p.rescale;
     let scale = p.velocity_scale;
@@ -187,7 +220,7 @@ where
     K: VoxelKernel,
     F: Fn(Range<usize>) -> K + Sync,
     V: Sweep,
-    Halo<R>: PointWindow,
+    Halo<R>: Reach,
 {
     let (dt, gamma) = (p.dt, p.gamma);
     let phi_n: &'a [f32] = p.phi_n;
@@ -268,7 +301,7 @@ fn renorm<'a, S: Scheme, const R: usize, V: Sweep>(
     sweep: V,
 ) -> Result<(), EvolveError>
 where
-    Halo<R>: PointWindow,
+    Halo<R>: Reach,
 {
     let (h, dt, gamma) = (p.h, p.dtau, p.gamma);
     match anchor {

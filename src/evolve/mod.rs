@@ -88,7 +88,6 @@
 //! ```
 
 mod dispatch;
-pub mod exact;
 pub mod field;
 mod inputs;
 mod rep;

@@ -2,7 +2,6 @@
 //! atomic step at a time.
 
 use super::dispatch::{anchors_stored, RenormParams, StageParams};
-use super::exact::ExactSum;
 use super::inputs::Inputs;
 use super::rep::{DenseRep, DtRep, MemoryBudget, Rep, TilesRep};
 use super::{
@@ -11,9 +10,12 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::distributed::{Comm, HaloStats, RankPart, Transport};
+use crate::exact::ExactSum;
+use crate::grid::MemoryReport;
 use crate::grid::{GridError, GridSpec};
 use crate::storage::dense::DenseField;
 use crate::storage::dtgrid::DtGrid;
+use crate::storage::levelset::{Accessor, LevelSet};
 use crate::storage::shapes::Shape;
 use crate::storage::tiles::TileGrid;
 use levelset_kernels::rk::{cfl_dt_renorm, cfl_rate_advection, cfl_rate_eq3, cfl_rate_image};
@@ -851,5 +853,70 @@ impl Simulation {
             (inside_measure(rep.owned_flat()), inside_measure(rep.owned_step_start()));
         let [now, before] = comm.map_or([now, before], |c| c.sum_exact([now, before]));
         now.value() <= before.value()
+    }
+}
+
+/// The accessor of a simulation's state: the tile or DT-Grid accessor, random access on
+/// the dense reference. (One lives on the stack per ray or row: its size does not
+/// matter, an indirection per lookup would.)
+#[allow(clippy::large_enum_variant)]
+enum SimulationAccessor<'a> {
+    Tiles(crate::storage::tiles::TileAccessor<'a>),
+    DtGrid(crate::storage::dtgrid::DtAccessor<'a>),
+    Other(&'a crate::evolve::Simulation),
+}
+
+impl Accessor for SimulationAccessor<'_> {
+    #[inline]
+    fn value(&mut self, voxel: Coord) -> f32 {
+        match self {
+            SimulationAccessor::Tiles(a) => a.value(voxel),
+            SimulationAccessor::DtGrid(a) => a.value(voxel),
+            SimulationAccessor::Other(s) => s.value(voxel),
+        }
+    }
+}
+
+/// A simulation's current state (tiles, DT-Grid or the dense reference).
+impl LevelSet for crate::evolve::Simulation {
+    fn spec(&self) -> GridSpec {
+        crate::evolve::Simulation::spec(self)
+    }
+    fn value(&self, voxel: Coord) -> f32 {
+        crate::evolve::Simulation::value(self, voxel)
+    }
+    fn accessor(&self) -> impl Accessor + '_ {
+        match (self.tiles(), self.dtgrid()) {
+            (Some(t), _) => SimulationAccessor::Tiles(crate::storage::tiles::TileAccessor::new(t)),
+            (_, Some(d)) => SimulationAccessor::DtGrid(crate::storage::dtgrid::DtAccessor::new(d)),
+            _ => SimulationAccessor::Other(self),
+        }
+    }
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        crate::evolve::Simulation::for_each_band_voxel(self, f)
+    }
+    fn band_voxels(&self) -> usize {
+        crate::evolve::Simulation::band_voxels(self)
+    }
+    fn bounding_box(&self) -> Option<(Coord, Coord)> {
+        match (self.tiles(), self.dtgrid()) {
+            (Some(t), _) => t.bounding_box(),
+            (_, Some(d)) => d.bounding_box(),
+            _ => self.band_bounding_box(),
+        }
+    }
+    fn memory(&self) -> MemoryReport {
+        match (self.tiles(), self.dtgrid()) {
+            (Some(t), _) => t.memory(),
+            (_, Some(d)) => d.memory(),
+            _ => MemoryReport { values: self.stored_voxels() * 4, ..Default::default() },
+        }
+    }
+    fn storage(&self) -> Option<&dyn std::any::Any> {
+        match (self.tiles(), self.dtgrid()) {
+            (Some(t), _) => Some(t),
+            (_, Some(d)) => Some(d),
+            _ => None,
+        }
     }
 }

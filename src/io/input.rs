@@ -80,6 +80,9 @@ impl Expect {
 /// shape's name) and says what to change.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
+    /// The file's extension names no level-set format.
+    #[error("{input}: unknown level-set file type; use {}", crate::io::LevelSetFormat::EXTENSIONS)]
+    UnknownFormat { input: String },
     /// The file cannot be read as a 3-D float32 `.npy` volume.
     #[error(transparent)]
     File(NpyError),
@@ -130,6 +133,7 @@ impl crate::error::Error for InputError {
     fn kind(&self) -> crate::error::ErrorKind {
         use crate::error::ErrorKind::*;
         match self {
+            InputError::UnknownFormat { .. } => UnknownFormat,
             InputError::File(e) => e.kind(),
             InputError::NaN { .. }
             | InputError::NoInterface { .. }

@@ -228,12 +228,12 @@ pub fn encode(g: &HrleGrid, source: Source) -> Vec<u8> {
 /// The bytes of any level set: an [`HrleGrid`] as it is (domain and fields included),
 /// any other grid through [`HrleGrid::from_level_set`].
 pub fn encode_level_set<G: LevelSet + ?Sized>(ls: &G) -> Result<Vec<u8>, SlsError> {
-    if let Some(h) = ls.as_hrle() {
+    if let Some(h) = HrleGrid::of(ls) {
         return Ok(encode(h, Source::Hrle));
     }
-    let source = if ls.as_tiles().is_some() {
+    let source = if crate::storage::tiles::TileGrid::of(ls).is_some() {
         Source::Tiles
-    } else if ls.as_dtgrid().is_some() {
+    } else if crate::storage::dtgrid::DtGrid::of(ls).is_some() {
         Source::DtGrid
     } else {
         Source::Other

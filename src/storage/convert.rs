@@ -56,7 +56,7 @@ pub fn dtgrid_from_shape(shape: &Shape, spec: GridSpec) -> Result<DtGrid, GridEr
 /// edge) also gets the closing layer of [`dtgrid_from_dense`], so that the DT-Grid reads
 /// what the tiles read at every voxel.
 pub fn dtgrid_from<G: LevelSet + ?Sized>(grid: &G) -> DtGrid {
-    if let Some(tiles) = grid.as_tiles() {
+    if let Some(tiles) = crate::storage::tiles::TileGrid::of(grid) {
         return dtgrid_closed_from_tiles(tiles)
             .expect("tile voxels are visited in order, are finite and lie in the i32 range");
     }
@@ -71,7 +71,7 @@ pub fn dtgrid_from<G: LevelSet + ?Sized>(grid: &G) -> DtGrid {
 /// set's values (±γ where it stores nothing), border flags from its sign at each absent
 /// neighbour. A tile grid is copied as it is.
 pub fn tiles_from<G: LevelSet + ?Sized>(grid: &G) -> TileGrid {
-    if let Some(t) = grid.as_tiles() {
+    if let Some(t) = crate::storage::tiles::TileGrid::of(grid) {
         return t.clone();
     }
     let mut coords: Vec<Coord> = Vec::new();

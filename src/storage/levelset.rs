@@ -5,7 +5,7 @@
 //! [`GridSpec`], the value at any voxel (stored, or ±γ outside the band), a cached
 //! [`Accessor`] for runs of nearby lookups (OpenVDB's `ValueAccessor`), the band voxels in
 //! [`Coord`] order, a bounding box and the memory used. The Sorted Tile List
-//! ([`TileGrid`]), the DT-Grid ([`DtGrid`]), the H-RLE level set
+//! ([`crate::storage::tiles::TileGrid`]), the DT-Grid ([`crate::storage::dtgrid::DtGrid`]), the H-RLE level set
 //! ([`crate::storage::hrle::HrleGrid`]), a CSG view ([`crate::tools::csg::Csg`]) and a running
 //! simulation's current state ([`crate::evolve::Simulation`]) implement it; the tools take
 //! any of them through one function each with one options struct:
@@ -42,8 +42,6 @@
 
 use crate::coord::Coord;
 use crate::grid::{GridSpec, MemoryReport};
-use crate::storage::dtgrid::DtGrid;
-use crate::storage::tiles::{tile_of, voxel_of, TileGrid};
 
 /// A narrow-band level set as the tools read it (φ < 0 inside, world units; see
 /// [`GridSpec`] for the band semantics every implementation follows).
@@ -80,21 +78,12 @@ pub trait LevelSet: Sync {
     /// Bytes the storage uses.
     fn memory(&self) -> MemoryReport;
 
-    /// The storage as a Sorted Tile List when it is one: tools that run tile by tile
-    /// (meshing) use it directly and convert any other storage with
-    /// [`crate::storage::convert::tiles_from`].
-    fn as_tiles(&self) -> Option<&TileGrid> {
-        None
-    }
-
-    /// The storage as a DT-Grid when it is one.
-    fn as_dtgrid(&self) -> Option<&DtGrid> {
-        None
-    }
-
-    /// The storage as an H-RLE level set when it is one (its domain and fields are then
-    /// available, e.g. to [`crate::io::sls::save`]).
-    fn as_hrle(&self) -> Option<&crate::storage::hrle::HrleGrid> {
+    /// The storage behind this level set, when a tool may take a faster path on it (meshing
+    /// tile by tile, a `.sls` file of an H-RLE band with its fields): see
+    /// [`crate::storage::tiles::TileGrid::of`], [`crate::storage::dtgrid::DtGrid::of`] and
+    /// [`crate::storage::hrle::HrleGrid::of`]. `None` for views (CSG) and the dense
+    /// reference.
+    fn storage(&self) -> Option<&dyn std::any::Any> {
         None
     }
 
@@ -138,174 +127,4 @@ pub trait LevelSet: Sync {
 pub trait Accessor {
     /// φ at `voxel`.
     fn value(&mut self, voxel: Coord) -> f32;
-}
-
-/// The tile accessor: a direct-mapped table over the low two bits of each tile
-/// coordinate, so the 2×2×2 tiles around any cell, or the 3×3×3 around a tile, take
-/// distinct slots. A slot holds the tile's list position, or the ±γ of an absent tile.
-/// (For the renderer the random tile searches were two thirds of the time without it.)
-pub struct TileAccessor<'a> {
-    grid: &'a TileGrid,
-    keys: [Coord; 64],
-    /// `Ok(list position)` or `Err(value of every voxel of the absent tile)`.
-    slots: [Result<usize, f32>; 64],
-    filled: u64,
-}
-
-impl<'a> TileAccessor<'a> {
-    /// An empty cache over `grid`.
-    pub fn new(grid: &'a TileGrid) -> Self {
-        TileAccessor { grid, keys: [Coord::default(); 64], slots: [Err(0.0); 64], filled: 0 }
-    }
-}
-
-impl Accessor for TileAccessor<'_> {
-    #[inline]
-    fn value(&mut self, voxel: Coord) -> f32 {
-        let (t, l) = tile_of(voxel);
-        let i = ((t.x & 3) | (t.y & 3) << 2 | (t.z & 3) << 4) as usize;
-        if self.filled & (1 << i) == 0 || self.keys[i] != t {
-            self.keys[i] = t;
-            self.filled |= 1 << i;
-            self.slots[i] = self.grid.find_tile(t).map_err(|_| self.grid.value(voxel_of(t, 0)));
-        }
-        match self.slots[i] {
-            Ok(pos) => self.grid.tile(pos).0[l],
-            Err(v) => v,
-        }
-    }
-}
-
-impl LevelSet for TileGrid {
-    fn spec(&self) -> GridSpec {
-        *TileGrid::spec(self)
-    }
-    fn value(&self, voxel: Coord) -> f32 {
-        TileGrid::value(self, voxel)
-    }
-    fn accessor(&self) -> impl Accessor + '_ {
-        TileAccessor::new(self)
-    }
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.gamma();
-        self.for_each_voxel_sorted(|c, v| {
-            if v.abs() < g {
-                f(c, v)
-            }
-        });
-    }
-    fn band_voxels(&self) -> usize {
-        TileGrid::band_voxels(self)
-    }
-    fn bounding_box(&self) -> Option<(Coord, Coord)> {
-        TileGrid::bounding_box(self)
-    }
-    fn memory(&self) -> MemoryReport {
-        TileGrid::memory(self)
-    }
-    fn as_tiles(&self) -> Option<&TileGrid> {
-        Some(self)
-    }
-}
-
-impl LevelSet for DtGrid {
-    fn spec(&self) -> GridSpec {
-        DtGrid::spec(self)
-    }
-    fn value(&self, voxel: Coord) -> f32 {
-        DtGrid::value(self, voxel)
-    }
-    /// Random access (Sec. 3.4) with the p-columns of recent lookups cached, so that a
-    /// stencil's lookups search only their column ([`crate::storage::dtgrid::DtAccessor`]).
-    fn accessor(&self) -> impl Accessor + '_ {
-        crate::storage::dtgrid::DtAccessor::new(self)
-    }
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        let g = self.gamma();
-        for (c, v) in self.iter() {
-            if v.abs() < g {
-                f(c, v);
-            }
-        }
-    }
-    fn band_voxels(&self) -> usize {
-        DtGrid::band_voxels(self)
-    }
-    fn bounding_box(&self) -> Option<(Coord, Coord)> {
-        DtGrid::bounding_box(self)
-    }
-    fn memory(&self) -> MemoryReport {
-        DtGrid::memory(self)
-    }
-    fn as_dtgrid(&self) -> Option<&DtGrid> {
-        Some(self)
-    }
-}
-
-/// The accessor of a simulation's state: the tile or DT-Grid accessor, random access on
-/// the dense reference. (One lives on the stack per ray or row: its size does not
-/// matter, an indirection per lookup would.)
-#[allow(clippy::large_enum_variant)]
-enum SimulationAccessor<'a> {
-    Tiles(TileAccessor<'a>),
-    DtGrid(crate::storage::dtgrid::DtAccessor<'a>),
-    Other(&'a crate::evolve::Simulation),
-}
-
-impl Accessor for SimulationAccessor<'_> {
-    #[inline]
-    fn value(&mut self, voxel: Coord) -> f32 {
-        match self {
-            SimulationAccessor::Tiles(a) => a.value(voxel),
-            SimulationAccessor::DtGrid(a) => a.value(voxel),
-            SimulationAccessor::Other(s) => s.value(voxel),
-        }
-    }
-}
-
-/// A simulation's current state (tiles, DT-Grid or the dense reference).
-impl LevelSet for crate::evolve::Simulation {
-    fn spec(&self) -> GridSpec {
-        crate::evolve::Simulation::spec(self)
-    }
-    fn value(&self, voxel: Coord) -> f32 {
-        crate::evolve::Simulation::value(self, voxel)
-    }
-    fn accessor(&self) -> impl Accessor + '_ {
-        match (self.tiles(), self.dtgrid()) {
-            (Some(t), _) => SimulationAccessor::Tiles(TileAccessor::new(t)),
-            (_, Some(d)) => SimulationAccessor::DtGrid(crate::storage::dtgrid::DtAccessor::new(d)),
-            _ => SimulationAccessor::Other(self),
-        }
-    }
-    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
-        crate::evolve::Simulation::for_each_band_voxel(self, f)
-    }
-    fn band_voxels(&self) -> usize {
-        crate::evolve::Simulation::band_voxels(self)
-    }
-    fn bounding_box(&self) -> Option<(Coord, Coord)> {
-        match (self.tiles(), self.dtgrid()) {
-            (Some(t), _) => t.bounding_box(),
-            (_, Some(d)) => d.bounding_box(),
-            _ => self.band_bounding_box(),
-        }
-    }
-    fn memory(&self) -> MemoryReport {
-        match (self.tiles(), self.dtgrid()) {
-            (Some(t), _) => t.memory(),
-            (_, Some(d)) => d.memory(),
-            _ => MemoryReport { values: self.stored_voxels() * 4, ..Default::default() },
-        }
-    }
-    fn as_tiles(&self) -> Option<&TileGrid> {
-        self.tiles()
-    }
-}
-
-impl Accessor for crate::storage::dtgrid::DtAccessor<'_> {
-    #[inline]
-    fn value(&mut self, voxel: Coord) -> f32 {
-        crate::storage::dtgrid::DtAccessor::value(self, voxel)
-    }
 }

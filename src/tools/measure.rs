@@ -10,7 +10,7 @@
 //!   eq. (7) of van der Laan et al. 2011 and |∇φ| from the 27-point box of eq. (4), the integrand
 //!   the evolution's κ̄ (eq. (6)) uses.
 //!
-//! Terms are added as exact fixed-point sums ([`crate::evolve::exact::ExactSum`]), so the
+//! Terms are added as exact fixed-point sums ([`crate::exact::ExactSum`]), so the
 //! results do not depend on the order of the voxels: the tile grid, the DT-Grid and a
 //! simulation's state give the same bits, and the volume equals
 //! [`crate::evolve::Simulation::measure`]'s.
@@ -28,7 +28,7 @@
 //! ```
 
 use crate::coord::Coord;
-use crate::evolve::exact::ExactSum;
+use crate::exact::ExactSum;
 use crate::progress::{Cancelled, Progress};
 use crate::storage::levelset::{Accessor, LevelSet};
 use levelset_kernels::speed::kappa_bar_integrands;

@@ -6,9 +6,9 @@ use crate::coord::Coord;
 use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
-use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
+use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dense::DenseField;
 use levelset_kernels::{BandMasked, BoxMinAbs, DenseBlock, VoxelKernel};
@@ -99,7 +99,7 @@ impl Sweep for DenseSweep<'_> {
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: super::dtgrid::PointWindow,
+        Halo<R>: crate::evolve::dispatch::Reach,
     {
         let rep = self.rep;
         let dims = rep.field.dims();

@@ -7,42 +7,16 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::evolve::dispatch::{
-    dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
+    dispatch, dispatch_anchor, dispatch_renorm, Halo, PointWindow, Reach, RenormParams,
+    StageParams, Sweep,
 };
-use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
+use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
-use levelset_kernels::{BoxFarWindow, BoxWindow, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS};
+use levelset_kernels::{BoxWindow, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS};
 use std::ops::Range;
-
-/// How the DT-Grid's stencil iterator serves a kernel of reach `R`: the stencil it walks
-/// and the point window over its values.
-pub(crate) trait PointWindow {
-    fn stencil(rep: &DtRep) -> &Stencil;
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32;
-}
-
-impl PointWindow for Halo<1> {
-    fn stencil(rep: &DtRep) -> &Stencil {
-        &rep.box27
-    }
-    #[inline(always)]
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
-        k.eval::<f32, _>(&BoxWindow::new(values.try_into().expect("27 values")), i)
-    }
-}
-
-impl PointWindow for Halo<3> {
-    fn stencil(rep: &DtRep) -> &Stencil {
-        &rep.box_far39
-    }
-    #[inline(always)]
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
-        k.eval::<f32, _>(&BoxFarWindow::new(values.try_into().expect("39 values")), i)
-    }
-}
 
 /// The DT-Grid engine.
 ///
@@ -106,7 +80,7 @@ impl Sweep for DtSweep<'_> {
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: PointWindow,
+        Halo<R>: Reach,
     {
         let n = self.rep.grid.len();
         let k = make(0..n);
@@ -114,10 +88,14 @@ impl Sweep for DtSweep<'_> {
         self.out.clear();
         resize_exact(self.out, n, 0.0);
         let out = &mut self.out[..];
-        let mut it = StencilIter::new(&self.rep.grid, <Halo<R>>::stencil(self.rep));
+        let stencil = match <Halo<R> as Reach>::WINDOW {
+            PointWindow::Box27 => &self.rep.box27,
+            PointWindow::BoxFar39 => &self.rep.box_far39,
+        };
+        let mut it = StencilIter::new(&self.rep.grid, stencil);
         while it.advance() {
             let i = it.center_index();
-            out[i] = <Halo<R>>::eval(&k, it.values(), i);
+            out[i] = <Halo<R> as Reach>::eval(&k, it.values(), i);
         }
         Ok(())
     }

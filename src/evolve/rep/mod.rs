@@ -24,10 +24,10 @@ pub(crate) use dtgrid::DtRep;
 pub(crate) use tiles::TilesRep;
 
 use super::dispatch::{RenormParams, StageParams};
-use super::exact::ExactSum;
 use super::field::{ScalarFn, VectorFn};
 use super::{EvolveError, SpatialScheme};
 use crate::coord::Coord;
+use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::memory::grown_capacity;
 use levelset_kernels::speed::kappa_bar_integrands;

@@ -10,9 +10,9 @@ use crate::distributed::{Comm, RankPart};
 use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
-use crate::evolve::exact::ExactSum;
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme};
+use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::memory::grown_capacity;
 use crate::storage::tiles::{
@@ -242,7 +242,7 @@ impl Sweep for TileSweep<'_> {
     where
         K: VoxelKernel,
         M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: super::dtgrid::PointWindow,
+        Halo<R>: crate::evolve::dispatch::Reach,
     {
         match self.lanes {
             Lanes::Scalar => self.run_lanes::<f32, K, M, R>(make),

@@ -324,7 +324,7 @@ pub enum ImageError {
     #[error(
         "{}: the image is too large: {what} need about {} but only about {} of memory may \
          be used",
-        .path.display(), crate::memory::gib(*.needed), crate::memory::gib(*.limit)
+        .path.display(), crate::grid::gib(*.needed), crate::grid::gib(*.limit)
     )]
     TooLarge { path: PathBuf, what: String, needed: u64, limit: u64 },
     /// A voxel type that is not read (complex, RGB, float16, structured, ...).
@@ -397,8 +397,8 @@ impl crate::error::Error for ImageError {
             ImageError::Io { source, .. } | ImageError::DataFile { source, .. } => {
                 crate::error::io_kind(source)
             }
-            ImageError::UnsupportedFormat { .. }
-            | ImageError::UnsupportedVoxelType { .. }
+            ImageError::UnsupportedFormat { .. } => UnknownFormat,
+            ImageError::UnsupportedVoxelType { .. }
             | ImageError::Unsupported4D { .. }
             | ImageError::Unsupported { .. }
             | ImageError::NotGreyscale { .. } => Unsupported,
@@ -459,6 +459,36 @@ impl FileFormat {
             _ => Err(ImageError::UnsupportedFormat { path: path.to_path_buf() }),
         }
     }
+
+    /// The extension that names the format (lower case, with its dot).
+    pub fn extension(self) -> &'static str {
+        match self {
+            FileFormat::Nifti { compressed: true } => ".nii.gz",
+            FileFormat::Nifti { compressed: false } => ".nii",
+            FileFormat::Npy => ".npy",
+            FileFormat::Png => ".png",
+            FileFormat::MetaImage { detached: false } => ".mha",
+            FileFormat::MetaImage { detached: true } => ".mhd",
+            FileFormat::Nrrd { detached: false } => ".nrrd",
+            FileFormat::Nrrd { detached: true } => ".nhdr",
+        }
+    }
+}
+
+/// An image file name split into its stem and its extension as written (`.nii.gz` is one
+/// extension), or `None` when the extension names no image format. Detached data files
+/// (`.raw`, `.zraw`, `.raw.gz`) are not images: their headers are.
+///
+/// ```
+/// use sparse_levelset::io::image::split_file_name;
+///
+/// assert_eq!(split_file_name("Brain.NII.GZ"), Some(("Brain", ".NII.GZ")));
+/// assert_eq!(split_file_name("scan.raw"), None);
+/// ```
+pub fn split_file_name(name: &str) -> Option<(&str, &str)> {
+    let format = FileFormat::from_path(Path::new(name)).ok()?;
+    let stem = name.len().checked_sub(format.extension().len())?;
+    Some((&name[..stem], &name[stem..]))
 }
 
 /// An image read by [`load`] (or made in memory, [`LoadedImage::from_image`]) with what

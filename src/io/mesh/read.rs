@@ -82,7 +82,7 @@ impl crate::error::Error for MeshInError {
     fn kind(&self) -> crate::error::ErrorKind {
         use crate::error::ErrorKind::*;
         match self {
-            MeshInError::UnknownFormat { .. } => Unsupported,
+            MeshInError::UnknownFormat { .. } => UnknownFormat,
             MeshInError::Io { source, .. } => crate::error::io_kind(source),
             MeshInError::Parse { .. }
             | MeshInError::Truncated { .. }

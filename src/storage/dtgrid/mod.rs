@@ -85,6 +85,7 @@ pub use stencil::{Stencil, StencilIter};
 
 use crate::coord::Coord;
 use crate::grid::{vec_bytes, GridError, GridSpec, MemoryReport};
+use crate::storage::levelset::{Accessor, LevelSet};
 use std::fmt;
 
 /// Most points a [`DtGrid`] holds: indices are `u32`, and the x-run array of the 3D
@@ -539,4 +540,52 @@ fn check_projection(
         check_runs(name, nc, a.ic as usize, b.ic as usize)?;
     }
     Ok(())
+}
+
+impl LevelSet for DtGrid {
+    fn spec(&self) -> GridSpec {
+        DtGrid::spec(self)
+    }
+    fn value(&self, voxel: Coord) -> f32 {
+        DtGrid::value(self, voxel)
+    }
+    /// Random access (Sec. 3.4) with the p-columns of recent lookups cached, so that a
+    /// stencil's lookups search only their column ([`crate::storage::dtgrid::DtAccessor`]).
+    fn accessor(&self) -> impl Accessor + '_ {
+        crate::storage::dtgrid::DtAccessor::new(self)
+    }
+    fn for_each_band_voxel(&self, f: &mut dyn FnMut(Coord, f32)) {
+        let g = self.gamma();
+        for (c, v) in self.iter() {
+            if v.abs() < g {
+                f(c, v);
+            }
+        }
+    }
+    fn band_voxels(&self) -> usize {
+        DtGrid::band_voxels(self)
+    }
+    fn bounding_box(&self) -> Option<(Coord, Coord)> {
+        DtGrid::bounding_box(self)
+    }
+    fn memory(&self) -> MemoryReport {
+        DtGrid::memory(self)
+    }
+    fn storage(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
+    }
+}
+
+impl Accessor for crate::storage::dtgrid::DtAccessor<'_> {
+    #[inline]
+    fn value(&mut self, voxel: Coord) -> f32 {
+        crate::storage::dtgrid::DtAccessor::value(self, voxel)
+    }
+}
+
+impl DtGrid {
+    /// The DT-Grid behind `ls`, when it is one ([`LevelSet::storage`]).
+    pub fn of<L: LevelSet + ?Sized>(ls: &L) -> Option<&DtGrid> {
+        ls.storage()?.downcast_ref()
+    }
 }

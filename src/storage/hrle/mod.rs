@@ -528,6 +528,13 @@ pub(crate) fn grow_box(b: Option<(Coord, Coord)>, c: Coord) -> (Coord, Coord) {
     }
 }
 
+impl HrleGrid {
+    /// The H-RLE grid behind `ls`, when it is one ([`LevelSet::storage`]).
+    pub fn of<L: LevelSet + ?Sized>(ls: &L) -> Option<&HrleGrid> {
+        ls.storage()?.downcast_ref()
+    }
+}
+
 impl LevelSet for HrleGrid {
     fn spec(&self) -> GridSpec {
         self.spec
@@ -556,7 +563,7 @@ impl LevelSet for HrleGrid {
     fn memory(&self) -> MemoryReport {
         HrleGrid::memory(self)
     }
-    fn as_hrle(&self) -> Option<&HrleGrid> {
+    fn storage(&self) -> Option<&dyn std::any::Any> {
         Some(self)
     }
 }

@@ -138,7 +138,7 @@ impl crate::error::Error for MeshError {
             }
             MeshError::Cancelled(_) => Cancelled,
             MeshError::TooLarge(_) => OutOfMemory,
-            MeshError::UnknownFormat(_) => Unsupported,
+            MeshError::UnknownFormat(_) => UnknownFormat,
             MeshError::Io { source, .. } => crate::error::io_kind(source),
         }
     }

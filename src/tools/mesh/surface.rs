@@ -882,7 +882,7 @@ pub fn isosurface<G: LevelSet + ?Sized>(
         ));
     }
     let converted;
-    let grid = match grid.as_tiles() {
+    let grid = match crate::storage::tiles::TileGrid::of(grid) {
         Some(t) => t,
         None => {
             converted = crate::storage::convert::tiles_from(grid);

@@ -1,22 +1,20 @@
 //! `levelset convert IN OUT`: between dense `.npy` fields, sparse `.sls` files, OpenVDB
-//! `.vdb` level sets and meshes (read: `.obj`, `.ply`, `.stl`; written: `.ply`, `.obj`),
+//! `.vdb` level sets and meshes (`.obj`, `.ply`, `.stl`),
 //! chosen by the extensions. Every input goes through the library's one loader; the
 //! output path is checked before any work and written atomically.
 
-use crate::source::{is_sls, is_vdb};
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::io::input::{self, Expect};
+use sparse_levelset::io::input::Expect;
 use sparse_levelset::io::mesh::{load_mesh, save_mesh, MeshFormat};
-use sparse_levelset::io::sls;
-use sparse_levelset::io::vdb::{self, VdbCompression, VdbOptions};
-use sparse_levelset::storage::convert::{self, tiles_from_dense};
-use sparse_levelset::storage::hrle::HrleGrid;
+use sparse_levelset::io::vdb::{VdbCompression, VdbOptions};
+use sparse_levelset::io::{self, AnyLevelSet, LevelSetFormat, SaveOptions};
 use sparse_levelset::tools::mesh;
 use sparse_levelset::tools::voxelize::{voxelize, VoxelizeOptions};
-use std::path::{Path, PathBuf};
+use sparse_levelset::LevelSet;
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ConvertArgs {
@@ -27,7 +25,7 @@ pub struct ConvertArgs {
     pub input: PathBuf,
     /// Output: .sls (sparse, H-RLE encoded), .vdb (an OpenVDB level set for Blender,
     /// Houdini and OpenVDB's tools), .npy (dense, the band's box grown by --margin, ±γ
-    /// beyond the band), or a mesh of the zero set (.ply binary, .obj).
+    /// beyond the band), or a mesh of the zero set (.ply binary, .obj, binary .stl).
     #[arg(value_name = "OUT")]
     pub output: PathBuf,
     /// Voxel edge length in world units of a .npy input [default: 1] or of a voxelised mesh
@@ -58,37 +56,32 @@ pub enum VdbCodec {
     Zip,
 }
 
+/// The output: a level-set file or a mesh of the zero set.
 enum Out {
-    Sls,
-    Vdb,
-    Npy,
+    LevelSet,
     Mesh(MeshFormat),
 }
 
-fn is_npy(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-}
-
 pub fn run(a: &ConvertArgs) -> Result<(), String> {
-    let out = if is_sls(&a.output) {
-        Out::Sls
-    } else if is_vdb(&a.output) {
-        Out::Vdb
-    } else if is_npy(&a.output) {
-        Out::Npy
+    let out = if LevelSetFormat::from_path(&a.output).is_some() {
+        Out::LevelSet
+    } else if let Some(format) = MeshFormat::from_path(&a.output) {
+        Out::Mesh(format)
     } else {
-        Out::Mesh(MeshFormat::from_path(&a.output).ok_or_else(|| {
-            format!(
-                "{}: unknown output type; use .sls, .vdb, .npy, .ply, .obj or .stl",
-                a.output.display()
-            )
-        })?)
+        return Err(format!(
+            "{}: unknown output type; use {} or {}",
+            a.output.display(),
+            LevelSetFormat::EXTENSIONS,
+            MeshFormat::EXTENSIONS
+        ));
     };
     let is_mesh = MeshFormat::from_path(&a.input).is_some();
-    if !(is_sls(&a.input) || is_vdb(&a.input) || is_npy(&a.input) || is_mesh) {
+    if !(is_mesh || LevelSetFormat::from_path(&a.input).is_some()) {
         return Err(format!(
-            "{}: unknown input type; use .npy, .sls, .vdb, .obj, .ply or .stl",
-            a.input.display()
+            "{}: unknown input type; use {} or {}",
+            a.input.display(),
+            LevelSetFormat::EXTENSIONS,
+            MeshFormat::EXTENSIONS
         ));
     }
     let vdb_opts = VdbOptions {
@@ -110,7 +103,7 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
     bar.set_message(format!("reading {name}"));
     // The input and the grid made from it are held at once.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
-    let grid: HrleGrid = if is_mesh {
+    let grid: AnyLevelSet = if is_mesh {
         let mesh = load_mesh(&a.input).map_err(|e| e.to_string())?;
         bar.set_message(format!("voxelising {name}"));
         let opts = VoxelizeOptions {
@@ -118,32 +111,20 @@ pub fn run(a: &ConvertArgs) -> Result<(), String> {
             half_width: a.half_width,
             ..Default::default()
         };
-        let tiles = voxelize(&mesh, &opts).map_err(|e| format!("{name}: {e}"))?;
-        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
-    } else if is_sls(&a.input) {
-        input::load_sls(&a.input, &expect).map_err(|e| e.to_string())?.0
-    } else if is_vdb(&a.input) {
-        let (tiles, _) = input::load_vdb(&a.input, &expect).map_err(|e| e.to_string())?;
-        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
+        AnyLevelSet::Tiles(voxelize(&mesh, &opts).map_err(|e| format!("{name}: {e}"))?)
     } else {
-        let field = input::load_npy(&a.input, &expect).map_err(|e| e.to_string())?;
-        let tiles = tiles_from_dense(&field, spec).map_err(|e| format!("{name}: {e}"))?;
-        HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
+        io::load_level_set(&a.input, &expect).map_err(|e| e.to_string())?.level_set
     };
     bar.set_message(format!("writing {}", a.output.display()));
     let what = match out {
-        Out::Sls => {
-            sls::save(&a.output, &grid).map_err(|e| e.to_string())?;
-            format!("{} band voxels", grid.band_voxels())
-        }
-        Out::Vdb => {
-            vdb::save(&a.output, &grid, &vdb_opts).map_err(|e| e.to_string())?;
-            format!("{} band voxels", grid.band_voxels())
-        }
-        Out::Npy => {
-            let origin = convert::export_npy(&grid, &a.output, a.margin)
-                .map_err(|e| format!("{}: {e}", a.output.display()))?;
-            format!("{} band voxels, array origin voxel {origin}", grid.band_voxels())
+        Out::LevelSet => {
+            let opts = SaveOptions { margin: a.margin, vdb: vdb_opts };
+            match io::save_level_set(&a.output, &grid, &opts).map_err(|e| e.to_string())? {
+                Some(origin) => {
+                    format!("{} band voxels, array origin voxel {origin}", grid.band_voxels())
+                }
+                None => format!("{} band voxels", grid.band_voxels()),
+            }
         }
         Out::Mesh(format) => {
             let m =

@@ -498,24 +498,13 @@ fn batch_images(dir: &Path) -> Result<Vec<PathBuf>, String> {
     for e in entries {
         let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
         let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("").to_ascii_lowercase();
-        let (stem, ok) = split_ext(&name);
-        if p.is_file() && ok && !stem.ends_with("-truth") {
+        let image = image::split_file_name(&name).filter(|(stem, _)| !stem.ends_with("-truth"));
+        if p.is_file() && image.is_some() {
             out.push(p);
         }
     }
     out.sort();
     Ok(out)
-}
-
-/// `(stem, supported)` of a file name: `.nii.gz` counts as one extension.
-fn split_ext(name: &str) -> (&str, bool) {
-    // Detached data files (.raw, .zraw, .raw.gz) are not images: their headers are.
-    for ext in [".nii.gz", ".nii", ".npy", ".png", ".mha", ".mhd", ".nrrd", ".nhdr"] {
-        if let Some(stem) = name.strip_suffix(ext) {
-            return (stem, true);
-        }
-    }
-    (name, false)
 }
 
 /// Batch mode: every image of `a.image` into the directory `a.output`, spread over the
@@ -548,9 +537,7 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
     let prefix = batch::line_prefix(t);
     let one = |p: &PathBuf, threads: usize| -> Result<serde_json::Value, String> {
         let file = p.file_name().and_then(|n| n.to_str()).unwrap_or("image").to_string();
-        let lower = file.to_ascii_lowercase();
-        let stem_len = split_ext(&lower).0.len();
-        let (stem, ext) = (file[..stem_len].to_string(), file[stem_len..].to_string());
+        let (stem, ext) = image::split_file_name(&file).unwrap_or((&file, ""));
         let sibling = |suffix: &str| a.image.join(format!("{stem}{suffix}"));
         let truth = Some(sibling(&format!("-truth{ext}"))).filter(|t| t.is_file());
         let seeds = Some(sibling("-seeds.json")).filter(|s| s.is_file());

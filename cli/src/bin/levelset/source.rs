@@ -6,20 +6,11 @@ use clap::{Args, ValueEnum};
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::input::{self, Expect};
 use sparse_levelset::io::sls;
+use sparse_levelset::io::{self, AnyLevelSet, LevelSetFormat};
 use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::storage::hrle::HrleGrid;
 use sparse_levelset::storage::shapes::Shape;
-use std::path::{Path, PathBuf};
-
-/// A path with the `.vdb` extension (any case): an OpenVDB level set.
-pub fn is_vdb(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"))
-}
-
-/// A path with the `.sls` extension (any case).
-pub fn is_sls(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("sls"))
-}
+use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ShapeKind {
@@ -171,19 +162,20 @@ impl SourceArgs {
     /// before any work.
     pub fn load(&self, expect: &Expect) -> Result<Input, String> {
         if let Some(path) = &self.field {
-            if is_sls(path) {
-                let (grid, header) = input::load_sls(path, expect).map_err(|e| e.to_string())?;
-                let name = path.display().to_string();
-                return Ok(Input::Sparse { name, grid: Box::new(grid), header: Some(header) });
+            let name = path.display().to_string();
+            // A dense field stays dense (meshing and reports read it as a whole).
+            if LevelSetFormat::from_path(path) == Some(LevelSetFormat::Npy) {
+                let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
+                return Ok(Input::Field { name, field });
             }
-            if is_vdb(path) {
-                let (tiles, _) = input::load_vdb(path, expect).map_err(|e| e.to_string())?;
-                let name = path.display().to_string();
-                let grid = HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?;
-                return Ok(Input::Sparse { name, grid: Box::new(grid), header: None });
-            }
-            let field = input::load_npy(path, expect).map_err(|e| e.to_string())?;
-            return Ok(Input::Field { name: path.display().to_string(), field });
+            let loaded = io::load_level_set(path, expect).map_err(|e| e.to_string())?;
+            let grid = match loaded.level_set {
+                AnyLevelSet::Hrle(grid) => grid,
+                AnyLevelSet::Tiles(tiles) => {
+                    HrleGrid::from_level_set(&tiles).map_err(|e| format!("{name}: {e}"))?
+                }
+            };
+            return Ok(Input::Sparse { name, grid: Box::new(grid), header: loaded.sls_header });
         }
         let name = self.shape.name();
         let shape = self.shape.build()?;

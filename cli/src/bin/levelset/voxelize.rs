@@ -7,6 +7,8 @@ use levelset_cli::output::check_output;
 use levelset_cli::{batch, outln, progress};
 use serde::{Deserialize, Serialize};
 use sparse_levelset::grid::GridSpec;
+use sparse_levelset::io::mesh::MeshFormat;
+use sparse_levelset::io::{save_level_set, LevelSetFormat, SaveOptions};
 use sparse_levelset::storage::sample::band_voxel_box;
 use sparse_levelset::tools::voxelize::{default_voxel_size, voxelize, SignMethod, VoxelizeOptions};
 use std::path::{Path, PathBuf};
@@ -26,7 +28,7 @@ pub struct VoxelizeArgs {
     /// `--features mpi`) the meshes are spread over the ranks.
     #[arg(value_name = "MESH|DIR")]
     pub mesh: PathBuf,
-    /// Output: OUT.sls, the sparse band (docs/sls-format.md), or OUT.npy, a dense float32
+    /// Output: OUT.sls, the sparse band (docs/sls-format.md), OUT.vdb (OpenVDB), or OUT.npy, a dense float32
     /// field (shape (nz, ny, nx), φ < 0 inside, world units) covering the band plus one
     /// voxel, ±γ beyond the band; written atomically. In folder mode a directory:
     /// OUTDIR/NAME.npy per mesh NAME.EXT (in name order) and OUTDIR/summary.json. Meshes
@@ -55,25 +57,14 @@ pub struct VoxelizeArgs {
     pub quiet: bool,
 }
 
-/// The output formats, by extension.
-#[derive(Clone, Copy, Debug)]
-enum Output {
-    /// The sparse band as a `.sls` file ([`sparse_levelset::io::sls::save`]).
-    Sls,
-    /// A dense `.npy` around the band ([`sparse_levelset::storage::convert::export_npy`]).
-    Npy,
-}
-
 /// Voxels of margin around the band in a dense output.
 const MARGIN: u32 = 1;
 
-fn output_kind(path: &Path) -> Result<Output, String> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("npy") => Ok(Output::Npy),
-        Some("sls") => Ok(Output::Sls),
-        _ => Err(format!("{}: unknown output format (use .sls or .npy)", path.display())),
-    }
+/// The output's format: a level-set file (`.sls`, `.vdb`, dense `.npy`).
+fn output_kind(path: &Path) -> Result<LevelSetFormat, String> {
+    LevelSetFormat::from_path(path).ok_or_else(|| {
+        format!("{}: unknown output format (use {})", path.display(), LevelSetFormat::EXTENSIONS)
+    })
 }
 
 /// What voxelising one mesh gave: its line of the output and its record in a folder's
@@ -158,8 +149,8 @@ fn voxelize_one(
     let spec = GridSpec::new(h, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     band_voxel_box(lo, hi, &spec).map_err(|e| format!("{name}: {e}"))?;
     match kind {
-        Output::Sls => {}
-        Output::Npy => {
+        LevelSetFormat::Sls | LevelSetFormat::Vdb => {}
+        LevelSetFormat::Npy => {
             let extra = 2.0 * (a.half_width.max(0.0) as f64 + MARGIN as f64 + 1.0);
             let voxels: f64 =
                 (0..3).map(|i| ((hi[i] - lo[i]) / h as f64).max(0.0) + extra).product();
@@ -200,18 +191,11 @@ fn voxelize_one(
             .expect("valid template"),
     );
     bar.set_message(format!("writing {}", output.display()));
-    let (dims, origin) = match kind {
-        Output::Sls => {
-            sparse_levelset::io::sls::save(output, &grid).map_err(|e| e.to_string())?;
-            (None, None)
-        }
-        Output::Npy => {
-            let origin = sparse_levelset::storage::convert::export_npy(&grid, output, MARGIN)
-                .map_err(|e| format!("{}: {e}", output.display()))?;
-            let dims = sparse_levelset::storage::convert::dense_box(&grid, MARGIN).map(|(_, d)| d);
-            (dims, Some([origin.x, origin.y, origin.z]))
-        }
-    };
+    let opts = SaveOptions { margin: MARGIN, ..Default::default() };
+    let origin = save_level_set(output, &grid, &opts).map_err(|e| e.to_string())?;
+    let dims = origin
+        .and_then(|_| sparse_levelset::storage::convert::dense_box(&grid, MARGIN).map(|(_, d)| d));
+    let origin = origin.map(|o| [o.x, o.y, o.z]);
     Ok(Voxelized {
         triangles: mesh.triangles.len(),
         voxel_size: h,
@@ -233,8 +217,7 @@ fn folder_meshes(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     for e in entries {
         let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
-        let ext = p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if p.is_file() && matches!(ext.as_deref(), Some("obj" | "ply" | "stl")) {
+        if p.is_file() && MeshFormat::from_path(&p).is_some() {
             out.push(p);
         }
     }
