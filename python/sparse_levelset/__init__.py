@@ -172,8 +172,8 @@ def isosurface(
 
 
 def save_mesh(path: Union[str, os.PathLike], verts, faces, normals=None) -> None:
-    """Writes a triangle mesh to ``.ply`` (binary) or ``.obj``, atomically. Normals are
-    computed (area-weighted) when not given."""
+    """Writes a triangle mesh to ``.ply`` (binary), ``.obj`` or ``.stl`` (binary),
+    atomically. Normals are computed (area-weighted) when not given."""
     v = np.ascontiguousarray(verts, dtype=np.float64)
     f = np.ascontiguousarray(faces, dtype=np.int64)
     n = None if normals is None else np.ascontiguousarray(normals, dtype=np.float64)

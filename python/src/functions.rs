@@ -116,32 +116,6 @@ fn isosurface<'py>(
     Ok((to_rows(py, &verts)?, to_rows(py, &faces)?, to_rows(py, &normals)?))
 }
 
-/// Area-weighted vertex normals of a triangle mesh (for files written without normals).
-fn vertex_normals(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut acc = vec![[0f64; 3]; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        for &i in t {
-            for d in 0..3 {
-                acc[i as usize][d] += n[d];
-            }
-        }
-    }
-    acc.iter()
-        .map(|n| {
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            if len > 0.0 {
-                n.map(|c| (c / len) as f32)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect()
-}
-
 /// A mesh from NumPy arrays, checked: finite vertices, faces indexing them.
 pub(crate) fn mesh_from_arrays(
     verts: &PyReadonlyArray2<'_, f64>,
@@ -170,24 +144,26 @@ pub(crate) fn mesh_from_arrays(
         }
         triangles.push([r[0] as u32, r[1] as u32, r[2] as u32]);
     }
-    let normals = match normals {
+    let mut m = TriangleMesh { positions, normals: Vec::new(), triangles };
+    m.normals = match normals {
         Some(a) => {
             let rows = rows3(a, "normals")?;
-            if rows.len() != positions.len() {
+            if rows.len() != m.positions.len() {
                 return Err(crate::value_error(format!(
                     "{} normals for {} vertices",
                     rows.len(),
-                    positions.len()
+                    m.positions.len()
                 )));
             }
             rows.iter().map(|r| r.map(|c| c as f32)).collect()
         }
-        None => vertex_normals(&positions, &triangles),
+        None => m.area_weighted_normals(),
     };
-    Ok(TriangleMesh { positions, normals, triangles })
+    Ok(m)
 }
 
-/// Writes a triangle mesh (`.ply` binary or `.obj`, by the extension; atomic).
+/// Writes a triangle mesh (`.ply` binary, `.obj` or binary `.stl`, by the extension;
+/// atomic).
 #[pyfunction]
 #[pyo3(signature = (path, verts, faces, normals=None))]
 fn save_mesh(

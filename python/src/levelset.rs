@@ -16,7 +16,8 @@ use sparse_levelset::io::input::{self, Expect};
 use sparse_levelset::io::{self, vdb, AnyLevelSet};
 use sparse_levelset::storage::convert;
 use sparse_levelset::storage::dense::DenseField;
-use sparse_levelset::storage::levelset::{Accessor, LevelSet as _};
+use sparse_levelset::storage::interpolate::{Trilinear, Units};
+use sparse_levelset::storage::levelset::LevelSet as _;
 use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::storage::tiles::TileGrid;
 use sparse_levelset::tools::csg::{self, CsgOp};
@@ -236,8 +237,8 @@ impl LevelSet {
         let out: Vec<f32> = py.detach(|| {
             pts.par_chunks(4096)
                 .flat_map_iter(|chunk| {
-                    let mut acc = g.accessor();
-                    chunk.iter().map(move |p| trilinear(&mut acc, &spec, *p)).collect::<Vec<_>>()
+                    let mut s = Trilinear::new(g.accessor(), &spec, Units::World);
+                    chunk.iter().map(move |p| s.at_world(*p) as f32).collect::<Vec<_>>()
                 })
                 .collect()
         });
@@ -423,38 +424,4 @@ impl LevelSet {
             s.half_width
         )
     }
-}
-
-/// φ at world point `p` by trilinear interpolation of the voxel values (voxel centres at
-/// `origin + h·(i, j, k)`).
-fn trilinear(acc: &mut impl Accessor, spec: &GridSpec, p: [f64; 3]) -> f32 {
-    let h = spec.voxel_size as f64;
-    let g = spec.gamma();
-    let mut base = [0i64; 3];
-    let mut t = [0f64; 3];
-    for d in 0..3 {
-        let u = (p[d] - spec.origin[d]) / h;
-        let f = u.floor();
-        base[d] = f as i64;
-        t[d] = u - f;
-    }
-    // Far outside the i32 lattice every voxel reads as background.
-    if base.iter().any(|&b| b < i32::MIN as i64 || b >= i32::MAX as i64) {
-        return g;
-    }
-    let mut v = 0f64;
-    for corner in 0..8 {
-        let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-        let w: f64 = (0..3).map(|d| if o[d] == 1 { t[d] } else { 1.0 - t[d] }).product();
-        if w == 0.0 {
-            continue;
-        }
-        let c = Coord::new(
-            (base[0] + o[0] as i64) as i32,
-            (base[1] + o[1] as i64) as i32,
-            (base[2] + o[2] as i64) as i32,
-        );
-        v += w * acc.value(c) as f64;
-    }
-    v as f32
 }

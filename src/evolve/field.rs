@@ -266,18 +266,13 @@ impl SampledField {
             w[a] = if dims[a] > 1 { u - f } else { 0.0 };
         }
         let d = self.field.data();
-        let at = |dx: usize, dy: usize, dz: usize| {
-            let x = (i0[0] + dx).min(dims[0] - 1);
-            let y = (i0[1] + dy).min(dims[1] - 1);
-            let z = (i0[2] + dz).min(dims[2] - 1);
+        let corners = std::array::from_fn(|k| {
+            let x = (i0[0] + (k & 1)).min(dims[0] - 1);
+            let y = (i0[1] + (k >> 1 & 1)).min(dims[1] - 1);
+            let z = (i0[2] + (k >> 2)).min(dims[2] - 1);
             d[x + dims[0] * (y + dims[1] * z)] as f64
-        };
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let c00 = lerp(at(0, 0, 0), at(1, 0, 0), w[0]);
-        let c10 = lerp(at(0, 1, 0), at(1, 1, 0), w[0]);
-        let c01 = lerp(at(0, 0, 1), at(1, 0, 1), w[0]);
-        let c11 = lerp(at(0, 1, 1), at(1, 1, 1), w[0]);
-        lerp(lerp(c00, c10, w[1]), lerp(c01, c11, w[1]), w[2]) as f32
+        });
+        crate::storage::interpolate::trilinear(&corners, w) as f32
     }
 }
 

@@ -8,6 +8,7 @@ pub mod convert;
 pub mod dense;
 pub mod dtgrid;
 pub mod hrle;
+pub mod interpolate;
 pub mod levelset;
 pub mod sample;
 pub mod shapes;

@@ -3,8 +3,6 @@
 //! band, bit for bit (the checksum), and the same volume and area records.
 #![cfg(feature = "mpi")]
 
-use crate::common;
-
 use crate::common::{stderr, tmp};
 use std::path::Path;
 use std::process::Command;

@@ -675,7 +675,12 @@ fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let bytes = std::fs::read(&npy).unwrap();
     std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
     fails(&["mesh", trunc.to_str().unwrap(), "-o", ply.to_str().unwrap()], "");
-    fails(&["mesh", "-o", tmp("x.stl").to_str().unwrap()], "unknown mesh format");
+    fails(&["mesh", "-o", tmp("x.xyz").to_str().unwrap()], "unknown mesh format");
+    // Binary STL out, read back by the library's mesh reader.
+    let stl = tmp("cli-sphere.stl");
+    ok(&["mesh", "--shape", "sphere", "--radius", "6", "-o", stl.to_str().unwrap()]);
+    let back = sparse_levelset::io::mesh::load_mesh(&stl).unwrap();
+    assert!(back.triangles.len() > 100 && back.is_closed_manifold());
     fails(&["mesh", "--radius=-5", "-o", ply.to_str().unwrap()], "");
     fails(
         &["mesh", "--radius", "10", "--iso", "3", "-o", ply.to_str().unwrap()],

@@ -157,6 +157,35 @@ impl TriangleMesh {
         self.triangles.is_empty()
     }
 
+    /// Area-weighted vertex normals from the triangles alone (the sum of the cross products
+    /// of the faces around each vertex, normalised; zero where they cancel): for meshes read
+    /// from files without normals. Outward for counter-clockwise faces.
+    pub fn area_weighted_normals(&self) -> Vec<[f32; 3]> {
+        let mut acc = vec![[0f64; 3]; self.positions.len()];
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            let n =
+                [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            for &i in t {
+                for d in 0..3 {
+                    acc[i as usize][d] += n[d];
+                }
+            }
+        }
+        acc.iter()
+            .map(|n| {
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if len > 0.0 {
+                    n.map(|c| (c / len) as f32)
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    }
+
     /// Vertices whose normal is zero (∇φ vanished there) take the area-weighted mean of
     /// their triangles' normals.
     fn fill_missing_normals(&mut self) {

@@ -35,10 +35,11 @@
 mod trace;
 
 use crate::progress::{Cancelled, Progress};
+use crate::storage::interpolate::{Trilinear as Sampler, Units};
 use crate::storage::levelset::{Accessor, LevelSet};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-use trace::{normalize, summarise, trace, Occupancy, Sampler};
+use trace::{normalize, summarise, trace, Occupancy};
 
 /// Errors of rendering and of writing an image.
 #[derive(Debug, thiserror::Error)]
@@ -387,7 +388,7 @@ pub fn render<G: LevelSet + ?Sized>(grid: &G, opts: &RenderOptions) -> Result<Im
     rgb.par_chunks_mut(3 * w).zip(depth.par_chunks_mut(w)).enumerate().try_for_each(
         |(y, (row, drow))| {
             ticker.check()?;
-            let mut s = Sampler::new(grid.accessor(), &spec);
+            let mut s = Sampler::new(grid.accessor(), &spec, Units::Voxels);
             scene.row(&mut s, y as u32, opts.samples, row, drow);
             ticker.advance(1)
         },

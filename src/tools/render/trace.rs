@@ -23,7 +23,7 @@
 //!   cubic of the interpolant along the ray instead; both find a zero of the same
 //!   function).
 
-use crate::coord::Coord;
+use crate::storage::interpolate::Trilinear as Sampler;
 use crate::storage::levelset::{Accessor, LevelSet};
 
 /// Sphere-tracing step as a fraction of |φ| (see the module docs for why 0.5).
@@ -223,99 +223,6 @@ impl Occupancy {
             levels.push(up);
         }
         Occupancy { lo, levels }
-    }
-}
-
-/// The trilinear interpolant of a grid in voxel space, in voxel units, with the eight
-/// corners of the last cell cached (consecutive samples of a ray mostly share a cell).
-pub(crate) struct Sampler<A> {
-    acc: A,
-    inv_h: f64,
-    gamma: f64,
-    base: [i64; 3],
-    corners: [f64; 8],
-    pub(crate) samples: u32,
-}
-
-impl<A: Accessor> Sampler<A> {
-    /// The interpolant read through `acc`, an accessor of a level set with `spec`.
-    pub(crate) fn new(acc: A, spec: &crate::grid::GridSpec) -> Self {
-        Sampler {
-            acc,
-            inv_h: 1.0 / spec.voxel_size as f64,
-            gamma: spec.half_width as f64,
-            base: [i64::MIN; 3],
-            corners: [0.0; 8],
-            samples: 0,
-        }
-    }
-
-    /// φ / h at voxel-space point `p`.
-    #[inline]
-    pub(crate) fn phi(&mut self, p: [f64; 3]) -> f64 {
-        self.samples += 1;
-        let base = [p[0].floor() as i64, p[1].floor() as i64, p[2].floor() as i64];
-        if base != self.base {
-            self.fill(base);
-        }
-        let fx = p[0] - base[0] as f64;
-        let fy = p[1] - base[1] as f64;
-        let fz = p[2] - base[2] as f64;
-        let c = &self.corners;
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let x00 = lerp(c[0], c[1], fx);
-        let x10 = lerp(c[2], c[3], fx);
-        let x01 = lerp(c[4], c[5], fx);
-        let x11 = lerp(c[6], c[7], fx);
-        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz)
-    }
-
-    /// Reads the corners of the cell at `base` (x fastest). A corner beyond the i32 range
-    /// cannot be stored, so it reads +γ (outside), as every unstored voxel far out does.
-    #[cold]
-    fn fill(&mut self, base: [i64; 3]) {
-        self.base = base;
-        let range = i32::MIN as i64..i32::MAX as i64;
-        if base.iter().all(|b| range.contains(b)) {
-            let b = Coord::new(base[0] as i32, base[1] as i32, base[2] as i32);
-            for (k, c) in self.corners.iter_mut().enumerate() {
-                let v = Coord::new(
-                    b.x + (k & 1) as i32,
-                    b.y + ((k >> 1) & 1) as i32,
-                    b.z + (k >> 2) as i32,
-                );
-                *c = self.acc.value(v) as f64 * self.inv_h;
-            }
-            return;
-        }
-        for (k, c) in self.corners.iter_mut().enumerate() {
-            let v = [
-                base[0] + (k & 1) as i64,
-                base[1] + ((k >> 1) & 1) as i64,
-                base[2] + (k >> 2) as i64,
-            ];
-            let ok = v.iter().all(|&x| (i32::MIN as i64..=i32::MAX as i64).contains(&x));
-            *c = if ok {
-                self.acc.value(Coord::new(v[0] as i32, v[1] as i32, v[2] as i32)) as f64
-                    * self.inv_h
-            } else {
-                self.gamma
-            };
-        }
-    }
-
-    /// Unit gradient of the interpolant at `p` by central differences one voxel apart
-    /// (continuous across cell faces, unlike the interpolant's own gradient); `None` where
-    /// it vanishes.
-    pub(crate) fn normal(&mut self, p: [f64; 3]) -> Option<[f64; 3]> {
-        let mut g = [0.0; 3];
-        for a in 0..3 {
-            let (mut q, mut r) = (p, p);
-            q[a] += 0.5;
-            r[a] -= 0.5;
-            g[a] = self.phi(q) - self.phi(r);
-        }
-        normalize(g)
     }
 }
 
