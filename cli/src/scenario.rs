@@ -652,12 +652,15 @@ impl Scenario {
         }
         let last = records.last().expect("the initial record");
         // Collective: every rank of a distributed run gets here.
-        let distributed = self.sim.cuts().map(|(_, cuts)| DistributedSummary {
-            ranks: cuts.len() - 1,
-            cuts,
-            tiles_per_rank: self.sim.tiles_per_rank(),
-            slabs: self.sim.slabs().unwrap_or(0),
-            halo: self.sim.halo_stats_per_rank(),
+        let distributed = self.sim.distribution().map(|d| {
+            let cuts = d.cuts().map(|(_, cuts)| cuts).unwrap_or_default();
+            DistributedSummary {
+                ranks: cuts.len().saturating_sub(1),
+                cuts,
+                tiles_per_rank: d.tiles_per_rank(),
+                slabs: d.slabs().unwrap_or(0),
+                halo: d.halo_stats_per_rank(),
+            }
         });
         let summary = Summary {
             params: self.params,

@@ -23,8 +23,10 @@ Coordinates follow the libraries these functions stand in for:
 Long calls release the GIL, honour Ctrl-C (``KeyboardInterrupt``, nothing changed) and
 take an optional ``progress`` callback, called from the calling thread with a dict
 (``done``/``total``, or a segmentation's ``iteration``, ``rms``, ...). Errors are Python
-exceptions carrying the library's message: ``ValueError`` for bad arrays and parameters,
-``OSError`` for files, ``MemoryError`` when the result cannot fit.
+exceptions carrying the library's message, the class chosen by the error's kind:
+``ValueError`` for bad arrays, parameters and file extensions, ``OSError`` for files that
+cannot be read or written, ``MemoryError`` when the result cannot fit, ``RuntimeError`` when
+the computation failed.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@
 //! result is the single-process result bit for bit, for any number of ranks and threads.
 //!
 //! # Decomposition
-//! The tile list is sorted z first ([`Coord`] order), so a range of tile z coordinates (a
+//! The tile list is sorted z first ([`crate::coord::Coord`] order), so a range of tile z coordinates (a
 //! stack of whole z-slabs of tiles) is a contiguous range of the list. Rank `r` owns the
 //! slabs `cuts[r] ≤ tz < cuts[r + 1]`; the cuts are placed where the tile counts balance
 //! ([`balanced_cuts`]). Each rank stores its slabs and one ghost slab on either side
@@ -31,7 +31,7 @@
 //!   flags) to them, which replace their ghost slabs.
 //! * **Reductions** combine each rank's exact partial results: maxima for Δt, the
 //!   fixed-point sums of κ̄, volume, area and the collapse test
-//!   ([`ExactSum`], associative and commutative), counts.
+//!   ([`crate::exact::ExactSum`], associative and commutative), counts.
 //!   Each rank sums over the tiles it owns only.
 //! * **Rebalancing**: after a step, when the largest rank holds more than
 //!   (1 + threshold) × the smallest rank's tiles, new cuts are computed from the tile

@@ -51,7 +51,7 @@
 //! management of Alg. 2–3 from the guard-band activity flags of Fig. 5 keeps every voxel
 //! within one voxel of the band in a tile) and the dense reference store more and mask
 //! with [`levelset_kernels::BandMasked`]. Reductions (κ̄, volume, area) are exact sums
-//! ([`exact`]) and the time step comes from maxima over the band voxels. So all three
+//! ([`crate::exact`]) and the time step comes from maxima over the band voxels. So all three
 //! representations, every lane type and every thread count compute the same numbers,
 //! bit for bit; the tests check it.
 //!
@@ -97,7 +97,7 @@ pub use field::{
     EnrightVelocity, SampledField, SampledVelocity, ScalarClosure, ScalarFn, Speed, StaticSdf,
     VectorClosure, VectorFn, Velocity,
 };
-pub use simulation::Simulation;
+pub use simulation::{Distribution, Simulation};
 
 use crate::coord::Coord;
 use crate::grid::GridError;

@@ -123,46 +123,13 @@ impl Simulation {
         Simulation::start(Rep::Tiles(rep), GridKind::Tiles(lanes), flow, settings)
     }
 
-    /// This rank's exchange statistics when the simulation is distributed.
-    pub fn halo_stats(&self) -> Option<HaloStats> {
+    /// The distributed run's side of the simulation (this rank, the cuts, the exchange
+    /// statistics); `None` when the simulation is not distributed.
+    pub fn distribution(&self) -> Option<Distribution<'_>> {
         match &self.rep {
-            Rep::Tiles(t) => t.halo_stats(),
+            Rep::Tiles(t) if t.cuts().is_some() => Some(Distribution { sim: self }),
             _ => None,
         }
-    }
-
-    /// The z-slabs of tiles that hold tiles, over all ranks (collective; `None` when the
-    /// simulation is not distributed): the most ranks a slab decomposition can use.
-    pub fn slabs(&self) -> Option<usize> {
-        let Rep::Tiles(t) = &self.rep else { return None };
-        let n = t.owned_slabs()?;
-        Some(self.sum_counts([n as u64])[0] as usize)
-    }
-
-    /// Every rank's exchange statistics, in rank order (collective); empty when the
-    /// simulation is not distributed.
-    pub fn halo_stats_per_rank(&self) -> Vec<HaloStats> {
-        let (Some(c), Some(mine)) = (self.rep.get().comm(), self.halo_stats()) else {
-            return Vec::new();
-        };
-        c.gather(&mine.to_bytes()).iter().filter_map(|b| HaloStats::from_bytes(b)).collect()
-    }
-
-    /// This rank and the cuts (tile z coordinates: rank r owns `cuts[r] ≤ tz <
-    /// cuts[r + 1]`) when the simulation is distributed.
-    pub fn cuts(&self) -> Option<(usize, Vec<i32>)> {
-        match &self.rep {
-            Rep::Tiles(t) => t.cuts().map(|(r, c)| (r, c.to_vec())),
-            _ => None,
-        }
-    }
-
-    /// The tiles every rank owns, in rank order (collective); one entry when the
-    /// simulation is not distributed.
-    pub fn tiles_per_rank(&self) -> Vec<u64> {
-        let rep = self.rep.get();
-        let n = rep.units() as u64;
-        rep.comm().map_or_else(|| vec![n], |c| c.counts(n))
     }
 
     /// A simulation starting from a DT-Grid (kept as a DT-Grid).
@@ -918,5 +885,53 @@ impl LevelSet for crate::evolve::Simulation {
             (_, Some(d)) => Some(d),
             _ => None,
         }
+    }
+}
+
+/// A distributed simulation's view of its ranks ([`Simulation::distribution`]). The methods
+/// marked collective must be called on every rank in the same order.
+pub struct Distribution<'a> {
+    sim: &'a Simulation,
+}
+
+impl Distribution<'_> {
+    /// This rank's exchange statistics.
+    pub fn halo_stats(&self) -> Option<HaloStats> {
+        match &self.sim.rep {
+            Rep::Tiles(t) => t.halo_stats(),
+            _ => None,
+        }
+    }
+
+    /// The z-slabs of tiles that hold tiles, over all ranks (collective): the most ranks a
+    /// slab decomposition can use.
+    pub fn slabs(&self) -> Option<usize> {
+        let Rep::Tiles(t) = &self.sim.rep else { return None };
+        let n = t.owned_slabs()?;
+        Some(self.sim.sum_counts([n as u64])[0] as usize)
+    }
+
+    /// Every rank's exchange statistics, in rank order (collective).
+    pub fn halo_stats_per_rank(&self) -> Vec<HaloStats> {
+        let (Some(c), Some(mine)) = (self.sim.rep.get().comm(), self.halo_stats()) else {
+            return Vec::new();
+        };
+        c.gather(&mine.to_bytes()).iter().filter_map(|b| HaloStats::from_bytes(b)).collect()
+    }
+
+    /// This rank and the cuts (tile z coordinates: rank r owns `cuts[r] ≤ tz <
+    /// cuts[r + 1]`).
+    pub fn cuts(&self) -> Option<(usize, Vec<i32>)> {
+        match &self.sim.rep {
+            Rep::Tiles(t) => t.cuts().map(|(r, c)| (r, c.to_vec())),
+            _ => None,
+        }
+    }
+
+    /// The tiles every rank owns, in rank order (collective).
+    pub fn tiles_per_rank(&self) -> Vec<u64> {
+        let rep = self.sim.rep.get();
+        let n = rep.units() as u64;
+        rep.comm().map_or_else(|| vec![n], |c| c.counts(n))
     }
 }

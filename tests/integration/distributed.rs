@@ -149,11 +149,11 @@ fn rebalancing_keeps_a_growing_sphere_balanced() {
             for _ in 0..steps {
                 let r = sim.step().unwrap();
                 dts.push((r.dt.to_bits(), r.kappa_bar.map(f64::to_bits)));
-                let counts = sim.tiles_per_rank();
+                let counts = sim.distribution().unwrap().tiles_per_rank();
                 let (lo, hi) = (*counts.iter().min().unwrap(), *counts.iter().max().unwrap());
                 worst = worst.max(hi as f64 / lo as f64);
             }
-            let moves = sim.halo_stats().unwrap().rebalances;
+            let moves = sim.distribution().unwrap().halo_stats().unwrap().rebalances;
             (finish(&sim, dts), worst, moves)
         });
         for (rank, (o, worst, moves)) in out.into_iter().enumerate() {

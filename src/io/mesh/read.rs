@@ -1,5 +1,6 @@
-//! Mesh files in ([`load_mesh`]): Wavefront OBJ (`tobj`), PLY, ASCII or binary (`ply-rs-bw`), and STL,
-//! ASCII or binary (`stl_io`), chosen by the extension (`.obj`, `.ply`, `.stl`, any case).
+//! Mesh files in ([`load_mesh`]): Wavefront OBJ (`tobj`), PLY, ASCII or binary
+//! (`ply-rs-bw`), and STL, ASCII or binary (`stl_io`), chosen by the extension (`.obj`,
+//! `.ply`, `.stl`, any case).
 //!
 //! One loader, one verdict: every file goes through [`load_mesh`], which returns a
 //! [`TriangleMesh`] with polygons split into triangle fans and no normals, or a
@@ -94,7 +95,7 @@ impl crate::error::Error for MeshInError {
 }
 
 /// Reads a triangle mesh from an OBJ, PLY or STL file, chosen by the extension (see the
-/// [module docs](self) for the checks). Polygons become triangle fans `(v0, vi, vi+1)`;
+/// [module docs](crate::io::mesh) for the checks). Polygons become triangle fans `(v0, vi, vi+1)`;
 /// faces of fewer than three vertices are skipped; normals are left empty. Vertices are
 /// kept as the file has them (STL's are merged where their bits are equal).
 pub fn load_mesh(path: &Path) -> Result<TriangleMesh, MeshInError> {

@@ -8,8 +8,8 @@
 //!   sampled at every k-th voxel (about k² fewer triangles, the same guarantees);
 //! * [`isosurface_nd`]: the zero set of a dense φ: Zⁿ → Rᵐ, n ≤ 5, m < n, as a
 //!   [`SimplicialComplex`] of dimension n − m (successive hyperplane cuts, Sec. 4);
-//! * [`TriangleMesh::write`]: binary or ASCII PLY and OBJ, written atomically; mesh checks
-//!   ([`TriangleMesh::is_closed_manifold`], [`TriangleMesh::euler_characteristic`],
+//! * [`crate::io::mesh::save_mesh`]: binary or ASCII PLY, OBJ and binary STL, written
+//!   atomically; mesh checks ([`TriangleMesh::is_closed_manifold`], [`TriangleMesh::euler_characteristic`],
 //!   [`TriangleMesh::area`], [`TriangleMesh::enclosed_volume`]).
 //!
 //! The surface is the zero set of the piecewise-linear interpolant on the Kuhn
@@ -64,7 +64,7 @@ use std::path::PathBuf;
 ///
 /// Positions are f64. The isosurface functions store f32 values in them whenever f32
 /// holds the mesh (see [the module docs](crate::tools::mesh#exact-zeros-and-precision)), and
-/// [`TriangleMesh::write`] writes `float` exactly when every coordinate is an f32 value,
+/// [`crate::io::mesh::save_mesh`] writes `float` exactly when every coordinate is an f32 value,
 /// `double` otherwise: a file holds exactly these positions, so the checks
 /// ([`TriangleMesh::area`], [`TriangleMesh::is_closed_manifold`], …) measure what is
 /// written.

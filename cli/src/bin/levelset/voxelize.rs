@@ -28,8 +28,8 @@ pub struct VoxelizeArgs {
     /// `--features mpi`) the meshes are spread over the ranks.
     #[arg(value_name = "MESH|DIR")]
     pub mesh: PathBuf,
-    /// Output: OUT.sls, the sparse band (docs/sls-format.md), OUT.vdb (OpenVDB), or OUT.npy, a dense float32
-    /// field (shape (nz, ny, nx), φ < 0 inside, world units) covering the band plus one
+    /// Output: OUT.sls, the sparse band (docs/sls-format.md), OUT.vdb (OpenVDB), or OUT.npy,
+    /// a dense float32 field (shape (nz, ny, nx), φ < 0 inside, world units) covering the band plus one
     /// voxel, ±γ beyond the band; written atomically. In folder mode a directory:
     /// OUTDIR/NAME.npy per mesh NAME.EXT (in name order) and OUTDIR/summary.json. Meshes
     /// run in parallel (one thread each) when there are at least as many as threads, one
