@@ -5,18 +5,91 @@
 
 use crate::grid::GridError;
 
-/// Fraction of the currently available memory one request may take.
+/// Fraction of the memory this process may still take that one request may take.
 const SHARE: f64 = 0.7;
 /// Assumed available memory where the operating system does not say (`/proc/meminfo`).
 const FALLBACK: u64 = 8 << 30;
 
-/// Bytes of memory available now (`MemAvailable` of `/proc/meminfo`), `None` where the
-/// operating system does not tell.
+/// Bytes of memory this process may still take now, `None` where the operating system
+/// tells nothing: the smallest of
+/// * the machine's available memory (`MemAvailable` of `/proc/meminfo`);
+/// * the address-space limit (`RLIMIT_AS`, `ulimit -v`) less the address space in use
+///   (`VmSize` of `/proc/self/status`);
+/// * the data-segment limit (`RLIMIT_DATA`, `ulimit -d`) less the data in use (`VmData`);
+/// * the memory cgroup's limit less its use, at every level of the process's cgroup
+///   (v2: `memory.max` and `memory.current`; v1: `memory.limit_in_bytes` and
+///   `memory.usage_in_bytes`).
 pub fn available() -> Option<u64> {
+    [meminfo(), rlimit_room(), cgroup_room()].into_iter().flatten().min()
+}
+
+fn meminfo() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    kib_field(&s, "MemAvailable:")
+}
+
+/// A `Name:   1234 kB` field of a `/proc` file, in bytes.
+fn kib_field(s: &str, name: &str) -> Option<u64> {
+    let line = s.lines().find(|l| l.starts_with(name))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     kb.checked_mul(1024)
+}
+
+/// The room the address-space and data-segment limits leave.
+#[cfg(target_os = "linux")]
+fn rlimit_room() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let limit = |resource| {
+        let mut r = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+        // SAFETY: `getrlimit` writes one `rlimit` through the valid pointer it is given.
+        let ok = unsafe { libc::getrlimit(resource, &mut r) } == 0;
+        #[allow(clippy::unnecessary_cast)] // `rlim_t` is not 64 bits on every target
+        (ok && r.rlim_cur != libc::RLIM_INFINITY).then_some(r.rlim_cur as u64)
+    };
+    let room = |resource, used: &str| {
+        let limit = limit(resource)?;
+        Some(limit.saturating_sub(kib_field(&status, used).unwrap_or(0)))
+    };
+    [room(libc::RLIMIT_AS, "VmSize:"), room(libc::RLIMIT_DATA, "VmData:")]
+        .into_iter()
+        .flatten()
+        .min()
+}
+
+#[cfg(not(target_os = "linux"))]
+fn rlimit_room() -> Option<u64> {
+    None
+}
+
+/// The room the memory cgroup leaves, the tightest over the process's cgroup and its
+/// ancestors (a container may see its own cgroup as the hierarchy's root).
+fn cgroup_room() -> Option<u64> {
+    let cgroups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let read = |p: &std::path::Path| -> Option<u64> {
+        std::fs::read_to_string(p).ok()?.trim().parse().ok()
+    };
+    let mut rooms = Vec::new();
+    for line in cgroups.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (_, controllers, path) = (parts.next(), parts.next()?, parts.next()?);
+        let (base, limit, usage) = match controllers {
+            "" => ("/sys/fs/cgroup", "memory.max", "memory.current"),
+            c if c.split(',').any(|c| c == "memory") => {
+                ("/sys/fs/cgroup/memory", "memory.limit_in_bytes", "memory.usage_in_bytes")
+            }
+            _ => continue,
+        };
+        let mut dir = std::path::PathBuf::from(base).join(path.trim_start_matches('/'));
+        loop {
+            if let (Some(l), Some(u)) = (read(&dir.join(limit)), read(&dir.join(usage))) {
+                rooms.push(l.saturating_sub(u));
+            }
+            if dir.as_os_str() == base || !dir.pop() {
+                break;
+            }
+        }
+    }
+    rooms.into_iter().min()
 }
 
 /// The most one request may allocate: 70 % of [`available`] (of 8 GiB where unknown).

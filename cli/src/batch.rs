@@ -166,6 +166,56 @@ pub fn spread<I: Sync, T: Serialize + DeserializeOwned + Send>(
     Ok(Some(out))
 }
 
+/// Lists the files of `dir` that `keep` accepts, by name: every rank lists the same inputs
+/// in the same order.
+pub fn list_files(
+    dir: &std::path::Path,
+    keep: impl Fn(&std::path::Path) -> bool,
+) -> Result<Vec<std::path::PathBuf>, String> {
+    let mut out = Vec::new();
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for e in entries {
+        let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        if p.is_file() && keep(&p) {
+            out.push(p);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// The end of a folder batch on the lead rank: `dir/summary.json` holds `fields` (the
+/// command's counts, in order), then the ranks, threads, wall time and one record an input.
+/// Returns the summary and how the batch ran, for the last line ("2.05 s on 2 ranks × 2
+/// threads").
+pub fn write_summary(
+    dir: &std::path::Path,
+    fields: Vec<(&str, serde_json::Value)>,
+    records: Vec<serde_json::Value>,
+    transport: Option<&dyn Transport>,
+    threads: usize,
+    start: std::time::Instant,
+) -> Result<(serde_json::Value, String), String> {
+    let ranks = rank_size(transport).1;
+    let seconds = start.elapsed().as_secs_f64();
+    let mut summary = serde_json::Map::new();
+    for (k, v) in fields {
+        summary.insert(k.to_string(), v);
+    }
+    summary.insert("ranks".into(), ranks.into());
+    summary.insert("threads".into(), threads.into());
+    summary.insert("wall_seconds".into(), seconds.into());
+    summary.insert("records".into(), records.into());
+    let summary = serde_json::Value::Object(summary);
+    crate::output::write_json(&dir.join("summary.json"), &summary)?;
+    let how = format!(
+        "{seconds:.2} s on {}{threads} thread{}",
+        if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() },
+        if threads == 1 { "" } else { "s" }
+    );
+    Ok((summary, how))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -402,12 +402,7 @@ fn run_ends_cleanly_on_collapse_and_bad_input() {
         &["run", "enright", "--size", "65536"],
     ] {
         let o = levelset(args);
-        assert_eq!(
-            o.status.code(),
-            Some(if args.contains(&"--threads") { 2 } else { 1 }),
-            "{args:?}: {}",
-            stderr(&o)
-        );
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
     }
 }
 
@@ -558,7 +553,7 @@ fn distance_command() {
     fail(&["distance", nan_path.to_str().unwrap(), "-o", outs], "NaN");
     fail(&["distance", "/nonexistent/x.npy", "-o", outs], "error:");
     let o = levelset(&["distance", ins, "-o", outs, "--order", "3"]);
-    assert_eq!(o.status.code(), Some(2), "clap rejects --order 3");
+    assert_eq!(o.status.code(), Some(1), "clap rejects --order 3");
 }
 
 /// `levelset csg`: each operator on two balls of different array sizes equals the
@@ -615,7 +610,7 @@ fn csg_command() {
         "-o",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(!out.exists());
 }
 
@@ -935,7 +930,7 @@ fn negative_numbers_are_flag_values_with_a_clear_range_message() {
     assert!(!out.exists() && !png.exists());
     // Integer flags: clap's range message.
     let o = levelset(&["run", "sphere", "--threads", "-1"]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("-1 is not in 1..=1024"), "{}", stderr(&o));
 }
 
@@ -1078,14 +1073,14 @@ fn bare_levelset_prints_help_at_once() {
     let start = std::time::Instant::now();
     let o = levelset(&[]);
     assert!(start.elapsed().as_secs_f64() < 10.0, "{:?}", start.elapsed());
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     let text = stdout(&o) + &stderr(&o);
     assert!(text.contains("Usage: levelset <COMMAND>"), "{text}");
     for sub in ["info", "run", "distance", "render", "mesh", "levelset-speedup"] {
         assert!(text.contains(sub), "{sub} missing from: {text}");
     }
     // `levelset bench` is gone: the report is its own binary.
-    assert_eq!(levelset(&["bench"]).status.code(), Some(2));
+    assert_eq!(levelset(&["bench"]).status.code(), Some(1));
 }
 
 #[test]

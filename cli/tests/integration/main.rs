@@ -7,6 +7,7 @@ mod common;
 
 mod batch;
 mod cli;
+mod limits;
 mod segment;
 mod sls;
 mod vdb;

@@ -68,7 +68,16 @@ enum Command {
 fn main() -> ExitCode {
     // Ok(Some(code)): finished with a distinct exit code (3: a segmentation leaked).
     let plain = |r: Result<(), String>| r.map(|()| None::<u8>);
-    let result = match Cli::parse().command {
+    // Every refusal exits with 1 (README), a bad flag included; --help and --version are
+    // answers (0).
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { ExitCode::FAILURE } else { ExitCode::SUCCESS };
+        }
+    };
+    let result = match cli.command {
         Command::Info(a) => plain(info::run(&a)),
         Command::Run(a) => plain(run::run(&a)),
         Command::Distance(a) => plain(distance::run(&a)),

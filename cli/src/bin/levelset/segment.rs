@@ -493,18 +493,10 @@ pub fn run(a: &SegmentArgs) -> Result<bool, String> {
 
 /// The images of a batch directory: supported extensions, not `*-truth.*`, by name.
 fn batch_images(dir: &Path) -> Result<Vec<PathBuf>, String> {
-    let mut out = Vec::new();
-    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    for e in entries {
-        let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+    batch::list_files(dir, |p| {
         let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("").to_ascii_lowercase();
-        let image = image::split_file_name(&name).filter(|(stem, _)| !stem.ends_with("-truth"));
-        if p.is_file() && image.is_some() {
-            out.push(p);
-        }
-    }
-    out.sort();
-    Ok(out)
+        image::split_file_name(&name).is_some_and(|(stem, _)| !stem.ends_with("-truth"))
+    })
 }
 
 /// Batch mode: every image of `a.image` into the directory `a.output`, spread over the
@@ -565,7 +557,6 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
         .iter()
         .filter(|r| r.as_ref().is_ok_and(|v| v["leaked"].as_bool() == Some(true)))
         .count();
-    let seconds = start.elapsed().as_secs_f64();
     let records: Vec<serde_json::Value> = images
         .iter()
         .zip(results)
@@ -574,22 +565,10 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
             Err(e) => serde_json::json!({"image": p.display().to_string(), "error": e}),
         })
         .collect();
-    let ranks = batch::rank_size(t).1;
-    let summary = serde_json::json!({
-        "images": images.len(),
-        "failed": failed,
-        "leaked": leaked,
-        "ranks": ranks,
-        "threads": threads,
-        "wall_seconds": seconds,
-        "records": records,
-    });
-    levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
-    outln!(
-        "{} images, {failed} failed, {leaked} leaked, {seconds:.2} s on {}{threads} threads",
-        images.len(),
-        if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() }
-    );
+    let fields =
+        vec![("images", images.len().into()), ("failed", failed.into()), ("leaked", leaked.into())];
+    let (summary, how) = batch::write_summary(&a.output, fields, records, t, threads, start)?;
+    outln!("{} images, {failed} failed, {leaked} leaked, {how}", images.len());
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
     }

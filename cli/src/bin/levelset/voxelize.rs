@@ -213,16 +213,7 @@ fn voxelize_one(
 
 /// The meshes of a folder: `.obj`, `.ply`, `.stl` files (any case), by name.
 fn folder_meshes(dir: &Path) -> Result<Vec<PathBuf>, String> {
-    let mut out = Vec::new();
-    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    for e in entries {
-        let p = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
-        if p.is_file() && MeshFormat::from_path(&p).is_some() {
-            out.push(p);
-        }
-    }
-    out.sort();
-    Ok(out)
+    batch::list_files(dir, |p| MeshFormat::from_path(p).is_some())
 }
 
 /// The output of `mesh` in the folder mode: `OUTDIR/<stem>.npy`.
@@ -281,7 +272,6 @@ fn folder(a: &VoxelizeArgs, threads: usize) -> Result<(), String> {
     let failed = results.iter().filter(|r| r.is_err()).count();
     let band_voxels: u64 = results.iter().flatten().map(|v| v.band_voxels).sum();
     let voxelize_seconds: f64 = results.iter().flatten().map(|v| v.seconds).sum();
-    let seconds = start.elapsed().as_secs_f64();
     let records = meshes
         .iter()
         .zip(results)
@@ -295,25 +285,15 @@ fn folder(a: &VoxelizeArgs, threads: usize) -> Result<(), String> {
             Ok(v)
         })
         .collect::<Result<Vec<_>, String>>()?;
-    let ranks = batch::rank_size(t).1;
-    let summary = serde_json::json!({
-        "meshes": meshes.len(),
-        "failed": failed,
-        "band_voxels": band_voxels,
-        "voxelize_seconds": voxelize_seconds,
-        "ranks": ranks,
-        "threads": threads,
-        "wall_seconds": seconds,
-        "records": records,
-    });
-    levelset_cli::output::write_json(&a.output.join("summary.json"), &summary)?;
-    outln!(
-        "{} meshes, {failed} failed, {band_voxels} band voxels, {seconds:.2} s on {}{threads} \
-         thread{}",
-        meshes.len(),
-        if ranks > 1 { format!("{ranks} ranks × ") } else { String::new() },
-        if threads == 1 { "" } else { "s" }
-    );
+    let fields = vec![
+        ("meshes", meshes.len().into()),
+        ("failed", failed.into()),
+        ("band_voxels", band_voxels.into()),
+        ("voxelize_seconds", voxelize_seconds.into()),
+    ];
+    batch::write_summary(&a.output, fields, records, t, threads, start).map(|(_, how)| {
+        outln!("{} meshes, {failed} failed, {band_voxels} band voxels, {how}", meshes.len())
+    })?;
     if failed > 0 {
         return Err(format!("{failed} of {} meshes failed (see above)", meshes.len()));
     }

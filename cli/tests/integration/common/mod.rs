@@ -27,7 +27,7 @@ pub fn stdout(o: &Output) -> String {
 #[path = "../../../../tests/integration/common/mod.rs"]
 mod shared;
 #[allow(unused_imports)] // each test file uses some of them
-pub use shared::{ball, npy, tmp};
+pub use shared::{ball, crc32, npy, tmp};
 
 /// An axis-aligned box `0..sx × 0..sy × 0..sz` as OBJ text (quads, outward).
 pub fn box_obj(sx: u32, sy: u32, sz: u32) -> String {
