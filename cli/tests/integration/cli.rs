@@ -614,6 +614,48 @@ fn csg_command() {
     assert!(!out.exists());
 }
 
+/// `csg` reads every level-set format and writes the sparse result: the same operands as
+/// `.npy`, `.sls` and `.vdb` (converted by `levelset convert`; the OpenVDB files that
+/// OpenVDB itself wrote are read in `tests/integration/vdb.rs`) give the same band.
+#[test]
+fn csg_takes_every_format_and_gives_the_same_band() {
+    use sparse_levelset::LevelSet;
+    let a = common::ball([20, 20, 20], [8.5, 9.0, 10.2], 6.0, 1.0);
+    let b = common::ball([26, 18, 22], [14.0, 9.5, 10.0], 5.0, 1.0);
+    let (pa, pb) = (common::npy("csgf-a.npy", &a), common::npy("csgf-b.npy", &b));
+    let mut inputs = vec![(pa.clone(), pb.clone())];
+    for ext in ["sls", "vdb"] {
+        let (qa, qb) = (tmp(&format!("csgf-a.{ext}")), tmp(&format!("csgf-b.{ext}")));
+        for (from, to) in [(&pa, &qa), (&pb, &qb)] {
+            let o = levelset(&["convert", from.to_str().unwrap(), to.to_str().unwrap(), "--quiet"]);
+            assert!(o.status.success(), "{}", stderr(&o));
+        }
+        inputs.push((qa, qb));
+    }
+    // Mixed formats too: a .vdb with a .npy.
+    inputs.push((inputs[2].0.clone(), pb.clone()));
+    let mut sums = Vec::new();
+    for (i, (x, y)) in inputs.iter().enumerate() {
+        let out = tmp(&format!("csgf-out-{i}.sls"));
+        let o = levelset(&[
+            "csg",
+            x.to_str().unwrap(),
+            y.to_str().unwrap(),
+            "--op",
+            "union",
+            "-o",
+            out.to_str().unwrap(),
+            "--threads",
+            "2",
+        ]);
+        assert!(o.status.success(), "{x:?} {y:?}: {}", stderr(&o));
+        let (grid, _) = sparse_levelset::io::sls::load(&out).unwrap();
+        assert!(grid.band_voxels() > 0);
+        sums.push(grid.checksum());
+    }
+    assert!(sums.iter().all(|&s| s == sums[0]), "{sums:x?}");
+}
+
 #[test]
 fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let ok = |args: &[&str]| {

@@ -29,6 +29,16 @@ impl MeshFormat {
     /// The extensions of mesh files, for messages.
     pub const EXTENSIONS: &'static str = ".obj, .ply, .stl";
 
+    /// The format's name, for messages (`"binary PLY"`, `"OBJ"`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            MeshFormat::Obj => "OBJ",
+            MeshFormat::Ply { ascii: false } => "binary PLY",
+            MeshFormat::Ply { ascii: true } => "ASCII PLY",
+            MeshFormat::Stl => "binary STL",
+        }
+    }
+
     /// The format a path's extension names (`.obj`, `.ply`, `.stl`, any case); PLY as
     /// binary.
     pub fn from_path(path: &Path) -> Option<MeshFormat> {

@@ -1,41 +1,12 @@
 //! DT-Grid against a dense reference and brute-force oracles.
 
 use super::*;
+use crate::storage::shapes::Shape;
 use fastrand::Rng;
 
 // ---------------------------------------------------------------------------
 // Dense ground truth
 // ---------------------------------------------------------------------------
-
-#[derive(Clone, Copy, Debug)]
-enum Shape {
-    Sphere {
-        c: [f64; 3],
-        r: f64,
-    },
-    /// Axis-aligned box: centre and half extents.
-    Boxed {
-        c: [f64; 3],
-        b: [f64; 3],
-    },
-}
-
-impl Shape {
-    fn sdf(&self, p: [f64; 3]) -> f64 {
-        match *self {
-            Shape::Sphere { c, r } => {
-                let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - r
-            }
-            Shape::Boxed { c, b } => {
-                let q: Vec<f64> = (0..3).map(|i| (p[i] - c[i]).abs() - b[i]).collect();
-                let outside = q.iter().map(|v| v.max(0.0).powi(2)).sum::<f64>().sqrt();
-                let inside = q[0].max(q[1]).max(q[2]).min(0.0);
-                outside + inside
-            }
-        }
-    }
-}
 
 /// A clamped signed distance field sampled on a box of voxels.
 struct Dense {
@@ -87,14 +58,15 @@ fn random_scene(rng: &mut Rng, spec: GridSpec) -> Dense {
         let c = [0; 3].map(|_: i32| (rng.f64() * 44.0 - 22.0) * vs);
         let s = if rng.bool() {
             let r = (2.5 + rng.f64() * 9.0) * vs;
-            Shape::Sphere { c, r }
+            Shape::Sphere { center: c, radius: r }
         } else {
             let b = [0; 3].map(|_: i32| (1.5 + rng.f64() * 8.0) * vs);
-            Shape::Boxed { c, b }
+            Shape::Box { center: c, half_extents: b }
         };
-        let ext = match s {
-            Shape::Sphere { r, .. } => [r; 3],
-            Shape::Boxed { b, .. } => b,
+        let ext = match &s {
+            Shape::Sphere { radius, .. } => [*radius; 3],
+            Shape::Box { half_extents, .. } => *half_extents,
+            _ => unreachable!("spheres and boxes only"),
         };
         for i in 0..3 {
             lo[i] = lo[i].min(c[i] - ext[i]);

@@ -1,14 +1,17 @@
-//! `levelset csg`: the union, intersection or difference of two dense level sets,
-//! computed on their sparse bands ([`sparse_levelset::tools::csg`]).
+//! `levelset csg`: the union, intersection or difference of two level sets in any format,
+//! computed on their sparse bands ([`sparse_levelset::tools::csg`]) and written sparse or
+//! dense as the output's extension says.
 
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
 use sparse_levelset::coord::Coord;
 use sparse_levelset::grid::GridSpec;
-use sparse_levelset::io::input::{self, Expect};
-use sparse_levelset::storage::convert::{tiles_from_dense, to_dense};
+use sparse_levelset::io::input::Expect;
+use sparse_levelset::io::{self, LevelSetFormat};
+use sparse_levelset::storage::convert::to_dense;
 use sparse_levelset::tools::csg::{csg, CsgOp};
+use sparse_levelset::LevelSet;
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -23,58 +26,95 @@ pub enum OpArg {
 
 #[derive(Args)]
 pub struct CsgArgs {
-    /// First operand: a dense float32 .npy signed distance field (shape (nz, ny, nx),
-    /// φ < 0 inside, world units).
-    #[arg(value_name = "A.npy")]
+    /// First operand: a level set in any format — a dense float32 .npy signed distance
+    /// field (shape (nz, ny, nx), φ < 0 inside, world units, on --voxel-size and
+    /// --half-width), a sparse .sls file or an OpenVDB .vdb level set (both carry their own
+    /// grid).
+    #[arg(value_name = "A")]
     pub a: PathBuf,
-    /// Second operand, on the same voxels (the first element of each array is the same voxel).
-    #[arg(value_name = "B.npy")]
+    /// Second operand, on the same grid (a .npy's first element is voxel (0, 0, 0)).
+    #[arg(value_name = "B")]
     pub b: PathBuf,
     /// The operation.
     #[arg(long, value_enum)]
     pub op: OpArg,
-    /// Output .npy file (written atomically), covering both operands' arrays; ±γ beyond
-    /// the result's band.
-    #[arg(short, long, value_name = "OUT.npy")]
+    /// Output, written atomically in the format its extension names: .sls or .vdb (the
+    /// sparse result, no dense pass), or .npy (dense: the box of both operands' arrays and
+    /// bands, ±γ beyond the result's band).
+    #[arg(short, long, value_name = "OUT.sls|OUT.vdb|OUT.npy")]
     pub output: PathBuf,
-    /// Voxel edge length in world units (of both operands).
+    /// Voxel edge length in world units of .npy operands.
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub voxel_size: f32,
-    /// Band half-width γ in voxels.
+    /// Band half-width γ in voxels of .npy operands.
     #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
     pub half_width: f32,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
 }
 
 pub fn run(a: &CsgArgs) -> Result<(), String> {
     let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     check_output(&a.output)?;
+    let format = LevelSetFormat::from_path(&a.output).ok_or_else(|| {
+        format!("{}: unknown output type; use {}", a.output.display(), LevelSetFormat::EXTENSIONS)
+    })?;
     let op = match a.op {
         OpArg::Union => CsgOp::Union,
         OpArg::Intersection => CsgOp::Intersection,
         OpArg::Difference => CsgOp::Difference,
     };
+    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    let pool = levelset_cli::pin::pool(threads, false)
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
     let bar = progress::spinner(false);
-    // Both operands are loaded and checked before any work; the output array is held
-    // with one of them.
+    // Both operands are loaded and checked before any work.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
-    let mut grids = Vec::new();
-    let mut dims = [0usize; 3];
+    let mut operands = Vec::new();
+    // The dense output's box: every operand's array (a .npy) or band (a sparse file).
+    let mut lo = [i32::MAX; 3];
+    let mut hi = [i32::MIN; 3];
     for path in [&a.a, &a.b] {
         bar.set_message(format!("reading {}", path.display()));
-        let field = input::load_npy(path, &expect).map_err(|e| e.to_string())?;
-        for (d, n) in dims.iter_mut().zip(field.dims()) {
-            *d = (*d).max(n);
+        let loaded =
+            pool.install(|| io::load_level_set(path, &expect)).map_err(|e| e.to_string())?;
+        let dense = match loaded.format {
+            LevelSetFormat::Npy => {
+                Some(io::npy::inspect_npy(path).map_err(|e| e.to_string())?.dims)
+            }
+            _ => None,
+        };
+        let (l, h) = match dense {
+            Some(d) => ([0; 3], [d[0] as i32 - 1, d[1] as i32 - 1, d[2] as i32 - 1]),
+            None => match loaded.level_set.band_bounding_box() {
+                Some((l, h)) => ([l.x, l.y, l.z], [h.x, h.y, h.z]),
+                None => ([0; 3], [0; 3]),
+            },
+        };
+        for d in 0..3 {
+            lo[d] = lo[d].min(l[d]);
+            hi[d] = hi[d].max(h[d]);
         }
-        grids.push(tiles_from_dense(&field, spec).map_err(|e| e.to_string())?);
+        operands.push(loaded.level_set);
     }
     bar.set_message(op.name());
     let start = std::time::Instant::now();
-    let result = csg(&grids[0], &grids[1], op).map_err(|e| e.to_string())?;
+    let result = pool.install(|| csg(&operands[0], &operands[1], op)).map_err(|e| e.to_string())?;
     let seconds = start.elapsed().as_secs_f64();
-    drop(grids);
+    drop(operands);
     bar.set_message(format!("writing {}", a.output.display()));
-    let out = to_dense(&result, Coord::new(0, 0, 0), dims).map_err(|e| e.to_string())?;
-    sparse_levelset::io::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())?;
+    pool.install(|| -> Result<(), String> {
+        if format == LevelSetFormat::Npy {
+            let dims = [0, 1, 2].map(|d| (hi[d] as i64 - lo[d] as i64 + 1).max(1) as usize);
+            let origin = Coord::new(lo[0], lo[1], lo[2]);
+            let out = to_dense(&result, origin, dims).map_err(|e| e.to_string())?;
+            sparse_levelset::io::npy::write_npy(&a.output, &out).map_err(|e| e.to_string())
+        } else {
+            let opts = io::SaveOptions::default();
+            io::save_level_set(&a.output, &result, &opts).map(|_| ()).map_err(|e| e.to_string())
+        }
+    })?;
     bar.finish_and_clear();
     outln!(
         "wrote {}: {} of {} and {}, {} band voxels, {seconds:.3} s",

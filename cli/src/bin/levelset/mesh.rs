@@ -17,7 +17,7 @@ pub struct MeshArgs {
     /// The isovalue to mesh, in world units, inside the band (|iso| < γ).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub iso: f64,
-    /// Output mesh: FILE.ply (binary unless --ascii) or FILE.obj.
+    /// Output mesh: FILE.ply (binary unless --ascii), FILE.obj or FILE.stl (binary).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Mesh every K-th voxel: the same surface from cells of K voxels, about K² times
@@ -28,6 +28,9 @@ pub struct MeshArgs {
     /// Write ASCII PLY instead of binary.
     #[arg(long)]
     pub ascii: bool,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -55,47 +58,55 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
     if let Some(path) = &a.source.field {
         bar.set_message(format!("reading {}", path.display()));
     }
-    let input = a.source.load(&expect)?;
-    let m = match &input {
-        Input::Field { name, field } if a.coarsen == 1 => {
-            bar.set_message("meshing");
-            mesh::isosurface_dense(field, &spec, a.iso).map_err(|e| format!("{name}: {e}"))?
-        }
-        Input::Sparse { grid, .. } => {
-            bar.set_message("meshing");
-            let opts = mesh::MeshOptions { iso: a.iso, coarsen: a.coarsen, ..Default::default() };
-            mesh::isosurface(grid.as_ref(), &opts).map_err(|e| format!("{}: {e}", input.name()))?
-        }
-        Input::Field { name, field } => {
-            // Coarsening samples a level set: the field's band as tiles (the loader has
-            // checked that it is a distance at the half-width).
-            bar.set_message("building tiles");
-            let tiles = sparse_levelset::storage::convert::tiles_from_dense(field, spec)
-                .map_err(|e| format!("{name}: {e}"))?;
-            bar.set_message("meshing");
-            let opts = mesh::MeshOptions { iso: a.iso, coarsen: a.coarsen, ..Default::default() };
-            mesh::isosurface(&tiles, &opts).map_err(|e| format!("{name}: {e}"))?
-        }
-        Input::Shape { shape, .. } => {
-            bar.set_message("building tiles");
-            let tiles = sparse_levelset::storage::convert::tiles_from_shape(shape, spec)
-                .map_err(|e| e.to_string())?;
-            bar.set_length(tiles.len() as u64);
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles",
-                )
-                .expect("valid template"),
-            );
-            let b = bar.clone();
-            let progress = sparse_levelset::progress::Progress::new(move |done, _| {
-                b.set_position(done);
-                true
-            });
-            let opts = mesh::MeshOptions { iso: a.iso, progress, coarsen: a.coarsen };
-            mesh::isosurface(&tiles, &opts).map_err(|e| e.to_string())?
-        }
-    };
+    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    let pool = levelset_cli::pin::pool(threads, false)
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let input = pool.install(|| a.source.load(&expect))?;
+    let m = pool.install(|| -> Result<_, String> {
+        Ok(match &input {
+            Input::Field { name, field } if a.coarsen == 1 => {
+                bar.set_message("meshing");
+                mesh::isosurface_dense(field, &spec, a.iso).map_err(|e| format!("{name}: {e}"))?
+            }
+            Input::Sparse { grid, .. } => {
+                bar.set_message("meshing");
+                let opts =
+                    mesh::MeshOptions { iso: a.iso, coarsen: a.coarsen, ..Default::default() };
+                mesh::isosurface(grid.as_ref(), &opts)
+                    .map_err(|e| format!("{}: {e}", input.name()))?
+            }
+            Input::Field { name, field } => {
+                // Coarsening samples a level set: the field's band as tiles (the loader has
+                // checked that it is a distance at the half-width).
+                bar.set_message("building tiles");
+                let tiles = sparse_levelset::storage::convert::tiles_from_dense(field, spec)
+                    .map_err(|e| format!("{name}: {e}"))?;
+                bar.set_message("meshing");
+                let opts =
+                    mesh::MeshOptions { iso: a.iso, coarsen: a.coarsen, ..Default::default() };
+                mesh::isosurface(&tiles, &opts).map_err(|e| format!("{name}: {e}"))?
+            }
+            Input::Shape { shape, .. } => {
+                bar.set_message("building tiles");
+                let tiles = sparse_levelset::storage::convert::tiles_from_shape(shape, spec)
+                    .map_err(|e| e.to_string())?;
+                bar.set_length(tiles.len() as u64);
+                bar.set_style(
+                    indicatif::ProgressStyle::with_template(
+                        "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} tiles",
+                    )
+                    .expect("valid template"),
+                );
+                let b = bar.clone();
+                let progress = sparse_levelset::progress::Progress::new(move |done, _| {
+                    b.set_position(done);
+                    true
+                });
+                let opts = mesh::MeshOptions { iso: a.iso, progress, coarsen: a.coarsen };
+                mesh::isosurface(&tiles, &opts).map_err(|e| e.to_string())?
+            }
+        })
+    })?;
     bar.finish_and_clear();
     let source = input.name();
     if m.is_empty() {
@@ -114,6 +125,6 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
         if closed { "yes" } else { "no" },
         m.euler_characteristic()
     );
-    outln!("wrote {} ({format:?})", a.output.display());
+    outln!("wrote {} ({})", a.output.display(), format.name());
     Ok(())
 }
