@@ -128,13 +128,21 @@ pub enum SaveError {
     #[error(transparent)]
     Vdb(#[from] vdb::VdbError),
     /// Writing the dense `.npy` file failed.
-    #[error("{}: {source}", .path.display())]
+    #[error("{}", npy_message(.path, .source))]
     Npy {
         /// The path asked for.
         path: std::path::PathBuf,
         /// What failed.
         source: ExportError,
     },
+}
+
+/// The message of a failed `.npy` export, naming the path once (a file error names it).
+fn npy_message(path: &Path, e: &ExportError) -> String {
+    match e {
+        ExportError::Npy(e) => e.to_string(),
+        e => format!("{}: {e}", path.display()),
+    }
 }
 
 impl crate::error::Error for SaveError {

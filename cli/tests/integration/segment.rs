@@ -58,6 +58,7 @@ fn segment_refuses_bad_arguments_before_any_work() {
         (vec!["--method", "gac", "--seed", "8,8,8", "--sigma", "nan"], "sigma"),
         (vec!["--method", "gac", "--seed", "8,8,8", "--add", "snake:1"], "expected METHOD:W"),
         (vec!["--method", "gac", "--seed", "8,8,8", "--add", "gac:1"], "appears twice"),
+        (vec!["--method", "gac", "--seed", "8,8,8", "--mesh", "/tmp/m.xyz"], "unknown mesh format"),
     ] {
         let mut a = vec!["segment", img.as_str()];
         a.extend(args);

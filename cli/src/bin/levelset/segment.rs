@@ -339,6 +339,13 @@ fn job(
         if loaded.image.is_2d() {
             return Err("--mesh: a 2D image's segmentation has no surface".into());
         }
+        if sparse_levelset::io::mesh::MeshFormat::from_path(m).is_none() {
+            return Err(format!(
+                "{}: unknown mesh format (use {})",
+                m.display(),
+                sparse_levelset::io::mesh::MeshFormat::EXTENSIONS
+            ));
+        }
         check_output(m)?;
     }
     let name = image_path.display().to_string();
