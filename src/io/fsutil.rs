@@ -7,6 +7,40 @@ use std::fs::{self, File};
 use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// The temporary files being written now, and whether the process is closing (after
+/// [`abandon_writes`], no new one is created).
+static PENDING: Mutex<(Vec<PathBuf>, bool)> = Mutex::new((Vec::new(), false));
+
+/// Removes every temporary file a write in progress holds and refuses new writes: what a
+/// program does on SIGINT or SIGTERM before it exits, so that an interrupted write leaves
+/// nothing beside its output (the output itself is untouched: it is replaced only by a
+/// completed rename). Returns how many files were removed.
+pub fn abandon_writes() -> usize {
+    let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+    pending.1 = true;
+    let removed = pending.0.iter().filter(|p| fs::remove_file(p).is_ok()).count();
+    pending.0.clear();
+    removed
+}
+
+/// Creates the temporary file `tmp`, registered so that [`abandon_writes`] can remove it.
+fn create_registered(tmp: &Path) -> io::Result<File> {
+    let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+    if pending.1 {
+        return Err(io::Error::new(io::ErrorKind::Interrupted, "the program is closing"));
+    }
+    let file = fs::OpenOptions::new().write(true).create_new(true).open(tmp)?;
+    pending.0.push(tmp.to_path_buf());
+    Ok(file)
+}
+
+/// Forgets the temporary file `tmp` (renamed into place or removed).
+fn unregister(tmp: &Path) {
+    let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+    pending.0.retain(|p| p != tmp);
+}
 
 /// Writes a file through `write` into a temporary file next to `path`, `fsync`s it and
 /// renames it over `path`. On any error the temporary file is removed and `path` is left
@@ -21,7 +55,7 @@ where
     let dir = parent_dir(path);
     let tmp = temp_path(&dir, name);
     let result = (|| -> io::Result<()> {
-        let file = fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+        let file = create_registered(&tmp)?;
         let mut w = BufWriter::with_capacity(1 << 20, file);
         write(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
@@ -38,6 +72,7 @@ where
     if result.is_err() {
         let _ = fs::remove_file(&tmp);
     }
+    unregister(&tmp);
     result
 }
 

@@ -8,6 +8,7 @@ mod common;
 mod batch;
 mod cli;
 mod limits;
+mod outputs;
 mod segment;
 mod sls;
 mod vdb;

@@ -66,6 +66,12 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Ctrl-C or a termination signal: no temporary file of a write in progress is left
+    // beside its output (the output itself is replaced only by a completed rename).
+    let _ = ctrlc::set_handler(|| {
+        sparse_levelset::io::fsutil::abandon_writes();
+        std::process::exit(130);
+    });
     // Ok(Some(code)): finished with a distinct exit code (3: a segmentation leaked).
     let plain = |r: Result<(), String>| r.map(|()| None::<u8>);
     // Every refusal exits with 1 (README), a bad flag included; --help and --version are
