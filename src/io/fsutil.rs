@@ -76,6 +76,76 @@ where
     result
 }
 
+/// The outputs of one command, written together: each is written (by any writer, through
+/// [`write_atomic`] or not) to a staged path beside its target, a hidden name that keeps the
+/// target's whole file name at its end (so that a format chosen by the extension is the
+/// same), and [`Outputs::commit`] renames them all into place once every one is written.
+/// Dropped without a commit (a write failed), the staged files are removed and every target
+/// is left as it was. SIGINT and SIGTERM remove them too ([`abandon_writes`]).
+///
+/// A detached header (`.mhd`, `.nhdr`) names its data file, so it cannot be renamed: such a
+/// target is written in place ([`Outputs::stage`] returns the target itself).
+#[derive(Debug, Default)]
+pub struct Outputs {
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Outputs {
+    /// No output staged yet.
+    pub fn new() -> Outputs {
+        Outputs::default()
+    }
+
+    /// The path to write `target`'s content to.
+    pub fn stage(&mut self, target: &Path) -> PathBuf {
+        let name = target.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase());
+        if name.as_deref().is_none_or(|n| n.ends_with(".mhd") || n.ends_with(".nhdr")) {
+            return target.to_path_buf();
+        }
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let mut staged = std::ffi::OsString::from(format!(
+            ".{}-{}-",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        staged.push(target.file_name().unwrap_or_default());
+        let staged = parent_dir(target).join(staged);
+        let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+        pending.0.push(staged.clone());
+        drop(pending);
+        self.staged.push((staged.clone(), target.to_path_buf()));
+        staged
+    }
+
+    /// Renames every staged file into place.
+    pub fn commit(mut self) -> io::Result<()> {
+        let staged = std::mem::take(&mut self.staged);
+        let mut result = Ok(());
+        for (i, (from, to)) in staged.iter().enumerate() {
+            if let Err(e) = fs::rename(from, to) {
+                for (rest, _) in &staged[i..] {
+                    let _ = fs::remove_file(rest);
+                }
+                result = Err(e);
+                break;
+            }
+        }
+        for (from, _) in &staged {
+            unregister(from);
+        }
+        result
+    }
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        for (from, _) in &self.staged {
+            let _ = fs::remove_file(from);
+            unregister(from);
+        }
+    }
+}
+
 /// The directory a file `path` lives in (`.` for a bare file name).
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -167,6 +237,41 @@ pub fn check_writable_dir(dir: &Path) -> io::Result<()> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn outputs_appear_together_or_not_at_all() {
+        let dir = std::env::temp_dir().join(format!("fsutil-outputs-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.nii.gz"), dir.join("b.json"));
+        fs::write(&a, b"old a").unwrap();
+        // The second write fails: the first target keeps its old content, nothing is left.
+        {
+            let mut outputs = Outputs::new();
+            let sa = outputs.stage(&a);
+            assert!(sa.to_string_lossy().ends_with("a.nii.gz") && sa != a);
+            write_atomic(&sa, |w| std::io::Write::write_all(w, b"new a")).unwrap();
+            let sb = outputs.stage(&b);
+            let failed: io::Result<()> = Err(io::Error::other("the second output failed"));
+            assert!(failed.is_err() && !sb.exists());
+        }
+        assert_eq!(fs::read(&a).unwrap(), b"old a");
+        assert!(!b.exists());
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "a staged file was left");
+        // Both written: both appear at the commit.
+        let mut outputs = Outputs::new();
+        let (sa, sb) = (outputs.stage(&a), outputs.stage(&b));
+        write_atomic(&sa, |w| std::io::Write::write_all(w, b"new a")).unwrap();
+        write_atomic(&sb, |w| std::io::Write::write_all(w, b"{}")).unwrap();
+        assert_eq!(fs::read(&a).unwrap(), b"old a");
+        outputs.commit().unwrap();
+        assert_eq!(fs::read(&a).unwrap(), b"new a");
+        assert_eq!(fs::read(&b).unwrap(), b"{}");
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 2);
+        // A detached header is written in place.
+        let mhd = dir.join("m.mhd");
+        assert_eq!(Outputs::new().stage(&mhd), mhd);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
     use super::*;
     use std::io::Write;
 

@@ -8,7 +8,7 @@ use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{
     GridKind, Integrator, Lanes, Renormalization, SpatialScheme, Sweeps,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ScenarioArg {
@@ -386,11 +386,26 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     if frames.written > 0 {
         outln!("wrote {} frame file(s) to {}", frames.written, a.out.display());
     }
-    write_json(&a.out.join("summary.json"), &summary)?;
-    if a.export_npy {
-        let path = a.out.join("final.npy");
-        let origin = export_final(&sim, &path)?;
-        outln!("wrote {} (origin voxel {origin})", path.display());
+    // The summary and the final field appear together or not at all.
+    let mut outputs = sparse_levelset::io::fsutil::Outputs::new();
+    // A message names the output, not its staged file.
+    let named = |staged: &Path, to: &Path, e: String| {
+        e.replace(&staged.display().to_string(), &to.display().to_string())
+    };
+    let summary_path = a.out.join("summary.json");
+    let staged = outputs.stage(&summary_path);
+    write_json(&staged, &summary).map_err(|e| named(&staged, &summary_path, e))?;
+    let origin = match a.export_npy {
+        true => {
+            let path = a.out.join("final.npy");
+            let staged = outputs.stage(&path);
+            Some(export_final(&sim, &staged).map_err(|e| named(&staged, &path, e))?)
+        }
+        false => None,
+    };
+    outputs.commit().map_err(|e| format!("{}: {e}", summary_path.display()))?;
+    if let Some(origin) = origin {
+        outln!("wrote {} (origin voxel {origin})", a.out.join("final.npy").display());
     }
     Ok(())
 }

@@ -6,6 +6,7 @@
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{batch, outln, progress};
+use sparse_levelset::io::fsutil::Outputs;
 use sparse_levelset::io::image::{self, LoadedImage, Output};
 use sparse_levelset::segment::{metrics::dice, segment, Init, Method, Params, Seed, Stop};
 use std::path::{Path, PathBuf};
@@ -418,18 +419,30 @@ fn execute(
     let img = &j.loaded.image;
     let result =
         segment(img, &j.init, &params, &mut monitor).map_err(|e| format!("{}: {e}", j.name))?;
-    image::save_mask(&j.output, &result.mask, &j.loaded).map_err(|e| e.to_string())?;
+    // The mask, the level set and the mesh appear together or not at all.
+    let mut outputs = Outputs::new();
+    let target = |staged: &std::path::Path, to: &std::path::Path, e: String| {
+        e.replace(&staged.display().to_string(), &to.display().to_string())
+    };
+    let staged = outputs.stage(&j.output);
+    image::save_mask(&staged, &result.mask, &j.loaded)
+        .map_err(|e| target(&staged, &j.output, e.to_string()))?;
     if let Some(ls) = &j.level_set {
         let phi = result
             .simulation
             .to_dense(sparse_levelset::Coord::new(0, 0, 0), img.dims)
             .map_err(|e| e.to_string())?;
-        image::save_f32(ls, phi.data(), &j.loaded).map_err(|e| e.to_string())?;
+        let staged = outputs.stage(ls);
+        image::save_f32(&staged, phi.data(), &j.loaded)
+            .map_err(|e| target(&staged, ls, e.to_string()))?;
     }
     if let Some(path) = &j.mesh {
         let mesh = result.mesh(img).map_err(|e| e.to_string())?;
-        sparse_levelset::io::mesh::save_mesh(path, &mesh, None).map_err(|e| e.to_string())?;
+        let staged = outputs.stage(path);
+        sparse_levelset::io::mesh::save_mesh(&staged, &mesh, None)
+            .map_err(|e| target(&staged, path, e.to_string()))?;
     }
+    outputs.commit().map_err(|e| format!("{}: {e}", j.output.display()))?;
     let r = &result.report;
     let mut v = serde_json::to_value(r).map_err(|e| e.to_string())?;
     v["image"] = serde_json::json!(j.name);
