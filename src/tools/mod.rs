@@ -4,6 +4,7 @@
 //! measures ([`measure`]).
 
 pub mod csg;
+pub mod filter;
 pub mod fmm;
 pub mod measure;
 pub mod mesh;

@@ -10,6 +10,7 @@ mod distributed;
 mod evolve;
 mod evolve_atomic;
 mod evolve_collapse;
+mod filter;
 mod fmm;
 mod grids;
 mod image;

@@ -699,6 +699,55 @@ fn distance_takes_every_format_and_gives_the_same_band() {
     assert!(n > 1000 && worst < 1e-5, "{n} voxels, largest difference {worst}");
 }
 
+/// `filter` on every format: the same operations on a ball as `.npy`, `.sls` and `.vdb`
+/// give the same band, and that band is the library's `filter` of the same level set.
+#[test]
+fn filter_takes_every_format_and_equals_the_library() {
+    use sparse_levelset::tools::filter::{filter, Filter};
+    use sparse_levelset::LevelSet;
+    let f = common::npy("filt-ball.npy", &common::ball([28, 28, 28], [13.5, 13.2, 14.1], 7.0, 1.0));
+    let mut inputs = vec![f.clone()];
+    for ext in ["sls", "vdb"] {
+        let p = tmp(&format!("filt-ball.{ext}"));
+        let o = levelset(&["convert", f.to_str().unwrap(), p.to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        inputs.push(p);
+    }
+    let mut sums = Vec::new();
+    for (i, input) in inputs.iter().enumerate() {
+        let out = tmp(&format!("filt-out-{i}.sls"));
+        let o = levelset(&[
+            "filter",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--op",
+            "dilate:1.5",
+            "--op",
+            "median:1",
+            "--op",
+            "offset:-0.5",
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{input:?}: {}", stderr(&o));
+        sums.push(sparse_levelset::io::sls::load(&out).unwrap().0.checksum());
+    }
+    assert!(sums.iter().all(|&s| s == sums[0]), "{sums:x?}");
+    let (grid, _) = sparse_levelset::io::sls::load(&inputs[1]).unwrap();
+    let ops = [Filter::Dilate(1.5), Filter::Median(1), Filter::Offset(-0.5)];
+    assert_eq!(filter(&grid, &ops).unwrap().checksum(), sums[0]);
+    // Bad operations are refused before any work.
+    let out = tmp("filt-bad.sls");
+    for (op, msg) in
+        [("shrink:2", "unknown filter"), ("median:0", "half-width"), ("open:x", "not a number")]
+    {
+        let o = levelset(&["filter", f.to_str().unwrap(), "-o", out.to_str().unwrap(), "--op", op]);
+        assert_eq!(o.status.code(), Some(1), "{op}: {}", stderr(&o));
+        assert!(stderr(&o).contains(msg), "{op}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
 #[test]
 fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let ok = |args: &[&str]| {

@@ -5,6 +5,7 @@
 mod convert;
 mod csg;
 mod distance;
+mod filter;
 mod info;
 mod mesh;
 mod phantom;
@@ -53,6 +54,10 @@ enum Command {
     /// Union, intersection or difference of two dense .npy signed distance fields,
     /// computed on their sparse bands, into a .npy field.
     Csg(csg::CsgArgs),
+    /// Filter a level set (.npy, .sls, .vdb) as OpenVDB's LevelSetFilter does: offset,
+    /// dilate, erode, open, close, mean-curvature motion, Gaussian, mean and median of the
+    /// band, renormalisation; several in one call, in the order given.
+    Filter(filter::FilterArgs),
     /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
     /// distances, inside/outside by ray votes robust to holes, into a .npy field; a
     /// directory of meshes into a directory of fields (spread over the ranks under mpirun).
@@ -90,6 +95,7 @@ fn main() -> ExitCode {
         Command::Render(a) => plain(render::run(&a)),
         Command::Mesh(a) => plain(mesh::run(&a)),
         Command::Csg(a) => plain(csg::run(&a)),
+        Command::Filter(a) => plain(filter::run(&a)),
         Command::Convert(a) => plain(convert::run(&a)),
         Command::Voxelize(a) => plain(voxelize::run(&a)),
         Command::Segment(a) => {

@@ -1,0 +1,112 @@
+//! `levelset filter IN -o OUT --op NAME[:VALUE] ...`: OpenVDB's level-set filters
+//! (`vdb_tool`'s `-dilate`, `-erode`, `-open`, `-close`, `-gauss`, `-mean`, `-median`) on a
+//! level set in any format, in the order given ([`sparse_levelset::tools::filter`]).
+
+use clap::Args;
+use levelset_cli::output::check_output;
+use levelset_cli::{outln, progress};
+use sparse_levelset::grid::GridSpec;
+use sparse_levelset::io::input::Expect;
+use sparse_levelset::io::{self, LevelSetFormat};
+use sparse_levelset::tools::filter::{filter, validate, Filter};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct FilterArgs {
+    /// The level set: .npy (dense, on --voxel-size and --half-width), .sls or .vdb.
+    pub input: PathBuf,
+    /// Output, written atomically in the format its extension names (.sls, .vdb or .npy).
+    #[arg(short, long, value_name = "OUT.sls|OUT.vdb|OUT.npy")]
+    pub output: PathBuf,
+    /// A filter, `NAME[:VALUE]`, repeatable, applied in the order given. Distances and
+    /// times are in world units, widths in voxels: `offset:D` (outwards, inwards when
+    /// negative), `dilate:D`, `erode:D`, `open:R`, `close:R`, `mean-curvature:T` (a sphere's
+    /// r² shrinks by 2T), `gaussian:W`, `mean:W`, `median:W` (the (2W + 1)³ neighbourhood,
+    /// W = 1 to 8), `renormalize`.
+    #[arg(long = "op", value_name = "NAME[:VALUE]", required = true, allow_hyphen_values = true)]
+    pub ops: Vec<String>,
+    /// Voxel edge length in world units of a .npy input.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub voxel_size: f32,
+    /// Band half-width γ in voxels of a .npy input.
+    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
+    pub half_width: f32,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// One `--op` value.
+fn parse_op(s: &str) -> Result<Filter, String> {
+    let (name, value) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v)));
+    let number = || -> Result<f64, String> {
+        let v = value.ok_or_else(|| format!("--op {s}: {name} takes a value, {name}:VALUE"))?;
+        v.trim().parse::<f64>().map_err(|_| format!("--op {s}: {v:?} is not a number"))
+    };
+    let width = || -> Result<u32, String> {
+        let v = value.ok_or_else(|| format!("--op {s}: {name} takes a width, {name}:W"))?;
+        v.trim().parse::<u32>().map_err(|_| format!("--op {s}: {v:?} is not a whole number"))
+    };
+    Ok(match name {
+        "offset" => Filter::Offset(number()?),
+        "dilate" => Filter::Dilate(number()?),
+        "erode" => Filter::Erode(number()?),
+        "open" => Filter::Open(number()?),
+        "close" => Filter::Close(number()?),
+        "mean-curvature" => Filter::MeanCurvature(number()?),
+        "gaussian" => Filter::Gaussian(width()?),
+        "mean" => Filter::Mean(width()?),
+        "median" => Filter::Median(width()?),
+        "renormalize" if value.is_none() => Filter::Renormalize,
+        _ => {
+            return Err(format!(
+                "--op {s}: unknown filter; use offset, dilate, erode, open, close, \
+                 mean-curvature, gaussian, mean, median or renormalize"
+            ))
+        }
+    })
+}
+
+pub fn run(a: &FilterArgs) -> Result<(), String> {
+    let filters = a.ops.iter().map(|s| parse_op(s)).collect::<Result<Vec<_>, _>>()?;
+    validate(&filters).map_err(|e| e.to_string())?;
+    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    check_output(&a.output)?;
+    if LevelSetFormat::from_path(&a.output).is_none() {
+        return Err(format!(
+            "{}: unknown output type; use {}",
+            a.output.display(),
+            LevelSetFormat::EXTENSIONS
+        ));
+    }
+    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    let pool = levelset_cli::pin::pool(threads, false)
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let bar = progress::spinner(a.quiet);
+    bar.set_message(format!("reading {}", a.input.display()));
+    let expect = Expect { copies: 3.0, ..Expect::new(spec) };
+    let name = a.input.display().to_string();
+    let result = pool.install(|| -> Result<_, String> {
+        let loaded = io::load_level_set(&a.input, &expect).map_err(|e| e.to_string())?;
+        bar.set_message(format!("filtering {name}"));
+        let start = std::time::Instant::now();
+        let out = filter(&loaded.level_set, &filters).map_err(|e| format!("{name}: {e}"))?;
+        let seconds = start.elapsed().as_secs_f64();
+        bar.set_message(format!("writing {}", a.output.display()));
+        io::save_level_set(&a.output, &out, &io::SaveOptions::default())
+            .map_err(|e| e.to_string())?;
+        Ok((out.band_voxels(), seconds))
+    })?;
+    bar.finish_and_clear();
+    outln!(
+        "{name} -> {}: {} filter(s), {} band voxels, {:.3} s",
+        a.output.display(),
+        filters.len(),
+        result.0,
+        result.1
+    );
+    Ok(())
+}
