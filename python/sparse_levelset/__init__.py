@@ -313,6 +313,16 @@ class LevelSet:
         out = self._ls.value(np.ascontiguousarray(p.reshape(-1, 3) if one else p))
         return out[0] if one else out
 
+    def filter(self, *ops: str) -> "LevelSet":
+        """The level set filtered as OpenVDB's ``LevelSetFilter`` and ``vdb_tool`` do, the
+        operations in the order given, each ``"NAME[:VALUE]"``: ``"offset:D"`` (outwards by D
+        world units, inwards when negative), ``"dilate:D"``, ``"erode:D"``, ``"open:R"``,
+        ``"close:R"``, ``"mean-curvature:T"`` (a sphere's r² shrinks by 2T), ``"gaussian:W"``,
+        ``"mean:W"``, ``"median:W"`` (the (2W + 1)³ neighbourhood), ``"renormalize"``. The
+        result is a signed distance on the same grid; ``ValueError`` for a bad operation or
+        a level set the filters empty."""
+        return LevelSet(self._ls.filter([str(o) for o in ops]))
+
     def measure(self, delta_width: float = 1.5) -> dict:
         """``{"band_voxels", "volume", "area"}`` in world units: the volume from the
         voxels' inside fractions, the area with the smoothed delta of width

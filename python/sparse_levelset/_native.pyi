@@ -1,7 +1,7 @@
 """Type stubs of the compiled extension (used through the `sparse_levelset` package, whose
 functions and classes carry the documentation)."""
 
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -76,6 +76,7 @@ class LevelSet:
         shadows: bool,
         progress: _Progress = ...,
     ) -> npt.NDArray[np.uint8]: ...
+    def filter(self, ops: List[str]) -> LevelSet: ...
     def reinitialize(
         self, order: int = ..., half_width: Optional[float] = ..., progress: _Progress = ...
     ) -> LevelSet: ...

@@ -339,6 +339,20 @@ impl LevelSet {
         Ok(arr.into_pyarray(py))
     }
 
+    /// The filters `ops` (`"dilate:1.5"`, `"median:1"`, ... as `levelset filter --op`
+    /// takes them) applied in order.
+    fn filter(&self, py: Python<'_>, ops: Vec<String>) -> PyResult<LevelSet> {
+        let filters = ops
+            .iter()
+            .map(|s| s.parse::<sparse_levelset::tools::filter::Filter>())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(crate::lib_error)?;
+        let g = py
+            .detach(|| sparse_levelset::tools::filter::filter(&self.grid, &filters))
+            .map_err(crate::lib_error)?;
+        LevelSet::new(g)
+    }
+
     /// A signed distance band again (fast marching from the interface), with a new
     /// half-width if given.
     #[pyo3(signature = (order=2, half_width=None, progress=None))]

@@ -137,3 +137,17 @@ def test_bad_input(tmp_path):
         sl.LevelSet.from_mesh(np.zeros((3, 3)), [[0, 1, 7]])
     with pytest.raises(TypeError):
         sl.LevelSet(None)
+
+
+def test_filters_offset_a_sphere_and_refuse_bad_operations():
+    ls = sl.LevelSet.sphere(8.0, voxel_size=0.5)
+    grown = ls.filter("dilate:2", "renormalize")
+    r = (3 * grown.volume / (4 * np.pi)) ** (1 / 3)
+    assert abs(r - 10.0) < 0.05
+    # Opening then closing by a small radius keeps a sphere (no edges to round).
+    smooth = ls.filter("open:1", "close:1", "median:1")
+    assert abs(smooth.volume / ls.volume - 1) < 0.02
+    with pytest.raises(ValueError, match="unknown filter"):
+        ls.filter("shrink:2")
+    with pytest.raises(ValueError, match="empty"):
+        ls.filter("erode:20")

@@ -62,6 +62,43 @@ pub enum Filter {
     Renormalize,
 }
 
+/// A filter as written on a command line, `NAME[:VALUE]` (vdb_tool's names): `offset:D`,
+/// `dilate:D`, `erode:D`, `open:R`, `close:R`, `mean-curvature:T`, `gaussian:W`, `mean:W`,
+/// `median:W`, `renormalize`.
+impl std::str::FromStr for Filter {
+    type Err = FilterError;
+
+    fn from_str(s: &str) -> Result<Filter, FilterError> {
+        let bad = |why: String| FilterError::InvalidParameter(format!("{s}: {why}"));
+        let (name, value) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v.trim())));
+        let number = || -> Result<f64, FilterError> {
+            let v = value.ok_or_else(|| bad(format!("{name} takes a value, {name}:VALUE")))?;
+            v.parse::<f64>().map_err(|_| bad(format!("{v:?} is not a number")))
+        };
+        let width = || -> Result<u32, FilterError> {
+            let v = value.ok_or_else(|| bad(format!("{name} takes a width, {name}:W")))?;
+            v.parse::<u32>().map_err(|_| bad(format!("{v:?} is not a whole number")))
+        };
+        Ok(match name.trim() {
+            "offset" => Filter::Offset(number()?),
+            "dilate" => Filter::Dilate(number()?),
+            "erode" => Filter::Erode(number()?),
+            "open" => Filter::Open(number()?),
+            "close" => Filter::Close(number()?),
+            "mean-curvature" => Filter::MeanCurvature(number()?),
+            "gaussian" => Filter::Gaussian(width()?),
+            "mean" => Filter::Mean(width()?),
+            "median" => Filter::Median(width()?),
+            "renormalize" if value.is_none() => Filter::Renormalize,
+            _ => {
+                return Err(bad("unknown filter; use offset, dilate, erode, open, close, \
+                                mean-curvature, gaussian, mean, median or renormalize"
+                    .into()))
+            }
+        })
+    }
+}
+
 /// Why a filter failed.
 #[derive(Debug, thiserror::Error)]
 pub enum FilterError {

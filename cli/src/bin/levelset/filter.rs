@@ -39,39 +39,12 @@ pub struct FilterArgs {
     pub quiet: bool,
 }
 
-/// One `--op` value.
-fn parse_op(s: &str) -> Result<Filter, String> {
-    let (name, value) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v)));
-    let number = || -> Result<f64, String> {
-        let v = value.ok_or_else(|| format!("--op {s}: {name} takes a value, {name}:VALUE"))?;
-        v.trim().parse::<f64>().map_err(|_| format!("--op {s}: {v:?} is not a number"))
-    };
-    let width = || -> Result<u32, String> {
-        let v = value.ok_or_else(|| format!("--op {s}: {name} takes a width, {name}:W"))?;
-        v.trim().parse::<u32>().map_err(|_| format!("--op {s}: {v:?} is not a whole number"))
-    };
-    Ok(match name {
-        "offset" => Filter::Offset(number()?),
-        "dilate" => Filter::Dilate(number()?),
-        "erode" => Filter::Erode(number()?),
-        "open" => Filter::Open(number()?),
-        "close" => Filter::Close(number()?),
-        "mean-curvature" => Filter::MeanCurvature(number()?),
-        "gaussian" => Filter::Gaussian(width()?),
-        "mean" => Filter::Mean(width()?),
-        "median" => Filter::Median(width()?),
-        "renormalize" if value.is_none() => Filter::Renormalize,
-        _ => {
-            return Err(format!(
-                "--op {s}: unknown filter; use offset, dilate, erode, open, close, \
-                 mean-curvature, gaussian, mean, median or renormalize"
-            ))
-        }
-    })
-}
-
 pub fn run(a: &FilterArgs) -> Result<(), String> {
-    let filters = a.ops.iter().map(|s| parse_op(s)).collect::<Result<Vec<_>, _>>()?;
+    let filters = a
+        .ops
+        .iter()
+        .map(|s| s.parse::<Filter>().map_err(|e| format!("--op {e}")))
+        .collect::<Result<Vec<_>, _>>()?;
     validate(&filters).map_err(|e| e.to_string())?;
     let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
     check_output(&a.output)?;
