@@ -5,6 +5,7 @@
 mod convert;
 mod csg;
 mod distance;
+mod evolve;
 mod filter;
 mod info;
 mod mesh;
@@ -58,6 +59,9 @@ enum Command {
     /// dilate, erode, open, close, mean-curvature motion, Gaussian, mean and median of the
     /// band, renormalisation; several in one call, in the order given.
     Filter(filter::FilterArgs),
+    /// Evolve a level set (.npy, .sls, .vdb) under a normal speed and mean-curvature
+    /// motion for a time or a number of steps; the result in any format.
+    Evolve(evolve::EvolveArgs),
     /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
     /// distances, inside/outside by ray votes robust to holes, into a .npy field; a
     /// directory of meshes into a directory of fields (spread over the ranks under mpirun).
@@ -96,6 +100,7 @@ fn main() -> ExitCode {
         Command::Mesh(a) => plain(mesh::run(&a)),
         Command::Csg(a) => plain(csg::run(&a)),
         Command::Filter(a) => plain(filter::run(&a)),
+        Command::Evolve(a) => plain(evolve::run(&a)),
         Command::Convert(a) => plain(convert::run(&a)),
         Command::Voxelize(a) => plain(voxelize::run(&a)),
         Command::Segment(a) => {
