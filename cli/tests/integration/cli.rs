@@ -656,6 +656,19 @@ fn csg_takes_every_format_and_gives_the_same_band() {
     assert!(sums.iter().all(|&s| s == sums[0]), "{sums:x?}");
 }
 
+/// `npy` and the same level set converted by `levelset convert` to `.sls` and `.vdb`
+/// (`STEM.sls`, `STEM.vdb`).
+fn every_format(npy: &Path, stem: &str) -> Vec<PathBuf> {
+    let mut inputs = vec![npy.to_path_buf()];
+    for ext in ["sls", "vdb"] {
+        let p = tmp(&format!("{stem}.{ext}"));
+        let o = levelset(&["convert", npy.to_str().unwrap(), p.to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        inputs.push(p);
+    }
+    inputs
+}
+
 /// `distance` reads every level-set format: a ball as `.npy`, `.sls` and `.vdb` gives the
 /// same band of half-width 6 (the dense march of the array and the sparse reinitialisation
 /// of the files agree voxel for voxel).
@@ -664,13 +677,7 @@ fn distance_takes_every_format_and_gives_the_same_band() {
     use sparse_levelset::LevelSet;
     let f =
         common::npy("distf-ball.npy", &common::ball([24, 24, 24], [11.5, 11.2, 12.1], 7.0, 1.0));
-    let mut inputs = vec![f.clone()];
-    for ext in ["sls", "vdb"] {
-        let p = tmp(&format!("distf-ball.{ext}"));
-        let o = levelset(&["convert", f.to_str().unwrap(), p.to_str().unwrap(), "--quiet"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        inputs.push(p);
-    }
+    let inputs = every_format(&f, "distf-ball");
     let mut grids = Vec::new();
     for (i, input) in inputs.iter().enumerate() {
         let out = tmp(&format!("distf-out-{i}.sls"));
@@ -706,13 +713,7 @@ fn filter_takes_every_format_and_equals_the_library() {
     use sparse_levelset::tools::filter::{filter, Filter};
     use sparse_levelset::LevelSet;
     let f = common::npy("filt-ball.npy", &common::ball([28, 28, 28], [13.5, 13.2, 14.1], 7.0, 1.0));
-    let mut inputs = vec![f.clone()];
-    for ext in ["sls", "vdb"] {
-        let p = tmp(&format!("filt-ball.{ext}"));
-        let o = levelset(&["convert", f.to_str().unwrap(), p.to_str().unwrap(), "--quiet"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        inputs.push(p);
-    }
+    let inputs = every_format(&f, "filt-ball");
     let mut sums = Vec::new();
     for (i, input) in inputs.iter().enumerate() {
         let out = tmp(&format!("filt-out-{i}.sls"));
@@ -756,13 +757,7 @@ fn evolve_equals_the_library_from_every_format() {
     use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation, Speed};
     use sparse_levelset::LevelSet;
     let f = common::npy("evo-ball.npy", &common::ball([32, 32, 32], [15.5, 15.2, 16.1], 9.0, 1.0));
-    let mut inputs = vec![f.clone()];
-    for ext in ["sls", "vdb"] {
-        let p = tmp(&format!("evo-ball.{ext}"));
-        let o = levelset(&["convert", f.to_str().unwrap(), p.to_str().unwrap(), "--quiet"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        inputs.push(p);
-    }
+    let inputs = every_format(&f, "evo-ball");
     let (grid, _) = sparse_levelset::io::sls::load(&inputs[1]).unwrap();
     let flow = Flow { speed: Speed::Constant(0.25), ..Flow::mean_curvature(1.0) };
     let tiles = sparse_levelset::storage::convert::tiles_from(&grid);

@@ -2,11 +2,11 @@
 //! computed on their sparse bands ([`sparse_levelset::tools::csg`]) and written sparse or
 //! dense as the output's extension says.
 
+use crate::source::FileGridArgs;
 use clap::{Args, ValueEnum};
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
 use sparse_levelset::coord::Coord;
-use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::input::Expect;
 use sparse_levelset::io::{self, LevelSetFormat};
 use sparse_levelset::storage::convert::to_dense;
@@ -43,19 +43,12 @@ pub struct CsgArgs {
     /// bands, ±γ beyond the result's band).
     #[arg(short, long, value_name = "OUT.sls|OUT.vdb|OUT.npy")]
     pub output: PathBuf,
-    /// Voxel edge length in world units of .npy operands.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub voxel_size: f32,
-    /// Band half-width γ in voxels of .npy operands.
-    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
-    pub half_width: f32,
-    /// Worker threads [default: all cores].
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub threads: Option<u32>,
+    #[command(flatten)]
+    pub grid: FileGridArgs,
 }
 
 pub fn run(a: &CsgArgs) -> Result<(), String> {
-    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    let spec = a.grid.spec()?;
     check_output(&a.output)?;
     let format = LevelSetFormat::from_path(&a.output).ok_or_else(|| {
         format!("{}: unknown output type; use {}", a.output.display(), LevelSetFormat::EXTENSIONS)
@@ -65,9 +58,7 @@ pub fn run(a: &CsgArgs) -> Result<(), String> {
         OpArg::Intersection => CsgOp::Intersection,
         OpArg::Difference => CsgOp::Difference,
     };
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-    let pool = levelset_cli::pin::pool(threads, false)
-        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let (pool, _) = a.grid.pool()?;
     let bar = progress::spinner(false);
     // Both operands are loaded and checked before any work.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };

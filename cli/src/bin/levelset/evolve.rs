@@ -3,11 +3,11 @@
 //! steps, with the engine's defaults (first-order upwind, forward Euler at CFL 1, the
 //! coupled renormalisation).
 
+use crate::source::FileGridArgs;
 use clap::Args;
 use levelset_cli::output::{check_output, write_json};
 use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation, Speed};
-use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::fsutil::Outputs;
 use sparse_levelset::io::input::Expect;
 use sparse_levelset::io::{self, AnyLevelSet, LevelSetFormat};
@@ -40,15 +40,8 @@ pub struct EvolveArgs {
     /// together with the output.
     #[arg(long, value_name = "FILE.json")]
     pub summary: Option<PathBuf>,
-    /// Voxel edge length in world units of a .npy input.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub voxel_size: f32,
-    /// Band half-width γ in voxels of a .npy input.
-    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
-    pub half_width: f32,
-    /// Worker threads [default: all cores].
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub threads: Option<u32>,
+    #[command(flatten)]
+    pub grid: FileGridArgs,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -63,7 +56,7 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         (None, Some(n)) => (f64::INFINITY, n),
         _ => return Err("give --time T (finite, > 0) or --steps N".into()),
     };
-    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    let spec = a.grid.spec()?;
     check_output(&a.output)?;
     if LevelSetFormat::from_path(&a.output).is_none() {
         return Err(format!(
@@ -75,11 +68,8 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     if let Some(s) = &a.summary {
         check_output(s)?;
     }
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-    let pool = std::sync::Arc::new(
-        levelset_cli::pin::pool(threads, false)
-            .map_err(|e| format!("cannot start {threads} threads: {e}"))?,
-    );
+    let (pool, threads) = a.grid.pool()?;
+    let pool = std::sync::Arc::new(pool);
     let name = a.input.display().to_string();
     // The input, the simulation's grid and its buffers (about five grids).
     let expect = Expect { copies: 5.0, ..Expect::new(spec) };

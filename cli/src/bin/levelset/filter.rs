@@ -2,10 +2,10 @@
 //! (`vdb_tool`'s `-dilate`, `-erode`, `-open`, `-close`, `-gauss`, `-mean`, `-median`) on a
 //! level set in any format, in the order given ([`sparse_levelset::tools::filter`]).
 
+use crate::source::FileGridArgs;
 use clap::Args;
 use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
-use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::input::Expect;
 use sparse_levelset::io::{self, LevelSetFormat};
 use sparse_levelset::tools::filter::{filter, validate, Filter};
@@ -25,15 +25,8 @@ pub struct FilterArgs {
     /// W = 1 to 8), `renormalize`.
     #[arg(long = "op", value_name = "NAME[:VALUE]", required = true, allow_hyphen_values = true)]
     pub ops: Vec<String>,
-    /// Voxel edge length in world units of a .npy input.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
-    pub voxel_size: f32,
-    /// Band half-width γ in voxels of a .npy input.
-    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
-    pub half_width: f32,
-    /// Worker threads [default: all cores].
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub threads: Option<u32>,
+    #[command(flatten)]
+    pub grid: FileGridArgs,
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
@@ -46,7 +39,7 @@ pub fn run(a: &FilterArgs) -> Result<(), String> {
         .map(|s| s.parse::<Filter>().map_err(|e| format!("--op {e}")))
         .collect::<Result<Vec<_>, _>>()?;
     validate(&filters).map_err(|e| e.to_string())?;
-    let spec = GridSpec::new(a.voxel_size, [0.0; 3], a.half_width).map_err(|e| e.to_string())?;
+    let spec = a.grid.spec()?;
     check_output(&a.output)?;
     if LevelSetFormat::from_path(&a.output).is_none() {
         return Err(format!(
@@ -55,9 +48,7 @@ pub fn run(a: &FilterArgs) -> Result<(), String> {
             LevelSetFormat::EXTENSIONS
         ));
     }
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-    let pool = levelset_cli::pin::pool(threads, false)
-        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let (pool, _) = a.grid.pool()?;
     let bar = progress::spinner(a.quiet);
     bar.set_message(format!("reading {}", a.input.display()));
     let expect = Expect { copies: 3.0, ..Expect::new(spec) };

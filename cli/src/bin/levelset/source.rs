@@ -183,3 +183,33 @@ impl SourceArgs {
         Ok(Input::Shape { name, shape })
     }
 }
+
+/// The grid of a dense `.npy` input (sparse files carry their own) and the worker threads:
+/// the flags every command on level-set files shares.
+#[derive(Args)]
+pub struct FileGridArgs {
+    /// Voxel edge length in world units of a .npy input.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub voxel_size: f32,
+    /// Band half-width γ in voxels of a .npy input.
+    #[arg(long, default_value_t = 3.0, allow_hyphen_values = true)]
+    pub half_width: f32,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+}
+
+impl FileGridArgs {
+    /// The grid of a `.npy` input (checked).
+    pub fn spec(&self) -> Result<GridSpec, String> {
+        GridSpec::new(self.voxel_size, [0.0; 3], self.half_width).map_err(|e| e.to_string())
+    }
+
+    /// The worker pool and its size.
+    pub fn pool(&self) -> Result<(rayon::ThreadPool, usize), String> {
+        let threads = self.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+        let pool = levelset_cli::pin::pool(threads, false)
+            .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+        Ok((pool, threads))
+    }
+}
