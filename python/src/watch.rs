@@ -88,7 +88,14 @@ pub fn run<R: Send>(
                 Ok(rx) => rx.recv_timeout(TICK),
                 Err(_) => Err(mpsc::RecvTimeoutError::Disconnected),
             }) {
-                Ok(Ok(r)) => return error.map_or(Ok(r), Err),
+                Ok(Ok(r)) => {
+                    // The last report (a short call may end before the first look): the
+                    // callback sees the work's final progress.
+                    if let (None, Some(cb), Some(values)) = (&error, callback, watch.pending()) {
+                        forward(py, cb, values)?;
+                    }
+                    return error.map_or(Ok(r), Err);
+                }
                 Ok(Err(_)) => return Err(crate::panic_error(what)),
                 Err(mpsc::RecvTimeoutError::Disconnected) => return Err(crate::panic_error(what)),
                 Err(mpsc::RecvTimeoutError::Timeout) => {}
@@ -100,19 +107,7 @@ pub fn run<R: Send>(
                 error = Some(e);
             } else if let Some(cb) = callback {
                 if let Some(values) = watch.pending() {
-                    let call = || -> PyResult<()> {
-                        let d = PyDict::new(py);
-                        for (k, v) in values {
-                            if v.fract() == 0.0 && v.abs() < 9.0e15 {
-                                d.set_item(k, v as i64)?;
-                            } else {
-                                d.set_item(k, v)?;
-                            }
-                        }
-                        cb.call1((d,))?;
-                        Ok(())
-                    };
-                    if let Err(e) = call() {
+                    if let Err(e) = forward(py, cb, values) {
                         error = Some(e);
                     }
                 }
@@ -122,4 +117,22 @@ pub fn run<R: Send>(
             }
         }
     })
+}
+
+/// Calls the user's callback with a report as a dict (whole numbers as ints).
+fn forward(
+    py: Python<'_>,
+    cb: &Bound<'_, PyAny>,
+    values: Vec<(&'static str, f64)>,
+) -> PyResult<()> {
+    let d = PyDict::new(py);
+    for (k, v) in values {
+        if v.fract() == 0.0 && v.abs() < 9.0e15 {
+            d.set_item(k, v as i64)?;
+        } else {
+            d.set_item(k, v)?;
+        }
+    }
+    cb.call1((d,))?;
+    Ok(())
 }

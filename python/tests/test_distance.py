@@ -100,3 +100,10 @@ def test_bad_input_raises_value_error():
         sl.distance(np.ones((2, 2, 2, 2)))
     with pytest.raises(ValueError, match="empty"):
         sl.distance(np.ones((0, 3, 3)))
+
+
+def test_progress_reaches_its_total():
+    x, y = np.mgrid[-1:1:101j, -1:1:101j]
+    seen = []
+    sl.distance(x**2 + y**2 - 0.25, dx=0.02, progress=lambda p: seen.append(p))
+    assert seen and seen[-1]["done"] == seen[-1]["total"] > 0

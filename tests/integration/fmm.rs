@@ -552,3 +552,25 @@ fn noisy_fields_give_the_same_result_on_every_representation() {
     let (blo, bhi) = d.bounding_box().unwrap();
     assert!(blo.x >= lo.x - 4 && bhi.x <= lo.x + dims[0] as i32 + 3, "{blo:?} {bhi:?}");
 }
+
+/// A march's progress reaches its total, also when the array runs out of voxels before the
+/// band's width (a small array).
+#[test]
+fn progress_reaches_its_total() {
+    use sparse_levelset::progress::Progress;
+    use std::sync::{Arc, Mutex};
+    let field = DenseField::from_fn(Coord::new(0, 0, 0), [12, 12, 12], |c| {
+        ((c.x - 6) * (c.x - 6) + (c.y - 6) * (c.y - 6) + (c.z - 6) * (c.z - 6)) as f32 - 9.0
+    })
+    .unwrap();
+    let last = Arc::new(Mutex::new((0u64, 0u64)));
+    let seen = last.clone();
+    let progress = Progress::new(move |done, total| {
+        *seen.lock().unwrap() = (done, total);
+        true
+    });
+    let opts = FmmOptions { half_width: Some(40.0), progress, ..Default::default() };
+    fmm::distance_dense(&field, 1.0, &opts).unwrap();
+    let (done, total) = *last.lock().unwrap();
+    assert!(total > 0 && done == total, "{done} of {total}");
+}

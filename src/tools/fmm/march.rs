@@ -339,6 +339,9 @@ impl<C: Cost> Marcher<C> {
             }
             self.check_memory()?;
         }
+        // The march is done, whether it reached the limit or ran out of voxels (a small
+        // array): the progress reaches its total.
+        ticker.set(PROGRESS_UNITS)?;
         // Trial voxels keep their tentative value (> limit): callers clamp or drop them.
         Ok(())
     }
