@@ -2,9 +2,8 @@
 //! computed on their sparse bands ([`sparse_levelset::tools::csg`]) and written sparse or
 //! dense as the output's extension says.
 
-use crate::source::FileGridArgs;
+use crate::source::{level_set_output, FileGridArgs};
 use clap::{Args, ValueEnum};
-use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
 use sparse_levelset::coord::Coord;
 use sparse_levelset::io::input::Expect;
@@ -49,10 +48,7 @@ pub struct CsgArgs {
 
 pub fn run(a: &CsgArgs) -> Result<(), String> {
     let spec = a.grid.spec()?;
-    check_output(&a.output)?;
-    let format = LevelSetFormat::from_path(&a.output).ok_or_else(|| {
-        format!("{}: unknown output type; use {}", a.output.display(), LevelSetFormat::EXTENSIONS)
-    })?;
+    let format = level_set_output(&a.output)?;
     let op = match a.op {
         OpArg::Union => CsgOp::Union,
         OpArg::Intersection => CsgOp::Intersection,

@@ -3,14 +3,14 @@
 //! steps, with the engine's defaults (first-order upwind, forward Euler at CFL 1, the
 //! coupled renormalisation).
 
-use crate::source::FileGridArgs;
+use crate::source::{level_set_output, FileGridArgs};
 use clap::Args;
 use levelset_cli::output::{check_output, write_json};
 use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{Flow, GridKind, Lanes, Settings, Simulation, Speed};
 use sparse_levelset::io::fsutil::Outputs;
 use sparse_levelset::io::input::Expect;
-use sparse_levelset::io::{self, AnyLevelSet, LevelSetFormat};
+use sparse_levelset::io::{self, AnyLevelSet};
 use sparse_levelset::storage::convert::tiles_from;
 use std::path::PathBuf;
 
@@ -57,14 +57,7 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         _ => return Err("give --time T (finite, > 0) or --steps N".into()),
     };
     let spec = a.grid.spec()?;
-    check_output(&a.output)?;
-    if LevelSetFormat::from_path(&a.output).is_none() {
-        return Err(format!(
-            "{}: unknown output type; use {}",
-            a.output.display(),
-            LevelSetFormat::EXTENSIONS
-        ));
-    }
+    level_set_output(&a.output)?;
     if let Some(s) = &a.summary {
         check_output(s)?;
     }

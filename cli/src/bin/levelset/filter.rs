@@ -2,12 +2,11 @@
 //! (`vdb_tool`'s `-dilate`, `-erode`, `-open`, `-close`, `-gauss`, `-mean`, `-median`) on a
 //! level set in any format, in the order given ([`sparse_levelset::tools::filter`]).
 
-use crate::source::FileGridArgs;
+use crate::source::{level_set_output, FileGridArgs};
 use clap::Args;
-use levelset_cli::output::check_output;
 use levelset_cli::{outln, progress};
+use sparse_levelset::io;
 use sparse_levelset::io::input::Expect;
-use sparse_levelset::io::{self, LevelSetFormat};
 use sparse_levelset::tools::filter::{filter, validate, Filter};
 use std::path::PathBuf;
 
@@ -40,14 +39,7 @@ pub fn run(a: &FilterArgs) -> Result<(), String> {
         .collect::<Result<Vec<_>, _>>()?;
     validate(&filters).map_err(|e| e.to_string())?;
     let spec = a.grid.spec()?;
-    check_output(&a.output)?;
-    if LevelSetFormat::from_path(&a.output).is_none() {
-        return Err(format!(
-            "{}: unknown output type; use {}",
-            a.output.display(),
-            LevelSetFormat::EXTENSIONS
-        ));
-    }
+    level_set_output(&a.output)?;
     let (pool, _) = a.grid.pool()?;
     let bar = progress::spinner(a.quiet);
     bar.set_message(format!("reading {}", a.input.display()));

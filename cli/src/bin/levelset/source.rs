@@ -199,6 +199,15 @@ pub struct FileGridArgs {
     pub threads: Option<u32>,
 }
 
+/// Checks, before any work, that `output` can be written and names a level-set format; the
+/// format.
+pub fn level_set_output(output: &std::path::Path) -> Result<LevelSetFormat, String> {
+    levelset_cli::output::check_output(output)?;
+    LevelSetFormat::from_path(output).ok_or_else(|| {
+        format!("{}: unknown output type; use {}", output.display(), LevelSetFormat::EXTENSIONS)
+    })
+}
+
 impl FileGridArgs {
     /// The grid of a `.npy` input (checked).
     pub fn spec(&self) -> Result<GridSpec, String> {
