@@ -117,6 +117,16 @@ impl Outputs {
         staged
     }
 
+    /// A writer's message with every staged path replaced by its target, so that an error
+    /// names the output the user asked for.
+    pub fn named(&self, message: impl std::fmt::Display) -> String {
+        let mut m = message.to_string();
+        for (staged, target) in &self.staged {
+            m = m.replace(&*staged.to_string_lossy(), &target.to_string_lossy());
+        }
+        m
+    }
+
     /// Renames every staged file into place.
     pub fn commit(mut self) -> io::Result<()> {
         let staged = std::mem::take(&mut self.staged);
@@ -259,6 +269,9 @@ mod tests {
         // Both written: both appear at the commit.
         let mut outputs = Outputs::new();
         let (sa, sb) = (outputs.stage(&a), outputs.stage(&b));
+        // A writer's message names the target, not the staged file.
+        let m = outputs.named(format!("{}: No space left on device", sa.display()));
+        assert_eq!(m, format!("{}: No space left on device", a.display()));
         write_atomic(&sa, |w| std::io::Write::write_all(w, b"new a")).unwrap();
         write_atomic(&sb, |w| std::io::Write::write_all(w, b"{}")).unwrap();
         assert_eq!(fs::read(&a).unwrap(), b"old a");

@@ -279,7 +279,11 @@ fn neighbourhood(grid: &TileGrid, w: u32, kernel: Kernel) -> Result<TileGrid, Fi
         })
         .collect();
     let filtered = |c: Coord| -> f32 {
-        let mut values = Vec::with_capacity(((2 * r + 1) as usize).pow(3));
+        // Only the median keeps the neighbourhood's values.
+        let mut values = match kernel {
+            Kernel::Median => Vec::with_capacity(((2 * r + 1) as usize).pow(3)),
+            _ => Vec::new(),
+        };
         let (mut sum, mut wsum) = (0.0f64, 0.0f64);
         for dz in -r..=r {
             for dy in -r..=r {

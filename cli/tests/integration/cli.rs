@@ -12,30 +12,11 @@ use std::process::Output;
 
 use crate::common;
 
-use crate::common::{levelset, speedup, stderr, stdout, tmp};
+use crate::common::{levelset, speedup, stderr, stdout, tmp, write_npy};
 
 fn json(o: &Output) -> serde_json::Value {
     assert!(o.status.success(), "failed: {}", stderr(o));
     serde_json::from_slice(&o.stdout).expect("valid JSON")
-}
-
-/// A .npy v1.0 file with the given dtype descriptor, shape and raw little-endian data.
-fn write_npy(path: &Path, descr: &str, shape: &[usize], data: &[u8]) {
-    let shape_s = match shape.len() {
-        1 => format!("({},)", shape[0]),
-        _ => format!("({})", shape.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ")),
-    };
-    let mut header =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_s}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    bytes.extend_from_slice(data);
-    std::fs::write(path, bytes).unwrap();
 }
 
 /// A sphere's signed distance sampled on an n³ array, radius r, centred.

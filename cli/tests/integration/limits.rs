@@ -33,21 +33,11 @@ fn refused(args: &[&str], out: &Path) {
 }
 
 /// A `.npy` header for `shape` (float32) followed by a sparse data region of the full size.
-fn sparse_npy(path: &Path, shape: [u64; 3]) {
-    let mut header = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
-        shape[0], shape[1], shape[2]
-    );
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut f = std::fs::File::create(path).unwrap();
-    f.write_all(b"\x93NUMPY\x01\x00").unwrap();
-    f.write_all(&(header.len() as u16).to_le_bytes()).unwrap();
-    f.write_all(header.as_bytes()).unwrap();
-    let len = 10 + header.len() as u64 + 4 * shape.iter().product::<u64>();
-    f.set_len(len).unwrap();
+fn sparse_npy(path: &Path, shape: [usize; 3]) {
+    crate::common::write_npy(path, "<f4", &shape, &[]);
+    let header = std::fs::metadata(path).unwrap().len();
+    let f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+    f.set_len(header + 4 * shape.iter().product::<usize>() as u64).unwrap();
 }
 
 /// A NIfTI-1 single file (`.nii`) of `dims` float32 voxels, the data region sparse.

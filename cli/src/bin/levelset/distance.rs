@@ -49,9 +49,7 @@ pub fn run(a: &DistanceArgs) -> Result<(), String> {
     let in_format = LevelSetFormat::from_path(&a.field).ok_or_else(|| unknown(&a.field))?;
     let order = if a.order == 1 { Order::First } else { Order::Second };
     let opts = FmmOptions { order, half_width: Some(a.half_width), ..Default::default() };
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-    let pool = levelset_cli::pin::pool(threads, false)
-        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let (pool, _) = crate::source::worker_pool(a.threads)?;
     let bar = progress::spinner(false);
     bar.set_message(format!("reading {}", a.field.display()));
     // Any level set with an interface (this command makes distance fields); the input and

@@ -94,24 +94,26 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     .map_err(|e| format!("{name}: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
+    // One pass each over the band.
+    let (band_voxels, checksum) = (sim.band_voxels(), sim.checksum());
     let summary = serde_json::json!({
         "input": name,
         "steps": sim.steps(),
         "time": sim.time(),
         "collapsed": sim.collapsed(),
-        "band_voxels": sim.band_voxels(),
-        "checksum": format!("{:016x}", sim.checksum()),
+        "band_voxels": band_voxels,
+        "checksum": format!("{checksum:016x}"),
         "seconds": seconds,
         "threads": threads,
     });
     // The level set and the summary appear together.
     let mut outputs = Outputs::new();
     let staged = outputs.stage(&a.output);
-    pool.install(|| io::save_level_set(&staged, &sim, &io::SaveOptions::default())).map_err(
-        |e| e.to_string().replace(&staged.display().to_string(), &a.output.display().to_string()),
-    )?;
+    pool.install(|| io::save_level_set(&staged, &sim, &io::SaveOptions::default()))
+        .map_err(|e| outputs.named(e))?;
     if let Some(s) = &a.summary {
-        write_json(&outputs.stage(s), &summary)?;
+        let staged = outputs.stage(s);
+        write_json(&staged, &summary).map_err(|e| outputs.named(e))?;
     }
     outputs.commit().map_err(|e| format!("{}: {e}", a.output.display()))?;
     outln!(
@@ -119,8 +121,8 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         a.output.display(),
         sim.steps(),
         sim.time(),
-        sim.band_voxels(),
-        sim.checksum()
+        band_voxels,
+        checksum
     );
     Ok(())
 }

@@ -58,9 +58,7 @@ pub fn run(a: &MeshArgs) -> Result<(), String> {
     if let Some(path) = &a.source.field {
         bar.set_message(format!("reading {}", path.display()));
     }
-    let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-    let pool = levelset_cli::pin::pool(threads, false)
-        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let (pool, _) = crate::source::worker_pool(a.threads)?;
     let input = pool.install(|| a.source.load(&expect))?;
     let m = pool.install(|| -> Result<_, String> {
         Ok(match &input {

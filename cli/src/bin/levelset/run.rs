@@ -8,7 +8,7 @@ use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{
     GridKind, Integrator, Lanes, Renormalization, SpatialScheme, Sweeps,
 };
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ScenarioArg {
@@ -388,18 +388,14 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     }
     // The summary and the final field appear together or not at all.
     let mut outputs = sparse_levelset::io::fsutil::Outputs::new();
-    // A message names the output, not its staged file.
-    let named = |staged: &Path, to: &Path, e: String| {
-        e.replace(&staged.display().to_string(), &to.display().to_string())
-    };
     let summary_path = a.out.join("summary.json");
     let staged = outputs.stage(&summary_path);
-    write_json(&staged, &summary).map_err(|e| named(&staged, &summary_path, e))?;
+    write_json(&staged, &summary).map_err(|e| outputs.named(e))?;
     let origin = match a.export_npy {
         true => {
             let path = a.out.join("final.npy");
             let staged = outputs.stage(&path);
-            Some(export_final(&sim, &staged).map_err(|e| named(&staged, &path, e))?)
+            Some(export_final(&sim, &staged).map_err(|e| outputs.named(e))?)
         }
         false => None,
     };

@@ -421,26 +421,20 @@ fn execute(
         segment(img, &j.init, &params, &mut monitor).map_err(|e| format!("{}: {e}", j.name))?;
     // The mask, the level set and the mesh appear together or not at all.
     let mut outputs = Outputs::new();
-    let target = |staged: &std::path::Path, to: &std::path::Path, e: String| {
-        e.replace(&staged.display().to_string(), &to.display().to_string())
-    };
     let staged = outputs.stage(&j.output);
-    image::save_mask(&staged, &result.mask, &j.loaded)
-        .map_err(|e| target(&staged, &j.output, e.to_string()))?;
+    image::save_mask(&staged, &result.mask, &j.loaded).map_err(|e| outputs.named(e))?;
     if let Some(ls) = &j.level_set {
         let phi = result
             .simulation
             .to_dense(sparse_levelset::Coord::new(0, 0, 0), img.dims)
             .map_err(|e| e.to_string())?;
         let staged = outputs.stage(ls);
-        image::save_f32(&staged, phi.data(), &j.loaded)
-            .map_err(|e| target(&staged, ls, e.to_string()))?;
+        image::save_f32(&staged, phi.data(), &j.loaded).map_err(|e| outputs.named(e))?;
     }
     if let Some(path) = &j.mesh {
         let mesh = result.mesh(img).map_err(|e| e.to_string())?;
         let staged = outputs.stage(path);
-        sparse_levelset::io::mesh::save_mesh(&staged, &mesh, None)
-            .map_err(|e| target(&staged, path, e.to_string()))?;
+        sparse_levelset::io::mesh::save_mesh(&staged, &mesh, None).map_err(|e| outputs.named(e))?;
     }
     outputs.commit().map_err(|e| format!("{}: {e}", j.output.display()))?;
     let r = &result.report;

@@ -199,6 +199,14 @@ pub struct FileGridArgs {
     pub threads: Option<u32>,
 }
 
+/// A pool of `--threads` workers (all cores without the flag) and its size.
+pub fn worker_pool(threads: Option<u32>) -> Result<(rayon::ThreadPool, usize), String> {
+    let threads = threads.map_or_else(rayon::current_num_threads, |t| t as usize);
+    let pool = levelset_cli::pin::pool(threads, false)
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    Ok((pool, threads))
+}
+
 /// Checks, before any work, that `output` can be written and names a level-set format; the
 /// format.
 pub fn level_set_output(output: &std::path::Path) -> Result<LevelSetFormat, String> {
@@ -216,9 +224,6 @@ impl FileGridArgs {
 
     /// The worker pool and its size.
     pub fn pool(&self) -> Result<(rayon::ThreadPool, usize), String> {
-        let threads = self.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
-        let pool = levelset_cli::pin::pool(threads, false)
-            .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-        Ok((pool, threads))
+        worker_pool(self.threads)
     }
 }
