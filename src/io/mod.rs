@@ -70,6 +70,8 @@ pub struct LoadedLevelSet {
     pub sls_header: Option<sls::Header>,
     /// The grid description of a `.vdb` file.
     pub vdb_info: Option<vdb::VdbInfo>,
+    /// A `.npy` file's array, `[nx, ny, nz]` voxels from voxel (0, 0, 0).
+    pub npy_dims: Option<[usize; 3]>,
 }
 
 /// Loads a level set from a `.npy`, `.sls` or `.vdb` file, chosen by the extension, through
@@ -78,11 +80,12 @@ pub struct LoadedLevelSet {
 pub fn load_level_set(path: &Path, expect: &Expect) -> Result<LoadedLevelSet, InputError> {
     let format = LevelSetFormat::from_path(path)
         .ok_or_else(|| InputError::UnknownFormat { input: path.display().to_string() })?;
-    let loaded = |level_set, sls_header, vdb_info| LoadedLevelSet {
+    let loaded = |level_set, sls_header, vdb_info, npy_dims| LoadedLevelSet {
         level_set,
         format,
         sls_header,
         vdb_info,
+        npy_dims,
     };
     Ok(match format {
         LevelSetFormat::Npy => {
@@ -90,15 +93,15 @@ pub fn load_level_set(path: &Path, expect: &Expect) -> Result<LoadedLevelSet, In
             let tiles = tiles_from_dense(&field, expect.spec).map_err(|error| {
                 InputError::OutOfMemory { input: path.display().to_string(), error }
             })?;
-            loaded(AnyLevelSet::Tiles(tiles), None, None)
+            loaded(AnyLevelSet::Tiles(tiles), None, None, Some(field.dims()))
         }
         LevelSetFormat::Sls => {
             let (grid, header) = input::load_sls(path, expect)?;
-            loaded(AnyLevelSet::Hrle(grid), Some(header), None)
+            loaded(AnyLevelSet::Hrle(grid), Some(header), None, None)
         }
         LevelSetFormat::Vdb => {
             let (tiles, info) = input::load_vdb(path, expect)?;
-            loaded(AnyLevelSet::Tiles(tiles), None, Some(info))
+            loaded(AnyLevelSet::Tiles(tiles), None, Some(info), None)
         }
     })
 }

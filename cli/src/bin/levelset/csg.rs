@@ -66,13 +66,7 @@ pub fn run(a: &CsgArgs) -> Result<(), String> {
         bar.set_message(format!("reading {}", path.display()));
         let loaded =
             pool.install(|| io::load_level_set(path, &expect)).map_err(|e| e.to_string())?;
-        let dense = match loaded.format {
-            LevelSetFormat::Npy => {
-                Some(io::npy::inspect_npy(path).map_err(|e| e.to_string())?.dims)
-            }
-            _ => None,
-        };
-        let (l, h) = match dense {
+        let (l, h) = match loaded.npy_dims {
             Some(d) => ([0; 3], [d[0] as i32 - 1, d[1] as i32 - 1, d[2] as i32 - 1]),
             None => match loaded.level_set.band_bounding_box() {
                 Some((l, h)) => ([l.x, l.y, l.z], [h.x, h.y, h.z]),
