@@ -291,6 +291,23 @@ impl ScalarFn for SampledField {
 #[derive(Clone, Debug)]
 pub struct SampledVelocity(pub [SampledField; 3]);
 
+impl SampledVelocity {
+    /// The components `[u_x, u_y, u_z]` on their dense grids (each placed by its origin on
+    /// the lattice of `spec`, e.g. as read by [`crate::io::npy::read_npy_vector`]).
+    /// Non-finite values are an error.
+    pub fn new(
+        fields: [crate::storage::dense::DenseField; 3],
+        spec: GridSpec,
+    ) -> Result<SampledVelocity, crate::grid::GridError> {
+        let [x, y, z] = fields;
+        Ok(SampledVelocity([
+            SampledField::new(x, spec)?,
+            SampledField::new(y, spec)?,
+            SampledField::new(z, spec)?,
+        ]))
+    }
+}
+
 impl VectorFn for SampledVelocity {
     fn fill_run(&self, spec: &GridSpec, start: Coord, _t: f64, out: [&mut [f32]; 3]) {
         for (c, o) in self.0.iter().zip(out) {

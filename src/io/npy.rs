@@ -68,6 +68,9 @@ pub enum NpyError {
     /// The array does not have exactly three dimensions.
     #[error("{}: expected a 3-D array of shape (nz, ny, nx), found shape {}", .path.display(), py_shape(.shape))]
     NotThreeD { path: PathBuf, shape: Vec<u64> },
+    /// A vector field ([`read_npy_vector`]) whose shape is not `(nz, ny, nx, 3)`.
+    #[error("{}: expected a vector field of shape (nz, ny, nx, 3), found shape {}", .path.display(), py_shape(.shape))]
+    NotVectorField { path: PathBuf, shape: Vec<u64> },
     /// A dimension is 0.
     #[error("{}: array of shape {} has an empty dimension", .path.display(), py_shape(.shape))]
     EmptyDimension { path: PathBuf, shape: Vec<u64> },
@@ -115,7 +118,8 @@ impl crate::error::Error for NpyError {
             | NpyError::TrailingBytes { .. } => CorruptFile,
             NpyError::UnsupportedVersion { .. }
             | NpyError::WrongDtype { .. }
-            | NpyError::NotThreeD { .. } => Unsupported,
+            | NpyError::NotThreeD { .. }
+            | NpyError::NotVectorField { .. } => Unsupported,
             NpyError::EmptyDimension { .. } | NpyError::NaN { .. } => InvalidData,
             NpyError::TooLarge { .. } | NpyError::OutOfMemory { .. } => OutOfMemory,
         }
@@ -172,11 +176,11 @@ pub fn inspect_npy(path: &Path) -> Result<NpyInfo, NpyError> {
     let mut file = File::open(path).map_err(io_err)?;
     let meta = file.metadata().map_err(io_err)?;
     if meta.is_file() {
-        Ok(read_header(&mut file, meta.len(), path)?.info)
+        Ok(read_header(&mut file, meta.len(), path, 1)?.info)
     } else {
         let mut bytes = Vec::new();
         file.read_to_end(&mut bytes).map_err(io_err)?;
-        Ok(read_header(&mut &bytes[..], bytes.len() as u64, path)?.info)
+        Ok(read_header(&mut &bytes[..], bytes.len() as u64, path, 1)?.info)
     }
 }
 
@@ -190,15 +194,33 @@ pub fn inspect_npy(path: &Path) -> Result<NpyInfo, NpyError> {
 pub fn read_npy(path: &Path) -> Result<DenseField, NpyError> {
     let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
     let mut file = File::open(path).map_err(io_err)?;
+    let [field] = read_fields::<1>(&mut file, path)?;
+    Ok(field)
+}
+
+/// Reads a vector field, a little-endian float32 `.npy` array of shape `(nz, ny, nx, 3)`
+/// (NumPy's layout for one 3-vector per voxel: `arr[z, y, x]` is the vector at voxel
+/// `(x, y, z)`), as its three components `[u_x, u_y, u_z]`, each a [`DenseField`] with
+/// origin `(0, 0, 0)` and `dims = [nx, ny, nz]`. The checks of [`read_npy`] apply (orders,
+/// NaN refused, sizes and memory checked before the data are allocated).
+pub fn read_npy_vector(path: &Path) -> Result<[DenseField; 3], NpyError> {
+    let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
+    let mut file = File::open(path).map_err(io_err)?;
+    read_fields::<3>(&mut file, path)
+}
+
+/// The `C` component fields of an open `.npy` file (a regular file, or a pipe read whole).
+fn read_fields<const C: usize>(file: &mut File, path: &Path) -> Result<[DenseField; C], NpyError> {
+    let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
     let meta = file.metadata().map_err(io_err)?;
     if meta.is_file() {
         let len = meta.len();
-        read_from(&mut file, len, path)
+        read_from::<C>(file, len, path)
     } else {
         // A pipe or device: its size is unknown in advance, so read what it holds.
         let mut bytes = Vec::new();
         file.read_to_end(&mut bytes).map_err(io_err)?;
-        read_from(&mut &bytes[..], bytes.len() as u64, path)
+        read_from::<C>(&mut &bytes[..], bytes.len() as u64, path)
     }
 }
 
@@ -209,8 +231,14 @@ struct Checked {
 }
 
 /// Parses and checks the preamble and header of a `.npy` stream of `total` bytes, leaving
-/// `r` at the first data byte; `path` only names it in errors.
-fn read_header(r: &mut impl Read, total: u64, path: &Path) -> Result<Checked, NpyError> {
+/// `r` at the first data byte; `path` only names it in errors. `components` is 1 for a
+/// volume of shape `(nz, ny, nx)`, 3 for a vector field of shape `(nz, ny, nx, 3)`.
+fn read_header(
+    r: &mut impl Read,
+    total: u64,
+    path: &Path,
+    components: u64,
+) -> Result<Checked, NpyError> {
     let p = || path.to_path_buf();
     let io_err = |source| NpyError::Io { path: path.to_path_buf(), source };
     let bad = |reason: String| NpyError::BadHeader { path: path.to_path_buf(), reason };
@@ -260,8 +288,11 @@ fn read_header(r: &mut impl Read, total: u64, path: &Path) -> Result<Checked, Np
         return Err(NpyError::WrongDtype { path: p(), found: header.descr_text });
     }
     let shape = header.shape;
-    if shape.len() != 3 {
+    if components == 1 && shape.len() != 3 {
         return Err(NpyError::NotThreeD { path: p(), shape });
+    }
+    if components > 1 && (shape.len() != 4 || shape[3] != components) {
+        return Err(NpyError::NotVectorField { path: p(), shape });
     }
     if shape.contains(&0) {
         return Err(NpyError::EmptyDimension { path: p(), shape });
@@ -289,10 +320,15 @@ fn read_header(r: &mut impl Read, total: u64, path: &Path) -> Result<Checked, Np
     Ok(Checked { info: NpyInfo { dims, fortran_order: header.fortran_order }, expected })
 }
 
-/// Parses a `.npy` stream of `total` bytes; `path` only names it in errors.
-fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, NpyError> {
+/// Parses a `.npy` stream of `total` bytes holding `C` values per voxel (the last axis);
+/// `path` only names it in errors.
+fn read_from<const C: usize>(
+    r: &mut impl Read,
+    total: u64,
+    path: &Path,
+) -> Result<[DenseField; C], NpyError> {
     let p = || path.to_path_buf();
-    let Checked { info, expected } = read_header(r, total, path)?;
+    let Checked { info, expected } = read_header(r, total, path, C as u64)?;
     let dims = info.dims;
     let len = info.len();
     let too_large = |reason: String| NpyError::TooLarge {
@@ -300,11 +336,13 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
         shape: vec![dims[2] as u64, dims[1] as u64, dims[0] as u64],
         reason,
     };
-    crate::memory::check(info.read_bytes(), "the array's data")
+    // A vector field holds the file's values and, while they are split, the components.
+    let bytes = if C == 1 { info.read_bytes() } else { 2.0 * C as f64 * info.read_bytes() };
+    crate::memory::check(bytes, "the array's data")
         .map_err(|source| NpyError::OutOfMemory { path: p(), source })?;
 
-    // The data: read straight into the f32 buffer (the file holds exactly len · 4 bytes).
-    let mut data = vec![0.0f32; len];
+    // The data: read straight into the f32 buffer (the file holds exactly C · len · 4 bytes).
+    let mut data = vec![0.0f32; C * len];
     read_exact(r, bytemuck::cast_slice_mut(&mut data), path).map_err(|e| match e {
         // The file shrank while being read.
         NpyError::Truncated { .. } => NpyError::Truncated { path: p(), expected, found: 0 },
@@ -316,26 +354,42 @@ fn read_from(r: &mut impl Read, total: u64, path: &Path) -> Result<DenseField, N
         }
     }
     let (nx, ny, nz) = (dims[0], dims[1], dims[2]);
-    if info.fortran_order {
-        // File offset of arr[z, y, x] is z + nz (y + ny x); ours is x + nx (y + ny z).
-        let file = data;
-        let mut ours = vec![0.0f32; len];
-        ours.par_chunks_mut(nx * ny).enumerate().for_each(|(z, slice)| {
-            for (y, row) in slice.chunks_exact_mut(nx).enumerate() {
-                for (x, v) in row.iter_mut().enumerate() {
-                    *v = file[z + nz * (y + ny * x)];
-                }
-            }
-        });
-        data = ours;
-    }
-    if let Some(i) = data.iter().position(|v| v.is_nan()) {
+    let mut parts: Vec<Vec<f32>> = if info.fortran_order {
+        // File offset of arr[z, y, x, c] is z + nz (y + ny (x + nx c)); ours is
+        // x + nx (y + ny z) in component c's field.
+        data.chunks_exact(len)
+            .map(|file| {
+                let mut ours = vec![0.0f32; len];
+                ours.par_chunks_mut(nx * ny).enumerate().for_each(|(z, slice)| {
+                    for (y, row) in slice.chunks_exact_mut(nx).enumerate() {
+                        for (x, v) in row.iter_mut().enumerate() {
+                            *v = file[z + nz * (y + ny * x)];
+                        }
+                    }
+                });
+                ours
+            })
+            .collect()
+    } else if C == 1 {
+        vec![data]
+    } else {
+        // C order: the components of a voxel are adjacent.
+        (0..C).map(|c| data.iter().skip(c).step_by(C).copied().collect()).collect()
+    };
+    // The first NaN in voxel order, then component order.
+    let nan = parts.iter().filter_map(|d| d.iter().position(|v| v.is_nan())).min();
+    if let Some(i) = nan {
         let (x, rest) = (i % nx, i / nx);
         let (y, z) = (rest % ny, rest / ny);
         return Err(NpyError::NaN { path: p(), x: x as u64, y: y as u64, z: z as u64 });
     }
     // Cannot fail: the dimensions were checked above.
-    DenseField::from_vec(Coord::new(0, 0, 0), dims, data).map_err(|e| too_large(e.to_string()))
+    let fields = parts
+        .drain(..)
+        .map(|d| DenseField::from_vec(Coord::new(0, 0, 0), dims, d))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| too_large(e.to_string()))?;
+    Ok(fields.try_into().expect("C fields"))
 }
 
 /// `read_exact` with end-of-file reported as [`NpyError::Truncated`] (callers that know
@@ -770,6 +824,61 @@ mod tests {
         }
     }
 
+    /// A (nz, ny, nx, 3) field in C and Fortran order gives the same three components;
+    /// a volume is not a vector field and a vector field is not a volume; a NaN is found
+    /// in any component.
+    #[test]
+    fn vector_fields_in_either_order() {
+        let dir = TempDir::new("vec");
+        let comp = |c: usize| {
+            DenseField::from_fn(Coord::new(0, 0, 0), [4, 3, 2], move |v| {
+                (v.x + 10 * v.y + 100 * v.z) as f32 + 0.25 * c as f32
+            })
+            .unwrap()
+        };
+        let want = [comp(0), comp(1), comp(2)];
+        let (nx, ny, nz) = (4, 3, 2);
+        let at = |x, y, z, c: usize| want[c].get(Coord::new(x, y, z)).unwrap();
+        let mut c_data = Vec::new();
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    c_data.extend((0..3).map(|c| at(x, y, z, c)));
+                }
+            }
+        }
+        let mut f_data = Vec::new();
+        for c in 0..3 {
+            for x in 0..nx {
+                for y in 0..ny {
+                    for z in 0..nz {
+                        f_data.push(at(x, y, z, c));
+                    }
+                }
+            }
+        }
+        let f_dict = "{'descr': '<f4', 'fortran_order': True, 'shape': (2, 3, 4, 3), }";
+        let pc =
+            dir.file("c.npy", &npy_bytes((1, 0), &c_dict("(2, 3, 4, 3)"), &f32_bytes(&c_data)));
+        let pf = dir.file("f.npy", &npy_bytes((1, 0), f_dict, &f32_bytes(&f_data)));
+        assert_eq!(read_npy_vector(&pc).unwrap(), want);
+        assert_eq!(read_npy_vector(&pf).unwrap(), want);
+        assert!(matches!(read_npy(&pc), Err(NpyError::NotThreeD { .. })));
+        let vol =
+            dir.file("v.npy", &npy_bytes((1, 0), &c_dict("(2, 3, 4)"), &f32_bytes(want[0].data())));
+        assert!(matches!(read_npy_vector(&vol), Err(NpyError::NotVectorField { .. })));
+        let two = dir.file(
+            "two.npy",
+            &npy_bytes((1, 0), &c_dict("(2, 3, 4, 2)"), &f32_bytes(&c_data[..48])),
+        );
+        assert!(matches!(read_npy_vector(&two), Err(NpyError::NotVectorField { .. })));
+        // u_z of voxel (3, 2, 1) is NaN.
+        c_data[3 * (3 + nx as usize * (2 + ny as usize)) + 2] = f32::NAN;
+        let pn =
+            dir.file("n.npy", &npy_bytes((1, 0), &c_dict("(2, 3, 4, 3)"), &f32_bytes(&c_data)));
+        assert!(matches!(read_npy_vector(&pn), Err(NpyError::NaN { x: 3, y: 2, z: 1, .. })));
+    }
+
     #[test]
     fn each_bad_input_gives_its_error() {
         let dir = TempDir::new("bad");
@@ -924,7 +1033,7 @@ mod tests {
                     Err(_) => panic!("prefix of {cut} bytes panicked"),
                 }
                 // The in-memory path (pipes) behaves the same.
-                assert!(read_from(&mut &bytes[..cut], cut as u64, &path).is_err());
+                assert!(read_from::<1>(&mut &bytes[..cut], cut as u64, &path).is_err());
             }
             fs::write(&path, &bytes).unwrap();
             assert_eq!(read_npy(&path).unwrap(), sample_field());
@@ -943,7 +1052,9 @@ mod tests {
                 b[i] = rng.u8(..);
             }
             let path = Path::new("corrupt.npy");
-            let r = std::panic::catch_unwind(|| read_from(&mut &b[..], b.len() as u64, path));
+            let r = std::panic::catch_unwind(|| read_from::<1>(&mut &b[..], b.len() as u64, path));
+            assert!(r.is_ok(), "panicked on {:?}", String::from_utf8_lossy(&b[..128]));
+            let r = std::panic::catch_unwind(|| read_from::<3>(&mut &b[..], b.len() as u64, path));
             assert!(r.is_ok(), "panicked on {:?}", String::from_utf8_lossy(&b[..128]));
         }
     }

@@ -138,6 +138,15 @@ impl DenseField {
         Ok(DenseField { origin, dims, data })
     }
 
+    /// The same values moved so that element `[0][0][0]` lies at voxel `origin`.
+    ///
+    /// Fails with [`GridError::InvalidParameter`] when the box would leave the `i32`
+    /// coordinate range.
+    pub fn with_origin(self, origin: Coord) -> Result<Self, GridError> {
+        checked_len(origin, self.dims)?;
+        Ok(DenseField { origin, ..self })
+    }
+
     /// Voxel coordinate of element `[0][0][0]`.
     #[inline]
     pub fn origin(&self) -> Coord {

@@ -778,6 +778,145 @@ fn evolve_equals_the_library_from_every_format() {
     assert!(stderr(&o).contains("--time T"), "{}", stderr(&o));
 }
 
+/// A float32 `.npy` of shape (nz, ny, nx, 3) written by hand (C order): `u(x, y, z)`.
+fn vector_npy(name: &str, dims: [usize; 3], u: impl Fn([usize; 3]) -> [f32; 3]) -> PathBuf {
+    let [nx, ny, nz] = dims;
+    let dict =
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({nz}, {ny}, {nx}, 3), }}");
+    let mut header = dict.into_bytes();
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend((header.len() as u16).to_le_bytes());
+    bytes.extend(header);
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                bytes.extend(u([x, y, z]).iter().flat_map(|v| v.to_le_bytes()));
+            }
+        }
+    }
+    let p = tmp(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+/// `evolve --velocity`: a `.sls` sphere advected by a rotation read from a (nz, ny, nx, 3)
+/// `.npy`, plus a normal speed, equals the library's simulation with the same field bit for
+/// bit; a uniform field moves the sphere's centre by u·t; a field of the wrong shape or with
+/// a NaN is refused before any work.
+#[test]
+fn evolve_by_a_velocity_field_file_equals_the_library() {
+    use sparse_levelset::evolve::{
+        Flow, GridKind, Lanes, SampledVelocity, Settings, Simulation, Speed, Velocity,
+    };
+    use sparse_levelset::LevelSet;
+    let f = common::npy("evov-ball.npy", &common::ball([32, 32, 32], [15.5, 15.2, 16.1], 8.0, 1.0));
+    let sls = every_format(&f, "evov-ball")[1].clone();
+    // A rotation about the axis x = 14, y = 17 (off the ball's centre), given on voxels
+    // 2..30 of each axis (element [0, 0, 0] at voxel (2, 2, 2)).
+    let rot = |p: [usize; 3]| {
+        let (x, y) = (p[0] as f32 + 2.0 - 14.0, p[1] as f32 + 2.0 - 17.0);
+        [-0.3 * y, 0.3 * x, 0.05]
+    };
+    let field = vector_npy("evov-rot.npy", [28, 28, 28], rot);
+    let (grid, _) = sparse_levelset::io::sls::load(&sls).unwrap();
+    let tiles = sparse_levelset::storage::convert::tiles_from(&grid);
+    let comps = sparse_levelset::io::npy::read_npy_vector(&field)
+        .unwrap()
+        .map(|c| c.with_origin(Coord::new(2, 2, 2)).unwrap());
+    let u = SampledVelocity::new(comps, *tiles.spec()).unwrap();
+    let flow = Flow {
+        speed: Speed::Constant(0.1),
+        velocity: Some(Velocity::Field(std::sync::Arc::new(u))),
+        ..Flow::rest()
+    };
+    let mut sim =
+        Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, Settings::default())
+            .unwrap();
+    sim.run_until(f64::INFINITY, 20, |_, _| {}).unwrap();
+    let out = tmp("evov-out.sls");
+    let o = levelset(&[
+        "evolve",
+        sls.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--velocity",
+        field.to_str().unwrap(),
+        "--velocity-origin",
+        "2,2,2",
+        "--speed",
+        "0.1",
+        "--steps",
+        "20",
+        "--threads",
+        "2",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(sparse_levelset::io::sls::load(&out).unwrap().0.checksum(), sim.checksum());
+
+    // A uniform u = (1, −0.5, 0.25) for t = 4 moves the centre by (4, −2, 1): the mean of
+    // the interface voxels (|φ| < 1) moves so, within 0.25 voxels.
+    let uni = vector_npy("evov-uni.npy", [32, 32, 32], |_| [1.0, -0.5, 0.25]);
+    let moved = tmp("evov-moved.sls");
+    let o = levelset(&[
+        "evolve",
+        sls.to_str().unwrap(),
+        "-o",
+        moved.to_str().unwrap(),
+        "--velocity",
+        uni.to_str().unwrap(),
+        "--time",
+        "4",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    fn centre(g: &impl LevelSet) -> [f64; 3] {
+        let (mut sum, mut n) = ([0f64; 3], 0f64);
+        g.for_each_band_voxel(&mut |c, v| {
+            if v.abs() < 1.0 {
+                for (s, x) in sum.iter_mut().zip([c.x, c.y, c.z]) {
+                    *s += x as f64;
+                }
+                n += 1.0;
+            }
+        });
+        sum.map(|s| s / n)
+    }
+    let (a, b) = (centre(&grid), centre(&sparse_levelset::io::sls::load(&moved).unwrap().0));
+    for (d, want) in [4.0, -2.0, 1.0].iter().enumerate() {
+        assert!((b[d] - a[d] - want).abs() < 0.25, "axis {d}: {a:?} -> {b:?}");
+    }
+
+    // Refusals before any work: a volume where a vector field is expected, a NaN.
+    let bad_out = tmp("evov-bad.sls");
+    let nan = vector_npy("evov-nan.npy", [4, 4, 4], |p| {
+        if p == [1, 2, 3] {
+            [0.0, f32::NAN, 0.0]
+        } else {
+            [0.0; 3]
+        }
+    });
+    for (file, msg) in [(&f, "(nz, ny, nx, 3)"), (&nan, "NaN at voxel (x, y, z) = (1, 2, 3)")] {
+        let o = levelset(&[
+            "evolve",
+            sls.to_str().unwrap(),
+            "-o",
+            bad_out.to_str().unwrap(),
+            "--velocity",
+            file.to_str().unwrap(),
+            "--steps",
+            "1",
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(msg), "{}", stderr(&o));
+        assert!(!bad_out.exists());
+    }
+}
+
 #[test]
 fn cli_meshes_shapes_and_npy_fields_and_refuses_bad_input() {
     let ok = |args: &[&str]| {
