@@ -44,6 +44,9 @@ pub struct CsgArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub grid: FileGridArgs,
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 pub fn run(a: &CsgArgs) -> Result<(), String> {
@@ -55,7 +58,7 @@ pub fn run(a: &CsgArgs) -> Result<(), String> {
         OpArg::Difference => CsgOp::Difference,
     };
     let (pool, _) = a.grid.pool()?;
-    let bar = progress::spinner(false);
+    let bar = progress::spinner(a.quiet);
     // Both operands are loaded and checked before any work.
     let expect = Expect { copies: 2.0, ..Expect::new(spec) };
     let mut operands = Vec::new();

@@ -37,6 +37,9 @@ pub struct DistanceArgs {
     /// Worker threads [default: all cores].
     #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
+    /// No progress spinner.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 pub fn run(a: &DistanceArgs) -> Result<(), String> {
@@ -50,7 +53,7 @@ pub fn run(a: &DistanceArgs) -> Result<(), String> {
     let order = if a.order == 1 { Order::First } else { Order::Second };
     let opts = FmmOptions { order, half_width: Some(a.half_width), ..Default::default() };
     let (pool, _) = crate::source::worker_pool(a.threads)?;
-    let bar = progress::spinner(false);
+    let bar = progress::spinner(a.quiet);
     bar.set_message(format!("reading {}", a.field.display()));
     // Any level set with an interface (this command makes distance fields); the input and
     // the output are held at once.

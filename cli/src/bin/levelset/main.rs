@@ -35,25 +35,26 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Build the grids (DT-Grid, tiles, H-RLE) from a shape, a dense .npy field or a .sls
-    /// file and report voxels and bytes, and the size of the .sls file.
+    /// Build the grids (DT-Grid, tiles, H-RLE) from a shape or a level set (.npy, .sls,
+    /// .vdb) and report voxels and bytes, and the size of the .sls file.
     Info(info::InfoArgs),
     /// Evolve one of the papers' scenarios and write DIR/summary.json.
     Run(run::RunArgs),
-    /// Signed distance to the zero level set of a dense float32 .npy field by fast
+    /// Signed distance to the zero level set of a level set (.npy, .sls, .vdb) by fast
     /// marching (like scikit-fmm's `distance`), within a band of half-width W.
     Distance(distance::DistanceArgs),
-    /// Ray-trace the zero level set of a shape or a dense .npy field into a PNG.
+    /// Ray-trace the zero level set of a shape or a level set (.npy, .sls, .vdb) into a PNG.
     Render(render::RenderArgs),
-    /// Mesh the zero set of a shape or a dense .npy field (simplicial isosurfacing on the
-    /// Kuhn triangulation) into a PLY or OBJ file and report its size and checks.
+    /// Mesh the zero set of a shape or a level set (.npy, .sls, .vdb) (simplicial
+    /// isosurfacing on the Kuhn triangulation) into a PLY, OBJ or STL file and report its
+    /// size and checks.
     Mesh(mesh::MeshArgs),
     /// Convert between dense .npy fields, sparse .sls files, OpenVDB .vdb level sets and
     /// meshes (in: .obj, .ply, .stl, voxelised; out: .ply, .obj, meshed), by the files'
     /// extensions.
     Convert(convert::ConvertArgs),
-    /// Union, intersection or difference of two dense .npy signed distance fields,
-    /// computed on their sparse bands, into a .npy field.
+    /// Union, intersection or difference of two level sets (.npy, .sls, .vdb, in any
+    /// pair), computed on their sparse bands, into the format the output names.
     Csg(csg::CsgArgs),
     /// Filter a level set (.npy, .sls, .vdb) as OpenVDB's LevelSetFilter does: offset,
     /// dilate, erode, open, close, mean-curvature motion, Gaussian, mean and median of the
