@@ -690,10 +690,13 @@ fn prepare(
         (None, _) if feature.is_some() && !only_gac => Some(0.0),
         (None, Method::Threshold { lower, upper }) => {
             // The smallest σ that puts the noise left in Ĩ THRESHOLD_MARGIN times below the
-            // distance from the seeds' intensity to the nearer threshold.
+            // distance from the seeds' intensity to the nearer threshold; none when the
+            // image's own noise already is (smoothing would only round thin parts off).
             let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
             let margin = (m_in - lo).min(hi - m_in);
-            Some(if noise == 0.0 {
+            Some(if margin > 0.0 && THRESHOLD_MARGIN * noise <= margin {
+                0.0
+            } else if noise == 0.0 {
                 0.5
             } else if margin > 0.0 {
                 stats::smoothing_voxels(0.5, 2.0, |v| {
