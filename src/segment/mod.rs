@@ -45,7 +45,8 @@
 //! Every default comes from robust statistics of the image, none from an intensity scale:
 //! the flows see the image normalised by order statistics ((I − median) / (p99 − p1)), so
 //! the mask of a·I + b (a > 0) is the mask of I; the noise σ is the median absolute second
-//! difference over 0.6745 √6; the smoothing is the smallest that puts the noise far below
+//! difference over 0.6745 √6; the smoothing is the smallest (for the threshold method
+//! possibly none) that puts the noise far below
 //! the contrast that matters (the distance to the nearer threshold; the contrast of the
 //! first edge that rays cast from the seeds cross); GAC's sigmoid follows the ITK Software
 //! Guide's rule with K₁ measured inside the seeds and K₂ on those rays; GAC's weights are
