@@ -82,7 +82,10 @@ fn read_meta(r: &mut Reader) -> Res<Meta> {
 struct Ctx {
     flags: u32,
     half: bool,
-    background: f32,
+    /// The background value: its first `comps` entries (1 for a float grid, 3 for a
+    /// vector grid).
+    background: [f32; 3],
+    comps: usize,
 }
 
 fn half_to_f32(h: u16) -> f32 {
@@ -97,15 +100,16 @@ fn half_to_f32(h: u16) -> f32 {
     }
 }
 
-/// OpenVDB's `readData`: `count` values, raw, zlib- or Blosc-compressed (each compressed
-/// chunk after its `i64` size, negative for a chunk stored raw).
+/// OpenVDB's `readData`: `count` values (of `ctx.comps` numbers each), raw, zlib- or
+/// Blosc-compressed (each compressed chunk after its `i64` size, negative for a chunk
+/// stored raw).
 fn read_data(r: &mut Reader, ctx: &Ctx, count: usize) -> Res<Vec<f32>> {
     // Half floats: OpenVDB writes nothing at all for an empty buffer.
     if count == 0 && ctx.half {
         return Ok(Vec::new());
     }
     let elem = if ctx.half { 2 } else { 4 };
-    let bytes = count * elem;
+    let bytes = count * ctx.comps * elem;
     let owned;
     let raw: &[u8] = if ctx.flags & (COMPRESS_BLOSC | COMPRESS_ZIP) != 0 {
         let size = r.i64("a compressed block's size")?;
@@ -148,18 +152,24 @@ fn read_data(r: &mut Reader, ctx: &Ctx, count: usize) -> Res<Vec<f32>> {
 }
 
 /// OpenVDB's `readCompressedValues`: the mask-compression byte, the inactive values and
-/// selection mask it announces, the stored values, and the node's `n` values rebuilt.
+/// selection mask it announces, the stored values, and the node's `n` values rebuilt
+/// (`n · ctx.comps` numbers, the components of a value adjacent).
 fn read_values(r: &mut Reader, ctx: &Ctx, n: usize, active: &[u64]) -> Res<Vec<f32>> {
     let metadata = r.u8("a node's compression byte")?;
     if metadata > 6 {
         return corrupt(format!("unknown mask compression {metadata}"));
     }
+    let k = ctx.comps;
     let bg = ctx.background;
-    let mut inactive = [if metadata == 0 { bg } else { -bg }, bg];
+    let mut inactive = [if metadata == 0 { bg } else { bg.map(|v| -v) }, bg];
     if matches!(metadata, 2 | 4 | 5) {
-        inactive[0] = r.f32("a node's inactive value")?;
+        for c in 0..k {
+            inactive[0][c] = r.f32("a node's inactive value")?;
+        }
         if metadata == 5 {
-            inactive[1] = r.f32("a node's inactive value")?;
+            for c in 0..k {
+                inactive[1][c] = r.f32("a node's inactive value")?;
+            }
         }
     }
     let selection =
@@ -170,16 +180,16 @@ fn read_values(r: &mut Reader, ctx: &Ctx, n: usize, active: &[u64]) -> Res<Vec<f
     if count == n {
         return Ok(stored);
     }
-    let mut it = stored.into_iter();
-    Ok((0..n)
-        .map(|i| {
-            if bit(active, i) {
-                it.next().expect("one stored value per active bit")
-            } else {
-                inactive[bit(&selection, i) as usize]
-            }
-        })
-        .collect())
+    let mut it = stored.chunks_exact(k);
+    let mut out = Vec::with_capacity(n * k);
+    for i in 0..n {
+        if bit(active, i) {
+            out.extend_from_slice(it.next().expect("one stored value per active bit"));
+        } else {
+            out.extend_from_slice(&inactive[bit(&selection, i) as usize][..k]);
+        }
+    }
+    Ok(out)
 }
 
 /// An internal node as the reader keeps it: which slots hold children, and which of the
@@ -209,7 +219,7 @@ fn check_tile(v: f32, active: bool, at: [i32; 3], ctx: &Ctx, span: u32) -> Res<(
     if v.is_nan() {
         return Err(VdbError::NaN { coord: coord(at) });
     }
-    if active && v.abs() < ctx.background {
+    if active && v.abs() < ctx.background[0] {
         let n = 1u64 << span;
         return Err(VdbError::Unsupported(format!(
             "an active tile of {n}³ voxels at {} with the value {v} inside the band: a level \
@@ -283,7 +293,28 @@ fn list(grids: &[GridEntry]) -> String {
     format!("its grids: {}", names.join(", "))
 }
 
-pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo)> {
+/// A grid of the file opened: the reader at the start of its tree, and what came before.
+struct Opened<'a> {
+    r: Reader<'a>,
+    grids: Vec<GridEntry>,
+    /// Index of the chosen grid in `grids`.
+    chosen: usize,
+    offsets: bool,
+    version: u32,
+    library_version: (u32, u32),
+    flags: u32,
+    half: bool,
+    meta: Meta,
+    translation: [f64; 3],
+    scale: f64,
+}
+
+/// Reads the header and the grid list, lets `choose` pick a grid (its index, or the error
+/// that none fits), and reads that grid's flags, metadata and transform.
+fn open_grid<'a>(
+    bytes: &'a [u8],
+    choose: impl FnOnce(&[GridEntry]) -> Res<usize>,
+) -> Res<Opened<'a>> {
     let mut r = Reader { b: bytes, at: 0 };
     if bytes.len() < 8 || i64::from_le_bytes(bytes[..8].try_into().expect("8")) != MAGIC {
         return Err(VdbError::NotVdb);
@@ -337,34 +368,8 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
         grids.push(e);
         r.at = end as usize;
     }
-    let is_float = |e: &GridEntry| {
-        e.type_name == "Tree_float_5_4_3" || e.type_name == "Tree_float_5_4_3_HalfFloat"
-    };
-    let chosen = match want {
-        Some(name) => {
-            let Some(e) = grids.iter().find(|e| e.name == name) else {
-                return Err(VdbError::NoGrid(format!(
-                    "no grid named {name:?} in the file ({})",
-                    list(&grids)
-                )));
-            };
-            if !is_float(e) || !(e.class == "level set" || e.class == "unknown") {
-                return Err(VdbError::NoGrid(format!(
-                    "grid {} is not a float level set (type Tree_float_5_4_3, class level set \
-                     or unknown)",
-                    e.describe()
-                )));
-            }
-            e
-        }
-        None => grids.iter().find(|e| is_float(e) && e.class == "level set").ok_or_else(|| {
-            VdbError::NoGrid(format!(
-                "no float grid of class \"level set\" in the file ({}); a level set written \
-                 without its class can be read by name (vdb::load_grid)",
-                list(&grids)
-            ))
-        })?,
-    };
+    let index = choose(&grids)?;
+    let chosen = &grids[index];
     if !chosen.parent.is_empty() {
         return Err(VdbError::Unsupported(format!(
             "grid {:?} is an instance of grid {:?} (shares its tree): read that grid instead",
@@ -405,6 +410,90 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
     if translation.iter().any(|t| !t.is_finite()) {
         return corrupt(format!("a transform translation {translation:?}"));
     }
+    Ok(Opened {
+        r,
+        chosen: index,
+        offsets,
+        version,
+        library_version,
+        flags,
+        half,
+        meta,
+        translation,
+        scale: s,
+        grids,
+    })
+}
+
+/// The grid named `want` or the first one `fits`, refused with `what` (a description of
+/// the grids wanted) when it does not fit.
+fn choose_grid(
+    grids: &[GridEntry],
+    want: Option<&str>,
+    fits: impl Fn(&GridEntry) -> bool,
+    what: &str,
+) -> Res<usize> {
+    match want {
+        Some(name) => {
+            let Some(i) = grids.iter().position(|e| e.name == name) else {
+                return Err(VdbError::NoGrid(format!(
+                    "no grid named {name:?} in the file ({})",
+                    list(grids)
+                )));
+            };
+            if !fits(&grids[i]) {
+                return Err(VdbError::NoGrid(format!(
+                    "grid {} is not {what}",
+                    grids[i].describe()
+                )));
+            }
+            Ok(i)
+        }
+        None => grids
+            .iter()
+            .position(&fits)
+            .ok_or_else(|| VdbError::NoGrid(format!("no {what} in the file ({})", list(grids)))),
+    }
+}
+
+pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo)> {
+    let is_float = |e: &GridEntry| {
+        e.type_name == "Tree_float_5_4_3" || e.type_name == "Tree_float_5_4_3_HalfFloat"
+    };
+    let level_set = |e: &GridEntry| is_float(e) && e.class == "level set";
+    let named = |e: &GridEntry| is_float(e) && (e.class == "level set" || e.class == "unknown");
+    let Opened {
+        mut r,
+        grids,
+        chosen,
+        offsets,
+        version,
+        library_version,
+        flags,
+        half,
+        meta,
+        translation,
+        scale,
+    } = match want {
+        Some(_) => open_grid(bytes, |g| {
+            choose_grid(
+                g,
+                want,
+                named,
+                "a float level set (type Tree_float_5_4_3, class level set or unknown)",
+            )
+        })?,
+        None => open_grid(bytes, |g| {
+            choose_grid(g, None, level_set, "float grid of class \"level set\"").map_err(|e| match e {
+                VdbError::NoGrid(m) => VdbError::NoGrid(format!(
+                    "{m}; a level set written without its class can be read by name (vdb::load_grid)"
+                )),
+                e => e,
+            })
+        })?,
+    };
+    let chosen = &grids[chosen];
+    let s = scale;
     // Topology.
     let buffers = r.i32("the tree")?;
     if buffers != 1 {
@@ -425,7 +514,7 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
     let voxel_size = s as f32;
     let spec = spec_from(voxel_size, translation, background)?;
     let g = spec.gamma();
-    let ctx = Ctx { flags, half, background };
+    let ctx = Ctx { flags, half, background: [background, 0.0, 0.0], comps: 1 };
     let ntiles = r.u32("the tree")?;
     let nchildren = r.u32("the tree")?;
     let ntiles = r.count(ntiles as u64, 17, "root tiles")?;
