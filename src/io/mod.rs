@@ -106,6 +106,76 @@ pub fn load_level_set(path: &Path, expect: &Expect) -> Result<LoadedLevelSet, In
     })
 }
 
+/// A vector field read by [`load_vector_field`]: its components `[u_x, u_y, u_z]` on their
+/// dense grid, and the lattice that places that grid in the world.
+#[derive(Clone, Debug)]
+pub struct LoadedVectorField {
+    pub components: [crate::storage::dense::DenseField; 3],
+    pub spec: GridSpec,
+}
+
+/// Why [`load_vector_field`] read nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum VectorFieldError {
+    /// The file's extension names no vector-field format.
+    #[error(
+        "{}: unknown vector-field file type; use .npy (float32, shape (nz, ny, nx, 3)) or .vdb \
+         (a Vec3s grid)",
+        .path.display()
+    )]
+    UnknownFormat { path: std::path::PathBuf },
+    #[error(transparent)]
+    Npy(#[from] npy::NpyError),
+    #[error(transparent)]
+    Vdb(#[from] vdb::VdbError),
+    /// The field cannot be placed where it was asked to be.
+    #[error("{}: {error}", .path.display())]
+    Placement { path: std::path::PathBuf, error: crate::grid::GridError },
+}
+
+impl crate::error::Error for VectorFieldError {
+    fn kind(&self) -> crate::error::ErrorKind {
+        match self {
+            VectorFieldError::UnknownFormat { .. } => crate::error::ErrorKind::UnknownFormat,
+            VectorFieldError::Npy(e) => e.kind(),
+            VectorFieldError::Vdb(e) => e.kind(),
+            VectorFieldError::Placement { error, .. } => error.kind(),
+        }
+    }
+}
+
+/// Reads a vector field (a velocity, say), chosen by the extension: a float32 `.npy` of
+/// shape `(nz, ny, nx, 3)` on the lattice `npy_lattice` with element `[0, 0, 0]` at voxel
+/// `npy_origin`, or the first `Vec3s` grid of a `.vdb` file, placed by its own transform.
+pub fn load_vector_field(
+    path: &Path,
+    npy_lattice: &GridSpec,
+    npy_origin: Coord,
+) -> Result<LoadedVectorField, VectorFieldError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let placement = |error| VectorFieldError::Placement { path: path.to_path_buf(), error };
+    match ext.as_deref() {
+        Some("npy") => {
+            let [x, y, z] = npy::read_npy_vector(path)?;
+            let at = |f: crate::storage::dense::DenseField| f.with_origin(npy_origin);
+            Ok(LoadedVectorField {
+                components: [
+                    at(x).map_err(placement)?,
+                    at(y).map_err(placement)?,
+                    at(z).map_err(placement)?,
+                ],
+                spec: *npy_lattice,
+            })
+        }
+        Some("vdb") => {
+            let g = vdb::load_vector_grid(path, None)?;
+            let spec = g.spec().map_err(placement)?;
+            Ok(LoadedVectorField { components: g.components, spec })
+        }
+        _ => Err(VectorFieldError::UnknownFormat { path: path.to_path_buf() }),
+    }
+}
+
 /// How [`save_level_set`] writes.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SaveOptions {

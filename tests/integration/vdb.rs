@@ -555,3 +555,43 @@ fn hostile_counts_versions_and_values_are_refused_with_clear_errors() {
     assert!(matches!(err, VdbError::NoInterface), "{err}");
     assert!(err.to_string().contains("no interface"), "{err}");
 }
+
+/// A vector grid written by OpenVDB (`Vec3s`, Blosc, behind a float grid, with an active
+/// tile) reads as the dense box OpenVDB's own `copyToArray` gives, value for value, placed
+/// by its transform.
+#[test]
+fn openvdb_vector_grid_reads_as_openvdb_does() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/vdb");
+    let g = sparse_levelset::io::vdb::load_vector_grid(&dir.join("velocity.vdb"), None).unwrap();
+    let want = sparse_levelset::io::npy::read_npy_vector(&dir.join("velocity.npy")).unwrap();
+    assert_eq!(g.name, "velocity");
+    assert_eq!((g.voxel_size, g.origin), (0.5, [0.25, -0.5, 1.0]));
+    for (got, want) in g.components.iter().zip(&want) {
+        assert_eq!(got.origin(), Coord::new(-4, 0, 0));
+        assert_eq!(got.dims(), want.dims());
+        assert_eq!(got.data(), want.data());
+    }
+    // The tile's value, and a voxel of the rotation: u(x, y, z) = (−0.3 (y − 8), 0.3 (x − 4), 0.05 z + 0.125).
+    let at = |c: Coord| g.components.each_ref().map(|f| f.get(c).unwrap());
+    assert_eq!(at(Coord::new(20, 3, 5)), [1.0, 2.0, 3.0]);
+    assert_eq!(at(Coord::new(1, 10, 4)), [-0.3 * 2.0, 0.3 * -3.0, 0.05 * 4.0 + 0.125]);
+    // By name; a float grid is not a vector grid.
+    assert!(sparse_levelset::io::vdb::load_vector_grid(
+        &dir.join("velocity.vdb"),
+        Some("velocity")
+    )
+    .is_ok());
+    let e = sparse_levelset::io::vdb::load_vector_grid(&dir.join("velocity.vdb"), Some("density"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not a vector grid"), "{e}");
+    let e = sparse_levelset::io::vdb::load_vector_grid(&dir.join("sphere_blosc.vdb"), None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no vector grid (type Tree_vec3s_5_4_3) in the file"), "{e}");
+    // Every prefix of the file is refused, never a panic.
+    let bytes = std::fs::read(dir.join("velocity.vdb")).unwrap();
+    for cut in (0..bytes.len()).step_by(97) {
+        assert!(sparse_levelset::io::vdb::decode_vector_grid(&bytes[..cut], None).is_err());
+    }
+}

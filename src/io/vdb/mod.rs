@@ -308,6 +308,43 @@ pub fn load_grid(path: &Path, name: &str) -> Result<(TileGrid, VdbInfo), VdbErro
 /// voxel size, nudged by a few ulps so that half-width × voxel size gives the background
 /// back exactly where an `f32` allows it (files this module writes read back with their
 /// own spec).
+/// A vector grid (`Vec3s`, e.g. a velocity field) read by [`load_vector_grid`]: its three
+/// components as dense fields over the box of its active values, placed in the world by
+/// the grid's transform (voxel (i, j, k) at `(i, j, k) · voxel_size + origin`).
+#[derive(Clone, Debug)]
+pub struct VdbVectorGrid {
+    /// `[u_x, u_y, u_z]`, each with the box's first voxel as its origin.
+    pub components: [crate::storage::dense::DenseField; 3],
+    pub voxel_size: f64,
+    pub origin: [f64; 3],
+    pub name: String,
+}
+
+impl VdbVectorGrid {
+    /// The lattice of the components in the world (the half-width is not used).
+    pub fn spec(&self) -> Result<GridSpec, GridError> {
+        GridSpec::new(self.voxel_size as f32, self.origin, 3.0)
+    }
+}
+
+/// Decodes a vector grid (`Tree_vec3s_5_4_3`, full or half floats) of a `.vdb` file's
+/// bytes: the one named, or the first.
+pub fn decode_vector_grid(bytes: &[u8], name: Option<&str>) -> Result<VdbVectorGrid, VdbError> {
+    read::decode_vector(bytes, name)
+}
+
+/// Reads a vector grid of a `.vdb` file (the one named, or the first `Vec3s` grid) into
+/// dense components; the same checks as [`load`] (hostile files, NaN, memory before the
+/// dense box is allocated); errors name the file.
+pub fn load_vector_grid(path: &Path, name: Option<&str>) -> Result<VdbVectorGrid, VdbError> {
+    let io = |source| VdbError::Io { path: path.display().to_string(), source };
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    crate::memory::check(24.0 * len as f64, "reading the .vdb file")
+        .map_err(|e| VdbError::from(e).at(path))?;
+    let bytes = std::fs::read(path).map_err(io)?;
+    read::decode_vector(&bytes, name).map_err(|e| e.at(path))
+}
+
 fn spec_from(voxel_size: f32, origin: [f64; 3], background: f32) -> Result<GridSpec, VdbError> {
     let hw = background / voxel_size;
     let exact = (1..=4u32)

@@ -8,6 +8,7 @@ use super::{blosc, compression_name, spec_from, VdbError, VdbInfo};
 use super::{COMPRESS_ACTIVE_MASK, COMPRESS_BLOSC, COMPRESS_ZIP, FILE_VERSION, MAGIC};
 use crate::coord::Coord;
 use crate::io::bytes::{ByteReader as Reader, ReadError};
+use crate::storage::dense::DenseField;
 use crate::storage::tiles::{voxel_of, Tile, TileGrid};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -443,7 +444,7 @@ fn choose_grid(
             };
             if !fits(&grids[i]) {
                 return Err(VdbError::NoGrid(format!(
-                    "grid {} is not {what}",
+                    "grid {} is not a {what}",
                     grids[i].describe()
                 )));
             }
@@ -480,7 +481,7 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
                 g,
                 want,
                 named,
-                "a float level set (type Tree_float_5_4_3, class level set or unknown)",
+                "float level set (type Tree_float_5_4_3, class level set or unknown)",
             )
         })?,
         None => open_grid(bytes, |g| {
@@ -633,4 +634,182 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
         grids: grids.iter().map(GridEntry::describe).collect(),
     };
     Ok((grid, info))
+}
+
+/// A slot of an internal node or the root holding one value for its region: origin, log2
+/// of its edge in voxels, value, active.
+type VecTile = ([i32; 3], u32, [f32; 3], bool);
+
+/// An internal node's topology in a vector grid: its tiles that differ from the background
+/// or are active, and its leaves (origin and value mask).
+fn read_internal_vec(
+    r: &mut Reader,
+    ctx: &Ctx,
+    origin: [i32; 3],
+    upper: bool,
+    tiles: &mut Vec<VecTile>,
+    leaves: &mut Vec<([i32; 3], Vec<u64>)>,
+) -> Res<()> {
+    let (log2, child_total) =
+        if upper { (UPPER_LOG2, LOWER_TOTAL) } else { (LOWER_LOG2, LEAF_TOTAL) };
+    let n = 1usize << (3 * log2);
+    let child = r.mask(n, "an internal node's child mask")?;
+    let active = r.mask(n, "an internal node's value mask")?;
+    let values = read_values(r, ctx, n, &active)?;
+    for i in 0..n {
+        let at = add(origin, slot_offset(i, log2, child_total));
+        if bit(&child, i) {
+            if bit(&active, i) {
+                return corrupt(format!(
+                    "a slot at {} is both a child and an active tile",
+                    coord(at)
+                ));
+            }
+            continue;
+        }
+        let v = [values[3 * i], values[3 * i + 1], values[3 * i + 2]];
+        if bit(&active, i) || v != ctx.background {
+            tiles.push((at, child_total, v, bit(&active, i)));
+        }
+    }
+    for i in 0..n {
+        if !bit(&child, i) {
+            continue;
+        }
+        let at = add(origin, slot_offset(i, log2, child_total));
+        if upper {
+            r.count(1, 2 * 512 + 1, "internal nodes")?;
+            read_internal_vec(r, ctx, at, false, tiles, leaves)?;
+        } else {
+            leaves.push((at, r.mask(512, "a leaf's value mask")?));
+        }
+    }
+    Ok(())
+}
+
+/// A `Vec3s` grid (a velocity field, say) as three dense components over the box of its
+/// active values (active voxels and tiles, as OpenVDB's `evalActiveVoxelBoundingBox`);
+/// inactive tiles and leaf values inside the box keep their stored values, regions
+/// without a node the background.
+pub(super) fn decode_vector(bytes: &[u8], want: Option<&str>) -> Res<super::VdbVectorGrid> {
+    let is_vec = |e: &GridEntry| {
+        e.type_name == "Tree_vec3s_5_4_3" || e.type_name == "Tree_vec3s_5_4_3_HalfFloat"
+    };
+    let Opened { mut r, grids, chosen, offsets, flags, half, meta, translation, scale, .. } =
+        open_grid(bytes, |g| choose_grid(g, want, is_vec, "vector grid (type Tree_vec3s_5_4_3)"))?;
+    let chosen = &grids[chosen];
+    let buffers = r.i32("the tree")?;
+    if buffers != 1 {
+        return Err(VdbError::Unsupported(format!(
+            "{buffers} buffers per leaf (OpenVDB writes 1)"
+        )));
+    }
+    let background = [r.f32("the tree")?, r.f32("the tree")?, r.f32("the tree")?];
+    if background.iter().any(|v| !v.is_finite()) {
+        return corrupt(format!("the background value {background:?} is not finite"));
+    }
+    let ctx = Ctx { flags, half, background, comps: 3 };
+    let ntiles = r.u32("the tree")?;
+    let nchildren = r.u32("the tree")?;
+    let ntiles = r.count(ntiles as u64, 25, "root tiles")?;
+    let nchildren = r.count(nchildren as u64, 12 + 2 * 4096 + 1, "root children")?;
+    let aligned = |o: [i32; 3]| o == node_origin(o, UPPER_TOTAL);
+    let mut tiles: Vec<VecTile> = Vec::new();
+    let mut leaves = Vec::new();
+    let mut roots = std::collections::HashSet::new();
+    for _ in 0..ntiles {
+        let o = [r.i32("a root tile")?, r.i32("a root tile")?, r.i32("a root tile")?];
+        let v = [r.f32("a root tile")?, r.f32("a root tile")?, r.f32("a root tile")?];
+        let active = r.u8("a root tile")? != 0;
+        if !aligned(o) || !roots.insert(o) {
+            return corrupt(format!("a root tile at {} off the grid or repeated", coord(o)));
+        }
+        tiles.push((o, UPPER_TOTAL, v, active));
+    }
+    for _ in 0..nchildren {
+        let o = [r.i32("a root child")?, r.i32("a root child")?, r.i32("a root child")?];
+        if !aligned(o) || !roots.insert(o) {
+            return corrupt(format!("a root child at {} off the grid or repeated", coord(o)));
+        }
+        read_internal_vec(&mut r, &ctx, o, true, &mut tiles, &mut leaves)?;
+    }
+    let mut values = Vec::with_capacity(leaves.len());
+    for (_, mask) in leaves.iter_mut() {
+        *mask = r.mask(512, "a leaf's value mask")?;
+        values.push(read_values(&mut r, &ctx, 512, mask)?);
+    }
+    if offsets && r.at != chosen.end {
+        return corrupt(format!(
+            "the grid ends at byte {} but its descriptor says {}",
+            r.at, chosen.end
+        ));
+    }
+    for ((o, _), vals) in leaves.iter().zip(&values) {
+        if let Some(n) = vals.iter().position(|v| v.is_nan()) {
+            return Err(VdbError::NaN { coord: coord(add(*o, slot_offset(n / 3, LEAF_LOG2, 0))) });
+        }
+    }
+    if let Some(t) = tiles.iter().find(|t| t.2.iter().any(|v| v.is_nan())) {
+        return Err(VdbError::NaN { coord: coord(t.0) });
+    }
+    // The box of the active values (i64: a tile's far corner may pass i32::MAX).
+    let mut lo = [i64::MAX; 3];
+    let mut hi = [i64::MIN; 3];
+    let mut grow = |o: [i32; 3], log2: u32| {
+        for a in 0..3 {
+            lo[a] = lo[a].min(o[a] as i64);
+            hi[a] = hi[a].max(o[a] as i64 + (1i64 << log2));
+        }
+    };
+    for (o, mask) in &leaves {
+        for n in (0..512).filter(|&n| bit(mask, n)) {
+            grow(add(*o, slot_offset(n, LEAF_LOG2, 0)), 0);
+        }
+    }
+    for t in tiles.iter().filter(|t| t.3) {
+        grow(t.0, t.1);
+    }
+    if lo[0] > hi[0] {
+        return Err(VdbError::NoGrid(format!("grid {} has no active value", chosen.describe())));
+    }
+    let dims = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
+    let origin = Coord::new(lo[0] as i32, lo[1] as i32, lo[2] as i32);
+    let mut fields = [
+        DenseField::new(origin, dims, background[0])?,
+        DenseField::new(origin, dims, background[1])?,
+        DenseField::new(origin, dims, background[2])?,
+    ];
+    // Tiles first (the larger first), then the leaves over them.
+    tiles.sort_by_key(|t| std::cmp::Reverse(t.1));
+    for (o, log2, v, _) in &tiles {
+        let (a, b): (Vec<i64>, Vec<i64>) = (0..3)
+            .map(|k| (lo[k].max(o[k] as i64), hi[k].min(o[k] as i64 + (1i64 << log2))))
+            .unzip();
+        for z in a[2]..b[2].max(a[2]) {
+            for y in a[1]..b[1].max(a[1]) {
+                for x in a[0]..b[0].max(a[0]) {
+                    let c = Coord::new(x as i32, y as i32, z as i32);
+                    for (f, val) in fields.iter_mut().zip(v) {
+                        f.set(c, *val)?;
+                    }
+                }
+            }
+        }
+    }
+    for ((o, _), vals) in leaves.iter().zip(&values) {
+        for n in 0..512 {
+            let c = coord(add(*o, slot_offset(n, LEAF_LOG2, 0)));
+            if fields[0].get(c).is_some() {
+                for (k, f) in fields.iter_mut().enumerate() {
+                    f.set(c, vals[3 * n + k])?;
+                }
+            }
+        }
+    }
+    Ok(super::VdbVectorGrid {
+        components: fields,
+        voxel_size: scale,
+        origin: translation,
+        name: meta.name.unwrap_or_else(|| chosen.name.clone()),
+    })
 }

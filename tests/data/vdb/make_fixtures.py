@@ -20,6 +20,12 @@ Fixtures:
                  (vdb_tool codec=zip): read by name
   sphere_half    saved as half floats (saveFloatAsHalf, Blosc)
   two_grids      a fog volume first, then a level set: the reader picks the level set
+  velocity       a Vec3s grid (a rotation about an axis plus a drift) on the voxels
+                 [-4, 12) x [0, 16) x [2, 18), voxel size 0.5, translation (0.25, -0.5, 1),
+                 and an active 8^3 tile of (1, 2, 3) at [16, 24) x [0, 8) x [0, 8)
+                 (a tile of a lower internal node), behind a float grid; velocity.npy
+                 holds what OpenVDB reads on the box [-4, 24) x [0, 16) x [0, 18), as
+                 float32 of shape (nz, ny, nx, 3)
 """
 import subprocess
 
@@ -85,6 +91,21 @@ def main():
     ls = sphere(4.0, (8.0, 8.0, 8.0), half_width=2.0, name="surface")
     vdb.write("two_grids.vdb", grids=[fog, ls])
     dump(vdb.read("two_grids.vdb", "surface"), "two_grids")
+
+    vel = vdb.Vec3SGrid()
+    vel.name = "velocity"
+    ijk = np.indices((16, 16, 16)).astype(np.float32)  # [axis, i, j, k]
+    x, y, z = ijk[0] - 4, ijk[1], ijk[2] + 2
+    field = np.stack([-0.3 * (y - 8.0), 0.3 * (x - 4.0), 0.05 * z + 0.125], axis=-1)
+    vel.copyFromArray(np.ascontiguousarray(field, dtype=np.float32), ijk=(-4, 0, 2))
+    vel.fill((16, 0, 0), (23, 7, 7), (1.0, 2.0, 3.0), True)
+    vel.transform = vdb.createLinearTransform(voxelSize=0.5)
+    vel.transform.translate((0.25, -0.5, 1.0))
+    vdb.write("velocity.vdb", grids=[fog, vel])
+    back = vdb.read("velocity.vdb", "velocity")
+    out = np.zeros((28, 16, 18, 3), dtype=np.float32)  # [x, y, z, c] from (-4, 0, 0)
+    back.copyToArray(out, ijk=(-4, 0, 0))
+    np.save("velocity.npy", np.ascontiguousarray(out.transpose(2, 1, 0, 3)))
 
     subprocess.run(["rm", "-f", "tmp.vdb"], check=True)
 

@@ -49,10 +49,11 @@ pub struct EvolveArgs {
     pub volume_conserving: bool,
     /// Advect by a velocity field u (φ_t + u·∇φ = 0, world units per unit time): a float32
     /// .npy of shape (nz, ny, nx, 3) on the level set's lattice, element [0, 0, 0] at voxel
-    /// --velocity-origin; trilinear between voxels, the nearest face's value beyond.
-    #[arg(long, value_name = "FILE.npy")]
+    /// --velocity-origin, or an OpenVDB .vdb's first vector grid (Vec3s) placed by its own
+    /// transform; trilinear between voxels, the nearest face's value beyond.
+    #[arg(long, value_name = "FILE.npy|FILE.vdb")]
     pub velocity: Option<PathBuf>,
-    /// The voxel (x, y, z) of the level set's lattice where the velocity field's element
+    /// The voxel (x, y, z) of the level set's lattice where a .npy velocity field's element
     /// [0, 0, 0] lies.
     #[arg(long, value_name = "X,Y,Z", default_value = "0,0,0", value_parser = parse_voxel)]
     pub velocity_origin: Coord,
@@ -87,18 +88,6 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     if let Some(s) = &a.summary {
         check_output(s)?;
     }
-    // The velocity field is read before the level set: a bad file is refused first.
-    let velocity = match &a.velocity {
-        Some(p) => Some(
-            io::npy::read_npy_vector(p)
-                .map_err(|e| e.to_string())?
-                .into_iter()
-                .map(|f| f.with_origin(a.velocity_origin))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(|e| format!("{}: {e}", p.display()))?,
-        ),
-        None => None,
-    };
     let (pool, threads) = a.grid.pool()?;
     let pool = std::sync::Arc::new(pool);
     let name = a.input.display().to_string();
@@ -110,11 +99,15 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         AnyLevelSet::Tiles(t) => t,
         AnyLevelSet::Hrle(h) => tiles_from(&h),
     };
-    let velocity = match velocity {
-        Some(fields) => Some(Velocity::Field(Arc::new(
-            SampledVelocity::new(fields.try_into().expect("three components"), *tiles.spec())
-                .map_err(|e| format!("{name}: {e}"))?,
-        ))),
+    // The velocity field: on the level set's lattice (a .npy) or its own (a .vdb).
+    let velocity = match &a.velocity {
+        Some(p) => {
+            let f = io::load_vector_field(p, tiles.spec(), a.velocity_origin)
+                .map_err(|e| e.to_string())?;
+            let u = SampledVelocity::new(f.components, f.spec)
+                .map_err(|e| format!("{}: {e}", p.display()))?;
+            Some(Velocity::Field(Arc::new(u)))
+        }
         None => None,
     };
     let flow = Flow {
