@@ -164,12 +164,12 @@ fn read_values(r: &mut Reader, ctx: &Ctx, n: usize, active: &[u64]) -> Res<Vec<f
     let bg = ctx.background;
     let mut inactive = [if metadata == 0 { bg } else { bg.map(|v| -v) }, bg];
     if matches!(metadata, 2 | 4 | 5) {
-        for c in 0..k {
-            inactive[0][c] = r.f32("a node's inactive value")?;
+        for v in &mut inactive[0][..k] {
+            *v = r.f32("a node's inactive value")?;
         }
         if metadata == 5 {
-            for c in 0..k {
-                inactive[1][c] = r.f32("a node's inactive value")?;
+            for v in &mut inactive[1][..k] {
+                *v = r.f32("a node's inactive value")?;
             }
         }
     }
