@@ -176,11 +176,12 @@ class _Fmm:
 
 
 _FMM_NOTES = """
-    Compatibility with scikit-fmm: the same arguments (``self_test`` is accepted and
-    ignored: the heap is checked by the library's own tests), masked arrays as obstacles,
-    ``periodic`` as a bool or one per axis, ``dx`` as a number or one per axis, a masked
-    result exactly where the march did not reach (obstacles, regions the obstacles cut off,
-    beyond ``narrow``; masked elements hold 0). Differences, each on purpose:
+    As in scikit-fmm: the same arguments in the same order (``self_test`` is accepted and
+    ignored: the heap is checked by the library's own tests); masked arrays as obstacles;
+    ``periodic`` as a bool or one per axis; ``dx`` as a number or one per axis; elements
+    with ``phi == 0`` exactly lie on the zero contour; the result is masked exactly where
+    the march did not reach (obstacles, regions the obstacles cut off, beyond ``narrow``;
+    masked elements hold 0), a plain array otherwise. Differences, each on purpose:
 
     * arrays of 1 to 3 dimensions (scikit-fmm: up to 12); the work is done in float32 and
       the result has the input's float dtype (float64 for float64, float32 otherwise;
@@ -189,14 +190,23 @@ _FMM_NOTES = """
       differences, capped by the linearly interpolated crossings on their edges) rather
       than from the crossings alone: exact for a linear ``phi`` and blind to the scaling of
       ``phi``, hence more accurate when ``phi`` is not a distance;
-    * an element with ``phi == 0`` exactly lies on the zero contour, as in scikit-fmm; an
-      array with neither a sign change nor a zero raises ``ValueError``;
-    * errors are ``ValueError`` with the reason (NaN in ``phi``, shapes that differ, a bad
-      ``dx``, ``order``, ``narrow`` or ``periodic``, no zero contour); ``KeyboardInterrupt``
-      on Ctrl-C or when ``progress`` raises.
+    * a periodic axis respects the mask across its faces too (scikit-fmm reads masked
+      neighbours there);
+    * NaN in ``phi`` (outside the mask) is a ``ValueError``, like every other bad input
+      (shapes that differ, a bad ``dx``, ``order``, ``narrow``, ``periodic`` or
+      ``self_test``, no zero contour); Ctrl-C, or an exception raised by ``progress``,
+      stops the call.
 """
 
 
+def _with_fmm_notes(f):
+    """Appends the notes on scikit-fmm compatibility to `f`'s docstring (none under -OO)."""
+    if f.__doc__:
+        f.__doc__ += _FMM_NOTES
+    return f
+
+
+@_with_fmm_notes
 def distance(
     phi,
     dx: Union[float, Sequence[float]] = 1.0,
@@ -237,9 +247,8 @@ def distance(
     return f.result(values, reached)
 
 
-distance.__doc__ += _FMM_NOTES
 
-
+@_with_fmm_notes
 def travel_time(
     phi,
     speed,
@@ -272,9 +281,8 @@ def travel_time(
     return f.result(values, reached)
 
 
-travel_time.__doc__ += _FMM_NOTES
 
-
+@_with_fmm_notes
 def extension_velocities(
     phi,
     speed,
@@ -297,7 +305,10 @@ def extension_velocities(
     averaged over the axes with the weights of scikit-fmm; ``ext_mask`` (a boolean array of
     ``phi``'s shape) marks elements whose own value must not be used there (the
     neighbour's across the contour is taken instead). Every other element takes the
-    average of its upwind neighbours' values weighted by their share in its distance.
+    average of its upwind neighbours' values weighted by their share in its distance: each
+    axis's component of ``grad d``, from the second-order one-sided difference where the
+    element two steps upwind is known (scikit-fmm always takes the first-order one; the
+    second-order one follows the normals more closely, so the extension is more accurate).
     Masked elements of ``speed`` join the obstacles. The other arguments are those of
     :func:`distance`; both results are masked where the march did not reach.
     """
@@ -309,8 +320,6 @@ def extension_velocities(
     )
     return f.result(d, reached), f.result(ext, reached)
 
-
-extension_velocities.__doc__ += _FMM_NOTES
 
 
 def isosurface(
