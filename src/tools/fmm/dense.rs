@@ -110,14 +110,11 @@ fn checked_lattice(
     if grid.dims.iter().any(|&n| n > i32::MAX as usize) {
         return bad(format!("the grid's dims {:?} exceed the coordinate range", grid.dims));
     }
-    let n = grid.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
-    if n != Some(phi.len()) {
-        return bad(format!(
-            "phi has {} values, the grid {:?} needs {:?}",
-            phi.len(),
-            grid.dims,
-            n
-        ));
+    let Some(n) = grid.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d)) else {
+        return bad(format!("the grid's dims {:?} hold too many voxels", grid.dims));
+    };
+    if n != phi.len() {
+        return bad(format!("phi has {} values, the grid {:?} has {n}", phi.len(), grid.dims));
     }
     if grid.spacing.iter().any(|h| !(h.is_finite() && *h > 0.0)) {
         return bad(format!("the spacing must be finite and > 0, got {:?}", grid.spacing));
