@@ -1,5 +1,5 @@
-//! Functions on dense arrays: `distance`, `travel_time` and `extension_velocities`
-//! (scikit-fmm's), `isosurface` (scikit-image's `marching_cubes`), and mesh files.
+//! Functions on dense arrays: `distance` (scikit-fmm's), `isosurface` (scikit-image's
+//! `marching_cubes`), and mesh files.
 
 use crate::arrays::{rows3, to_rows, FacesArrays, IsoArrays, Volume};
 use crate::watch;
@@ -129,8 +129,8 @@ fn distance<'py>(
     Ok((vol.to_py(py, out.values)?, to_array(py, &vol, out.reached)?))
 }
 
-/// Travel time from the zero contour of `phi` with speed `speed` (see the Python docs):
-/// `(time, reached)`.
+/// Travel time from the zero contour of `phi` with speed `speed` (scikit-fmm's
+/// `travel_time`; see the Python docs): `(time, reached)`.
 #[pyfunction]
 #[pyo3(signature = (phi, speed, dx, order, narrow, periodic, mask=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
@@ -156,8 +156,8 @@ fn travel_time<'py>(
     Ok((vol.to_py(py, out.values)?, to_array(py, &vol, out.reached)?))
 }
 
-/// Signed distance and `speed` extended from the zero contour of `phi` (see the Python
-/// docs): `(distance, reached, extension)`.
+/// Signed distance and `speed` extended from the zero contour of `phi` (scikit-fmm's
+/// `extension_velocities`; see the Python docs): `(distance, reached, extension)`.
 #[pyfunction]
 #[pyo3(signature = (phi, speed, dx, order, narrow, periodic, mask=None, ext_mask=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
