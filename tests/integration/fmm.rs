@@ -917,3 +917,30 @@ fn dense_bad_input_is_an_error_before_any_work() {
         .unwrap();
     assert_eq!(z.values, [0.0, 0.5, 1.0, 1.5]);
 }
+
+#[test]
+fn dense_progress_counts_voxels_and_cancels() {
+    use sparse_levelset::progress::Progress;
+    use std::sync::{Arc, Mutex};
+    // 40 x 40 x 24 voxels: reports every 2^14 frozen voxels, as a share of the array.
+    let dims = [40, 40, 24];
+    let phi = dense_field(dims, [1.0; 3], |p| norm(p, [20.0, 20.0, 12.0]) - 6.0);
+    let grid = DenseGrid::new(dims, 1.0);
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let s = seen.clone();
+    let progress = Progress::new(move |done, total| {
+        s.lock().unwrap().push((done, total));
+        true
+    });
+    let o = DenseOptions { progress, ..Default::default() };
+    fmm::dense_distance(&phi, &grid, None, &o).unwrap();
+    let seen = seen.lock().unwrap().clone();
+    assert!(seen.len() >= 2, "{seen:?}");
+    assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
+    let (done, total) = *seen.last().unwrap();
+    assert!(total > 0 && done == total && seen[0].0 < total, "{seen:?}");
+    // A callback that answers false stops the march.
+    let o = DenseOptions { progress: Progress::new(|_, _| false), ..Default::default() };
+    let r = fmm::dense_travel_time(&phi, &vec![1.0; phi.len()], &grid, None, &o);
+    assert!(matches!(r, Err(FmmError::Cancelled(_))), "{r:?}");
+}

@@ -78,7 +78,9 @@ pub struct DenseOptions {
 /// 0.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DenseMarch {
+    /// The marched value (distance in world units, or travel time) per voxel.
     pub values: Vec<f32>,
+    /// Whether the march froze the voxel (false: an obstacle, cut off, beyond `narrow`).
     pub reached: Vec<bool>,
 }
 
@@ -86,7 +88,9 @@ pub struct DenseMarch {
 /// (0 where not reached).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DenseExtension {
+    /// The signed distance, as [`dense_distance`] gives it.
     pub distance: DenseMarch,
+    /// The extended field per voxel.
     pub extension: Vec<f32>,
 }
 
