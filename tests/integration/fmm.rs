@@ -1,5 +1,7 @@
 //! Fast marching (Bærentzen 2001): the accuracy experiment of Table 1,
-//! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input.
+//! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input;
+//! the dense marches of scikit-fmm's functions (per-axis spacing, periodic axes,
+//! obstacles, travel times, extension velocities).
 //! Run with `--nocapture` to see the errors and timings.
 
 use sparse_levelset::grid::GridSpec;
