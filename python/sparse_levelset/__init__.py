@@ -42,6 +42,8 @@ from . import _native
 
 __all__ = [
     "distance",
+    "travel_time",
+    "extension_velocities",
     "isosurface",
     "LevelSet",
     "Simulation",
@@ -92,53 +94,232 @@ def _spacing(spacing, ndim: int, name: str = "spacing") -> Tuple[float, ...]:
     return tuple(float(v) for v in s)
 
 
+class _Fmm:
+    """The arguments of a scikit-fmm call, checked and laid out for the native functions:
+    ``phi`` as a 3-D float32 array (1-D and 2-D arrays get leading axes of length 1), the
+    obstacle mask, ``dx`` and ``periodic`` per axis of that array, ``narrow``."""
+
+    def __init__(self, phi, dx, order, narrow, periodic, self_test):
+        if self_test not in (0, 1):
+            raise ValueError("self_test must be 0 or 1")
+        if not (isinstance(order, (int, np.integer)) and order in (1, 2)):
+            raise ValueError(f"order must be 1 or 2, got {order!r}")
+        self.out_dtype = np.float64 if np.asarray(phi).dtype == np.float64 else np.float32
+        mask = np.ma.getmaskarray(phi) if isinstance(phi, np.ma.MaskedArray) else None
+        a = _float32(np.ma.getdata(phi), "phi", ndims=(1, 2, 3))
+        nd = a.ndim
+        self.shape = a.shape
+        pad = (1,) * (3 - nd)
+        self.phi = a.reshape(pad + a.shape)
+        self.fortran = self.phi.flags.f_contiguous and not self.phi.flags.c_contiguous
+        d = np.asarray(dx, dtype=np.float64)
+        if d.ndim == 0:
+            d = np.full(nd, float(d))
+        if d.shape != (nd,):
+            raise ValueError(f"dx must be a number or one per axis of phi ({nd}), got {dx!r}")
+        if not np.all(np.isfinite(d)) or np.any(d <= 0):
+            raise ValueError(f"dx must be finite and greater than zero, got {tuple(d)}")
+        self.dx = (1.0,) * (3 - nd) + tuple(float(v) for v in d)
+        if isinstance(periodic, (bool, np.bool_)):
+            per = (bool(periodic),) * nd
+        elif hasattr(periodic, "__len__") and len(periodic) == nd:
+            per = tuple(bool(v) for v in periodic)
+        else:
+            raise ValueError(
+                'parameter "periodic" must be of type bool or sequence of type bool of '
+                f"length phi.ndim ({nd}), got {periodic!r}"
+            )
+        self.periodic = (False,) * (3 - nd) + per
+        if narrow is None:
+            narrow = 0.0
+        narrow = float(narrow)
+        if not narrow >= 0 or not np.isfinite(narrow):
+            raise ValueError(
+                f'parameter "narrow" must be greater than or equal to zero, got {narrow}'
+            )
+        self.narrow = narrow if narrow > 0 else None
+        self.mask = None if mask is None or not mask.any() else self.laid_out(mask, "mask", bool)
+
+    def laid_out(self, b, name: str, dtype):
+        """``b`` (of ``phi``'s shape) as a 3-D array in ``phi``'s memory order."""
+        b = np.asarray(b)
+        if b.shape != self.shape:
+            raise ValueError(
+                f"phi and {name} must have the same shape, got {self.shape} and {b.shape}"
+            )
+        b = b.reshape(self.phi.shape)
+        if self.fortran:
+            return np.asfortranarray(b, dtype=dtype)
+        return np.ascontiguousarray(b, dtype=dtype)
+
+    def speed(self, speed):
+        """``speed`` as float32 laid out like ``phi``; its masked elements join the
+        obstacles."""
+        if isinstance(speed, np.ma.MaskedArray):
+            m = np.ma.getmaskarray(speed)
+            if np.shape(m) == self.shape and m.any():
+                m3 = self.laid_out(m, "speed", bool)
+                self.mask = m3 if self.mask is None else (self.mask | m3)
+            speed = np.ma.getdata(speed)
+        s = np.asarray(speed)
+        if s.dtype.kind not in "fiub" or s.ndim == 0:
+            raise ValueError(f"speed must be a real-valued array of phi's shape, got {speed!r}")
+        return self.laid_out(s, "speed", np.float32)
+
+    def result(self, values, reached):
+        """An array of ``phi``'s shape and output dtype, masked where the march did not
+        reach (as scikit-fmm: a plain array when every element was reached)."""
+        out = values.reshape(self.shape).astype(self.out_dtype, copy=False)
+        if reached.all():
+            return out
+        return np.ma.MaskedArray(out, ~reached.reshape(self.shape))
+
+
+_FMM_NOTES = """
+    As in scikit-fmm: the same arguments in the same order (``self_test`` is accepted and
+    ignored: the heap is checked by the library's own tests); masked arrays as obstacles;
+    ``periodic`` as a bool or one per axis; ``dx`` as a number or one per axis; elements
+    with ``phi == 0`` exactly lie on the zero contour; the result is masked exactly where
+    the march did not reach (obstacles, regions the obstacles cut off, beyond ``narrow``;
+    masked elements hold 0), a plain array otherwise. Differences, each on purpose:
+
+    * arrays of 1 to 3 dimensions (scikit-fmm: up to 12); the work is done in float32 and
+      the result has the input's float dtype (float64 for float64, float32 otherwise;
+      scikit-fmm always returns float64);
+    * the elements next to the zero contour start from ``|phi| / |grad phi|`` (central
+      differences, capped by the linearly interpolated crossings on their edges) rather
+      than from the crossings alone: exact for a linear ``phi`` and blind to the scaling of
+      ``phi``, hence more accurate when ``phi`` is not a distance;
+    * a periodic axis respects the mask across its faces too (scikit-fmm reads masked
+      neighbours there);
+    * NaN in ``phi`` (outside the mask) is a ``ValueError``, like every other bad input
+      (shapes that differ, a bad ``dx``, ``order``, ``narrow``, ``periodic`` or
+      ``self_test``, no zero contour); Ctrl-C, or an exception raised by ``progress``,
+      stops the call.
+"""
+
+
+def _with_fmm_notes(f):
+    """Appends the notes on scikit-fmm compatibility to `f`'s docstring (none under -OO)."""
+    if f.__doc__:
+        f.__doc__ += _FMM_NOTES
+    return f
+
+
+@_with_fmm_notes
 def distance(
     phi,
     dx: Union[float, Sequence[float]] = 1.0,
+    self_test: bool = False,
     order: int = 2,
-    narrow: Optional[float] = None,
-    periodic: bool = False,
+    narrow: Optional[float] = 0.0,
+    periodic: Union[bool, Sequence[bool]] = False,
     *,
     progress: Progress = None,
 ):
     """Signed distance to the zero contour of ``phi`` by fast marching, as
-    ``skfmm.distance(phi, dx, order=order, narrow=narrow)``.
+    ``skfmm.distance`` (same arguments, same order).
 
-    ``phi`` is a 1-, 2- or 3-D array; negative values are inside. The zero contour is
-    located by linear interpolation between neighbouring values of opposite sign, the
-    distance marched outward from it with first- or second-order (default) upwind
-    updates (Sethian's high-accuracy fast marching for ``order=2``).
+    ``phi`` is a 1-, 2- or 3-D array (or ``numpy.ma`` masked array: masked elements are
+    obstacles the front does not cross); negative values are inside, and the result has
+    the sign of ``phi``. The zero contour is located between neighbouring values of
+    opposite sign, the distance marched outward from it with first- or second-order
+    (default) upwind updates (Sethian's high-accuracy fast marching for ``order=2``), each
+    axis's differences divided by its spacing.
 
     Parameters
     ----------
-    dx : grid spacing, one value or one per axis (they must be equal: the march is
-        isotropic).
+    dx : grid spacing, one number or one per axis of ``phi`` (finite, > 0).
+    self_test : accepted for compatibility (0 or 1), no effect.
     order : 1 or 2.
-    narrow : compute distances only up to this distance (world units, > ``dx``); the result
-        is then a masked array whose elements at or beyond ``narrow`` are masked (and hold
-        ``±narrow``). ``None`` or 0: every element.
-    periodic : not supported (``ValueError`` if true).
+    narrow : march only up to this distance (world units, >= 0; 0 or ``None``: everywhere);
+        elements farther away are masked.
+    periodic : ``True`` for periodic boundaries along every axis, or one bool per axis.
+    progress : optional callback (see the module docs).
 
-    Returns an array of ``phi``'s shape, float64 for a float64 input, float32 otherwise.
-    Raises ``ValueError`` when ``phi`` has no zero contour or holds NaN.
+    Returns an array of ``phi``'s shape, or a masked array when some element was not
+    reached.
     """
-    if periodic:
-        raise ValueError("periodic boundaries are not supported")
-    out_dtype = np.float64 if np.asarray(phi).dtype == np.float64 else np.float32
-    a = _float32(phi, "phi", ndims=(1, 2, 3))
-    nd = a.ndim
-    d = _spacing(dx, nd, "dx")
-    if max(d) != min(d):
-        raise ValueError(f"dx must be the same along every axis (isotropic march), got {d}")
-    a3 = a.reshape((1,) * (3 - nd) + a.shape) if nd < 3 else a
-    if narrow is not None and narrow < 0:
-        raise ValueError(f'parameter "narrow" must be >= 0, got {narrow}')
-    half_width = float(narrow) / d[0] if narrow else None
-    out = _native.distance(a3, d[0], int(order), half_width, progress)
-    out = out.reshape(a.shape).astype(out_dtype, copy=False)
-    if narrow:
-        return np.ma.masked_array(out, mask=np.abs(out) >= np.float32(narrow))
-    return out
+    f = _Fmm(phi, dx, order, narrow, periodic, self_test)
+    values, reached = _native.distance(
+        f.phi, f.dx, int(order), f.narrow, f.periodic, f.mask, progress
+    )
+    return f.result(values, reached)
+
+
+
+@_with_fmm_notes
+def travel_time(
+    phi,
+    speed,
+    dx: Union[float, Sequence[float]] = 1.0,
+    self_test: bool = False,
+    order: int = 2,
+    narrow: Optional[float] = 0.0,
+    periodic: Union[bool, Sequence[bool]] = False,
+    *,
+    progress: Progress = None,
+):
+    """Travel time of a front that starts at the zero contour of ``phi`` and moves with
+    ``speed`` (world units per time unit), as ``skfmm.travel_time`` (same arguments, same
+    order): the solution ``T >= 0`` of ``|grad T| * speed = 1`` on both sides of the
+    contour.
+
+    ``speed`` has ``phi``'s shape. Elements with ``speed`` below the double-precision
+    epsilon (in particular 0), masked elements of ``phi`` or ``speed``, are obstacles and
+    come back masked, as in scikit-fmm. A negative or non-finite speed raises
+    ``ValueError`` (scikit-fmm masks negative speeds silently; a negative speed is a
+    mistake, not an obstacle). The elements next to the contour start at their distance
+    over their own speed, as in scikit-fmm. ``narrow`` bounds the travel time. The other
+    arguments are those of :func:`distance`.
+    """
+    f = _Fmm(phi, dx, order, narrow, periodic, self_test)
+    sp = f.speed(speed)
+    values, reached = _native.travel_time(
+        f.phi, sp, f.dx, int(order), f.narrow, f.periodic, f.mask, progress
+    )
+    return f.result(values, reached)
+
+
+
+@_with_fmm_notes
+def extension_velocities(
+    phi,
+    speed,
+    dx: Union[float, Sequence[float]] = 1.0,
+    self_test: bool = False,
+    order: int = 2,
+    ext_mask=None,
+    narrow: Optional[float] = 0.0,
+    periodic: Union[bool, Sequence[bool]] = False,
+    *,
+    progress: Progress = None,
+):
+    """The signed distance of :func:`distance` and ``speed`` extended from the zero contour
+    of ``phi`` along the distance's normals (``grad f_ext . grad d = 0``, after
+    Adalsteinsson and Sethian 1999), as ``skfmm.extension_velocities`` (same arguments,
+    same order): returns ``(d, f_ext)``.
+
+    Only ``speed`` next to the zero contour is read (any finite value): each of those
+    elements takes ``speed`` interpolated to the nearest crossing along each axis,
+    averaged over the axes with the weights of scikit-fmm; ``ext_mask`` (a boolean array of
+    ``phi``'s shape) marks elements whose own value must not be used there (the
+    neighbour's across the contour is taken instead). Every other element takes the
+    average of its upwind neighbours' values weighted by their share in its distance: each
+    axis's component of ``grad d``, from the second-order one-sided difference where the
+    element two steps upwind is known (scikit-fmm always takes the first-order one; the
+    second-order one follows the normals more closely, so the extension is more accurate).
+    Masked elements of ``speed`` join the obstacles. The other arguments are those of
+    :func:`distance`; both results are masked where the march did not reach.
+    """
+    f = _Fmm(phi, dx, order, narrow, periodic, self_test)
+    sp = f.speed(speed)
+    em = None if ext_mask is None else f.laid_out(ext_mask, "ext_mask", bool)
+    d, reached, ext = _native.extension_velocities(
+        f.phi, sp, f.dx, int(order), f.narrow, f.periodic, f.mask, em, progress
+    )
+    return f.result(d, reached), f.result(ext, reached)
+
 
 
 def isosurface(

@@ -12,9 +12,40 @@ _Progress = Optional[Callable[[dict], object]]
 _F32 = npt.NDArray[np.float32]
 _Mesh = Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint32], _F32]
 
+_Bool = npt.NDArray[np.bool_]
+_Axes3 = Tuple[float, float, float]
+_Periodic3 = Tuple[bool, bool, bool]
+
 def distance(
-    phi: _F32, dx: float, order: int, half_width: Optional[float], progress: _Progress = ...
-) -> _F32: ...
+    phi: _F32,
+    dx: _Axes3,
+    order: int,
+    narrow: Optional[float],
+    periodic: _Periodic3,
+    mask: Optional[_Bool] = ...,
+    progress: _Progress = ...,
+) -> Tuple[_F32, _Bool]: ...
+def travel_time(
+    phi: _F32,
+    speed: _F32,
+    dx: _Axes3,
+    order: int,
+    narrow: Optional[float],
+    periodic: _Periodic3,
+    mask: Optional[_Bool] = ...,
+    progress: _Progress = ...,
+) -> Tuple[_F32, _Bool]: ...
+def extension_velocities(
+    phi: _F32,
+    speed: _F32,
+    dx: _Axes3,
+    order: int,
+    narrow: Optional[float],
+    periodic: _Periodic3,
+    mask: Optional[_Bool] = ...,
+    ext_mask: Optional[_Bool] = ...,
+    progress: _Progress = ...,
+) -> Tuple[_F32, _Bool, _F32]: ...
 def isosurface(
     volume: _F32, level: float, spacing: Tuple[float, float, float], progress: _Progress = ...
 ) -> Tuple[_F32, npt.NDArray[np.uint32], _F32]: ...

@@ -3,17 +3,20 @@
 
 use crate::arrays::{rows3, to_rows, FacesArrays, IsoArrays, Volume};
 use crate::watch;
-use numpy::{PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::ndarray::{Array3, ShapeBuilder};
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::storage::dense::DenseField;
-use sparse_levelset::tools::fmm::{self, FmmOptions, Order};
+use sparse_levelset::tools::fmm::{self, Order};
 use sparse_levelset::tools::mesh::{self, TriangleMesh};
 use sparse_levelset::Coord;
 use std::path::PathBuf;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(distance, m)?)?;
+    m.add_function(wrap_pyfunction!(travel_time, m)?)?;
+    m.add_function(wrap_pyfunction!(extension_velocities, m)?)?;
     m.add_function(wrap_pyfunction!(isosurface, m)?)?;
     m.add_function(wrap_pyfunction!(save_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(load_mesh, m)?)?;
@@ -28,33 +31,169 @@ pub(crate) fn order_of(order: u8) -> PyResult<Order> {
     }
 }
 
-/// Signed distance to the zero contour of `phi` by fast marching (see the Python docs).
+/// The values of `a`, an array of `phi`'s shape and memory order (C or Fortran, as read
+/// into `vol`), in `vol`'s lattice order.
+fn like_phi<T: numpy::Element + Copy>(
+    a: &PyReadonlyArray3<'_, T>,
+    vol: &Volume,
+    what: &str,
+) -> PyResult<Vec<T>> {
+    let s = a.shape();
+    if s != vol.shape {
+        return Err(crate::value_error(format!(
+            "phi and {what} must have the same shape, got {:?} and {s:?}",
+            vol.shape
+        )));
+    }
+    let fortran = !a.is_c_contiguous() && a.is_fortran_contiguous();
+    match a.as_slice() {
+        Ok(d) if fortran == vol.fortran => Ok(d.to_vec()),
+        _ => Err(crate::value_error(format!(
+            "{what} must be contiguous in the same order as phi (C or Fortran)"
+        ))),
+    }
+}
+
+/// Lattice-ordered data as an array of `vol`'s shape and order.
+fn to_array<'py, T: numpy::Element>(
+    py: Python<'py>,
+    vol: &Volume,
+    data: Vec<T>,
+) -> PyResult<Bound<'py, PyArray3<T>>> {
+    let [a, b, c] = vol.shape;
+    let arr = if vol.fortran {
+        Array3::from_shape_vec((a, b, c).f(), data)
+    } else {
+        Array3::from_shape_vec((a, b, c), data)
+    }
+    .map_err(crate::value_error)?;
+    Ok(arr.into_pyarray(py))
+}
+
+/// `(values, reached)` as arrays of the input's shape.
+type Marched<'py> = (Bound<'py, PyArray3<f32>>, Bound<'py, PyArray3<bool>>);
+
+/// `(distance, reached, extension)` as arrays of the input's shape.
+type Extended<'py> =
+    (Bound<'py, PyArray3<f32>>, Bound<'py, PyArray3<bool>>, Bound<'py, PyArray3<f32>>);
+
+/// `phi` read, the dense grid (with `dx` and `periodic` given per array axis), the
+/// options' order.
+fn dense_setup(
+    phi: &PyReadonlyArray3<'_, f32>,
+    dx: [f64; 3],
+    periodic: [bool; 3],
+    order: u8,
+) -> PyResult<(Volume, fmm::DenseGrid, Order)> {
+    let order = order_of(order)?;
+    let vol = Volume::from_array(phi)?;
+    let axis = vol.axis_of();
+    let grid = fmm::DenseGrid {
+        dims: vol.dims,
+        spacing: axis.map(|a| dx[a]),
+        periodic: axis.map(|a| periodic[a]),
+    };
+    Ok((vol, grid, order))
+}
+
+fn mask_of(
+    mask: Option<PyReadonlyArray3<'_, bool>>,
+    vol: &Volume,
+    what: &str,
+) -> PyResult<Option<Vec<bool>>> {
+    mask.map(|m| like_phi(&m, vol, what)).transpose()
+}
+
+/// Signed distance to the zero contour of `phi` by fast marching (see the Python docs):
+/// `(distance, reached)`.
 #[pyfunction]
-#[pyo3(signature = (phi, dx, order, half_width, progress=None))]
+#[pyo3(signature = (phi, dx, order, narrow, periodic, mask=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
 fn distance<'py>(
     py: Python<'py>,
     phi: PyReadonlyArray3<'py, f32>,
-    dx: f32,
+    dx: [f64; 3],
     order: u8,
-    half_width: Option<f32>,
+    narrow: Option<f64>,
+    periodic: [bool; 3],
+    mask: Option<PyReadonlyArray3<'py, bool>>,
     progress: Option<Bound<'py, PyAny>>,
-) -> PyResult<Bound<'py, PyArray3<f32>>> {
-    let order = order_of(order)?;
-    let mut vol = Volume::from_array(&phi)?;
-    // Without a narrow band every voxel of the array is marched: the diagonal bounds any
-    // distance inside it.
-    let w = match half_width {
-        Some(w) => w,
-        None => (vol.dims.iter().map(|&d| (d * d) as f64).sum::<f64>().sqrt() + 2.0) as f32,
-    };
-    let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
-        .map_err(crate::lib_error)?;
+) -> PyResult<Marched<'py>> {
+    let (vol, grid, order) = dense_setup(&phi, dx, periodic, order)?;
+    let mask = mask_of(mask, &vol, "mask")?;
     let out = watch::run(py, progress.as_ref(), "distance", |w8| {
-        let opts = FmmOptions { order, half_width: Some(w), progress: w8.progress() };
-        fmm::distance_dense(&field, dx, &opts)
+        let opts = fmm::DenseOptions { order, narrow, progress: w8.progress() };
+        fmm::dense_distance(&vol.data, &grid, mask.as_deref(), &opts)
     })?
     .map_err(crate::lib_error)?;
-    vol.to_py(py, out.into_data())
+    Ok((vol.to_py(py, out.values)?, to_array(py, &vol, out.reached)?))
+}
+
+/// Travel time from the zero contour of `phi` with speed `speed` (scikit-fmm's
+/// `travel_time`; see the Python docs): `(time, reached)`.
+#[pyfunction]
+#[pyo3(signature = (phi, speed, dx, order, narrow, periodic, mask=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn travel_time<'py>(
+    py: Python<'py>,
+    phi: PyReadonlyArray3<'py, f32>,
+    speed: PyReadonlyArray3<'py, f32>,
+    dx: [f64; 3],
+    order: u8,
+    narrow: Option<f64>,
+    periodic: [bool; 3],
+    mask: Option<PyReadonlyArray3<'py, bool>>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Marched<'py>> {
+    let (vol, grid, order) = dense_setup(&phi, dx, periodic, order)?;
+    let speed = like_phi(&speed, &vol, "speed")?;
+    let mask = mask_of(mask, &vol, "mask")?;
+    let out = watch::run(py, progress.as_ref(), "travel_time", |w8| {
+        let opts = fmm::DenseOptions { order, narrow, progress: w8.progress() };
+        fmm::dense_travel_time(&vol.data, &speed, &grid, mask.as_deref(), &opts)
+    })?
+    .map_err(crate::lib_error)?;
+    Ok((vol.to_py(py, out.values)?, to_array(py, &vol, out.reached)?))
+}
+
+/// Signed distance and `speed` extended from the zero contour of `phi` (scikit-fmm's
+/// `extension_velocities`; see the Python docs): `(distance, reached, extension)`.
+#[pyfunction]
+#[pyo3(signature = (phi, speed, dx, order, narrow, periodic, mask=None, ext_mask=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn extension_velocities<'py>(
+    py: Python<'py>,
+    phi: PyReadonlyArray3<'py, f32>,
+    speed: PyReadonlyArray3<'py, f32>,
+    dx: [f64; 3],
+    order: u8,
+    narrow: Option<f64>,
+    periodic: [bool; 3],
+    mask: Option<PyReadonlyArray3<'py, bool>>,
+    ext_mask: Option<PyReadonlyArray3<'py, bool>>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Extended<'py>> {
+    let (vol, grid, order) = dense_setup(&phi, dx, periodic, order)?;
+    let speed = like_phi(&speed, &vol, "speed")?;
+    let mask = mask_of(mask, &vol, "mask")?;
+    let ext_mask = mask_of(ext_mask, &vol, "ext_mask")?;
+    let out = watch::run(py, progress.as_ref(), "extension_velocities", |w8| {
+        let opts = fmm::DenseOptions { order, narrow, progress: w8.progress() };
+        fmm::dense_extension_velocities(
+            &vol.data,
+            &speed,
+            ext_mask.as_deref(),
+            &grid,
+            mask.as_deref(),
+            &opts,
+        )
+    })?
+    .map_err(crate::lib_error)?;
+    Ok((
+        vol.to_py(py, out.distance.values)?,
+        to_array(py, &vol, out.distance.reached)?,
+        to_array(py, &vol, out.extension)?,
+    ))
 }
 
 /// The isosurface of a 3-D array: vertices in the array's axis order times `spacing`.

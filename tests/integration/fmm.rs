@@ -1,5 +1,7 @@
 //! Fast marching (Bærentzen 2001): the accuracy experiment of Table 1,
-//! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input.
+//! reinitialisation of both sparse grids, widening, arrival times, the CLI, bad input;
+//! the dense marches of scikit-fmm's functions (per-axis spacing, periodic axes,
+//! obstacles, travel times, extension velocities).
 //! Run with `--nocapture` to see the errors and timings.
 
 use sparse_levelset::grid::GridSpec;
@@ -573,4 +575,374 @@ fn progress_reaches_its_total() {
     fmm::distance_dense(&field, 1.0, &opts).unwrap();
     let (done, total) = *last.lock().unwrap();
     assert!(total > 0 && done == total, "{done} of {total}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Dense arrays with per-axis spacing, periodic axes, obstacles, speeds and extension
+// (scikit-fmm's functions).
+
+use fmm::{DenseGrid, DenseOptions};
+use sparse_levelset::error::{Error, ErrorKind};
+
+/// `f` at every voxel of `dims` (x fastest), with the voxel's world position `i · h`.
+fn dense_field(dims: [usize; 3], h: [f64; 3], f: impl Fn([f64; 3]) -> f64) -> Vec<f32> {
+    let mut out = Vec::with_capacity(dims.iter().product());
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                out.push(f([x as f64 * h[0], y as f64 * h[1], z as f64 * h[2]]) as f32);
+            }
+        }
+    }
+    out
+}
+
+fn positions(dims: [usize; 3], h: [f64; 3]) -> Vec<[f64; 3]> {
+    let mut out = Vec::new();
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                out.push([x as f64 * h[0], y as f64 * h[1], z as f64 * h[2]]);
+            }
+        }
+    }
+    out
+}
+
+fn norm(p: [f64; 3], c: [f64; 3]) -> f64 {
+    ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt()
+}
+
+fn opts(order: Order) -> DenseOptions {
+    DenseOptions { order, ..Default::default() }
+}
+
+#[test]
+fn dense_anisotropic_distance_to_a_sphere() {
+    // Spacing 0.5, 0.7, 0.9 along x, y, z; φ = 2·(r − 5), not a distance.
+    let dims = [36, 26, 20];
+    let h = [0.5, 0.7, 0.9];
+    let c = [8.9, 9.1, 8.6];
+    let phi = dense_field(dims, h, |p| 2.0 * (norm(p, c) - 5.0));
+    let grid = DenseGrid { dims, spacing: h, periodic: [false; 3] };
+    for (order, near_tol, all_tol) in [(Order::First, 0.25, 0.6), (Order::Second, 0.06, 0.2)] {
+        let out = fmm::dense_distance(&phi, &grid, None, &opts(order)).unwrap();
+        assert!(out.reached.iter().all(|&r| r));
+        let (mut near, mut all) = (0.0f64, 0.0f64);
+        for (p, d) in positions(dims, h).iter().zip(&out.values) {
+            let e = (*d as f64 - (norm(*p, c) - 5.0)).abs();
+            all = all.max(e);
+            if (norm(*p, c) - 5.0).abs() < 2.0 {
+                near = near.max(e);
+            }
+        }
+        println!("anisotropic sphere, {order:?}: max error {near:.4} near, {all:.4} everywhere");
+        assert!(near < near_tol && all < all_tol, "{order:?}: {near} near, {all} all");
+    }
+}
+
+#[test]
+fn dense_isotropic_distance_is_bitwise_the_sparse_march() {
+    // The dense API on an isotropic, non-periodic grid without obstacles gives the values
+    // of `distance_dense` (the march of the sparse grids) bit for bit.
+    let dims = [30, 27, 25];
+    let c = [7.3, 6.9, 6.1];
+    let phi = dense_field(dims, [0.4; 3], |p| 3.0 * (norm(p, c) - 4.0) + 0.2 * p[0].sin());
+    let field = DenseField::from_vec(Coord::new(0, 0, 0), dims, phi.clone()).unwrap();
+    for order in [Order::First, Order::Second] {
+        // The voxel size as the f32 that `distance_dense` takes.
+        let h = 0.4f32 as f64;
+        let dense = fmm::dense_distance(&phi, &DenseGrid::new(dims, h), None, &opts(order));
+        let o = FmmOptions { order, half_width: Some(100.0), ..Default::default() };
+        let sparse = fmm::distance_dense(&field, 0.4, &o).unwrap();
+        let dense = dense.unwrap();
+        for (a, b) in dense.values.iter().zip(sparse.data()) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+    }
+}
+
+#[test]
+fn dense_periodic_axes_wrap() {
+    // A slab inside 2.5 < x < 6.5 on a periodic x axis of 32 voxels: the distance of
+    // voxel x is the distance to the nearest copy of the slab.
+    let dims = [32, 6, 1];
+    let phi = dense_field(dims, [1.0; 3], |p| (p[0] - 4.5).abs() - 2.0);
+    let periodic = DenseGrid { dims, spacing: [1.0; 3], periodic: [true, false, false] };
+    let plain = DenseGrid::new(dims, 1.0);
+    let exact = |x: f64, wrap: bool| {
+        let d = (x - 4.5).abs();
+        let d = if wrap { d.min(32.0 - d) } else { d };
+        d - 2.0
+    };
+    for order in [Order::First, Order::Second] {
+        let a = fmm::dense_distance(&phi, &periodic, None, &opts(order)).unwrap();
+        let b = fmm::dense_distance(&phi, &plain, None, &opts(order)).unwrap();
+        for (i, p) in positions(dims, [1.0; 3]).iter().enumerate() {
+            assert!((a.values[i] as f64 - exact(p[0], true)).abs() < 1e-5, "{p:?} {}", a.values[i]);
+            assert!((b.values[i] as f64 - exact(p[0], false)).abs() < 1e-5, "{p:?}");
+        }
+    }
+    // Rolling the array along the periodic axis rolls the result.
+    let dims = [24, 20, 1];
+    // A circle centred at (3.2, 9.7) on the periodic 24 x 20 array: the distance to the
+    // nearest of its periodic copies.
+    let circle = |p: [f64; 3]| {
+        let dx = (p[0] - 3.2).abs();
+        let dy = (p[1] - 9.7).abs();
+        dx.min(24.0 - dx).hypot(dy.min(20.0 - dy)) - 5.0
+    };
+    let phi = dense_field(dims, [1.0; 3], circle);
+    let grid = DenseGrid { dims, spacing: [1.0; 3], periodic: [true, true, false] };
+    let out = fmm::dense_distance(&phi, &grid, None, &opts(Order::Second)).unwrap();
+    let roll = |v: &[f32], k: usize| {
+        let mut r = v.to_vec();
+        for y in 0..20 {
+            for x in 0..24 {
+                r[y * 24 + (x + k) % 24] = v[y * 24 + x];
+            }
+        }
+        r
+    };
+    let rolled = fmm::dense_distance(&roll(&phi, 7), &grid, None, &opts(Order::Second)).unwrap();
+    for (a, b) in roll(&out.values, 7).iter().zip(&rolled.values) {
+        assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+    }
+    // The circle crosses the x = 0 face: voxels at the far end are close to it.
+    let far = 23 + 10 * 24;
+    let exact = norm([-1.0, 10.0, 0.0], [3.2, 9.7, 0.0]) - 5.0;
+    assert!((out.values[far] as f64 - exact).abs() < 0.05, "{}", out.values[far]);
+}
+
+#[test]
+fn dense_obstacles_are_not_crossed() {
+    // A source line at x = 0.5 (φ = x − 0.5), a wall of obstacles at x = 10 for y < 15:
+    // behind the wall the front comes round its end at (10, 15).
+    let dims = [30, 30, 1];
+    let phi = dense_field(dims, [1.0; 3], |p| p[0] - 0.5);
+    // ... and the walls x = 25 and y = 25 of the corner x, y ≥ 25, whose inside is cut off.
+    let mask: Vec<bool> = positions(dims, [1.0; 3])
+        .iter()
+        .map(|p| {
+            let wall = p[0] == 10.0 && p[1] < 15.0;
+            let corner = p[0] >= 25.0 && p[1] >= 25.0 && (p[0] == 25.0 || p[1] == 25.0);
+            wall || corner
+        })
+        .collect();
+    let grid = DenseGrid::new(dims, 1.0);
+    let out = fmm::dense_distance(&phi, &grid, Some(&mask), &opts(Order::Second)).unwrap();
+    let mut worst = 0.0f64;
+    for (i, p) in positions(dims, [1.0; 3]).iter().enumerate() {
+        if mask[i] || (p[0] > 25.0 && p[1] > 25.0) {
+            assert!(!out.reached[i] && out.values[i] == 0.0, "{p:?} reached");
+            continue;
+        }
+        assert!(out.reached[i], "{p:?} not reached");
+        if p[0] > 10.0 && p[1] < 15.0 {
+            // The geodesic distance round the wall's end (10, 15): never shorter (the
+            // front does not cross the wall; the obstacle voxels end between y = 14 and
+            // 15, hence 0.6 voxel of slack), and at most 1.2 voxels longer (the fan of
+            // characteristics round a corner is where the march is least accurate; along
+            // the wall the update has a single direction). Straight behind the wall, the
+            // geodesic is more than twice the distance without the wall.
+            let geo = 9.5 + ((p[0] - 10.0).powi(2) + (p[1] - 15.0).powi(2)).sqrt();
+            let d = out.values[i] as f64;
+            assert!(d > geo - 0.6 && d < geo + 1.2, "{p:?}: {d} vs {geo}");
+            worst = worst.max(d - geo);
+        }
+    }
+    println!("round the wall: distance up to {worst:.3} voxel longer than the geodesic");
+}
+
+#[test]
+fn dense_travel_time_constant_and_two_speed_media() {
+    // Constant speed 2: the travel time is the distance over 2.
+    let dims = [24, 22, 20];
+    let h = [0.6, 0.5, 0.7];
+    let c = [7.0, 5.3, 6.6];
+    let phi = dense_field(dims, h, |p| norm(p, c) - 3.0);
+    let grid = DenseGrid { dims, spacing: h, periodic: [false; 3] };
+    let two = vec![2.0f32; phi.len()];
+    for order in [Order::First, Order::Second] {
+        let t = fmm::dense_travel_time(&phi, &two, &grid, None, &opts(order)).unwrap();
+        let d = fmm::dense_distance(&phi, &grid, None, &opts(order)).unwrap();
+        let mut max = 0.0f32;
+        for (t, d) in t.values.iter().zip(&d.values) {
+            max = max.max((t - d.abs() / 2.0).abs());
+        }
+        // The same march, up to rounding (which may flip a choice between nearly equal
+        // neighbours): a hundredth of a voxel (0.5) in time (/ 2).
+        println!("travel time at speed 2 vs distance / 2, {order:?}: max difference {max:.2e}");
+        assert!(max <= 0.01 * 0.5 / 2.0, "{order:?}: {max}");
+    }
+    // A plane front from x = 0.25 through speed 1 for x < 10.25 and 3 beyond: T is
+    // piecewise linear, and every one-sided difference of it is exact.
+    let dims = [40, 5, 5];
+    let phi = dense_field(dims, [0.5; 3], |p| p[0] - 0.25);
+    let speed = dense_field(dims, [0.5; 3], |p| if p[0] < 10.25 { 1.0 } else { 3.0 });
+    let grid = DenseGrid::new(dims, 0.5);
+    let first = fmm::dense_travel_time(&phi, &speed, &grid, None, &opts(Order::First)).unwrap();
+    let second = fmm::dense_travel_time(&phi, &speed, &grid, None, &opts(Order::Second)).unwrap();
+    let mut max = 0.0f64;
+    for (i, p) in positions(dims, [0.5; 3]).iter().enumerate() {
+        let x = p[0];
+        // First order: each voxel adds h / F at the voxel (the cost of its own speed).
+        let discrete = if x < 10.25 { (x - 0.25).abs() } else { 9.75 + (x - 10.0) / 3.0 };
+        let t = first.values[i] as f64;
+        assert!((t - discrete).abs() < 1e-5, "first order, x = {x}: {t} vs {discrete}");
+        // Second order against the continuous solution with the jump midway between
+        // the voxels of speeds 1 and 3.
+        let exact = if x < 10.25 { (x - 0.25).abs() } else { 10.0 + (x - 10.25) / 3.0 };
+        max = max.max((second.values[i] as f64 - exact).abs());
+    }
+    println!("two-speed medium, second order: max error {max:.4}");
+    assert!(max < 0.1, "{max}");
+}
+
+#[test]
+fn dense_travel_time_speed_zero_is_an_obstacle() {
+    // scikit-fmm's doctest: speed 0 masks the element.
+    let grid = DenseGrid::new([5, 1, 1], 1.0);
+    let phi = [-1.0, -1.0, 0.0, 1.0, 1.0];
+    let t =
+        fmm::dense_travel_time(&phi, &[1.0, 1.0, 1.0, 1.0, 0.0], &grid, None, &opts(Order::Second))
+            .unwrap();
+    assert_eq!(t.values, [2.0, 1.0, 0.0, 1.0, 0.0]);
+    assert_eq!(t.reached, [true, true, true, true, false]);
+    // Speeds below MIN_SPEED too.
+    let t2 = fmm::dense_travel_time(
+        &phi,
+        &[1.0, 1.0, 1.0, 1.0, 1e-30],
+        &grid,
+        None,
+        &opts(Order::Second),
+    )
+    .unwrap();
+    assert_eq!(t2.reached, t.reached);
+}
+
+#[test]
+fn dense_extension_is_constant_along_normals() {
+    // F = 2 + cos(angle) around a circle of radius 8: constant along the normals, so the
+    // extension of F from the circle is F itself (away from the centre).
+    let dims = [48, 44, 1];
+    let c = [23.3, 21.6, 0.0];
+    let h = [0.9, 1.0, 1.0];
+    let phi = dense_field(dims, h, |p| norm(p, c) - 8.0);
+    let f = |p: [f64; 3]| 2.0 + ((p[1] - c[1]).atan2(p[0] - c[0])).cos();
+    let speed = dense_field(dims, h, f);
+    let grid = DenseGrid { dims, spacing: h, periodic: [false; 3] };
+    for order in [Order::First, Order::Second] {
+        let out =
+            fmm::dense_extension_velocities(&phi, &speed, None, &grid, None, &opts(order)).unwrap();
+        let d = fmm::dense_distance(&phi, &grid, None, &opts(order)).unwrap();
+        assert_eq!(out.distance, d, "the distance of the extension is the plain distance");
+        let (mut near, mut far) = (0.0f64, 0.0f64);
+        for (i, p) in positions(dims, h).iter().enumerate() {
+            let r = norm(*p, c);
+            let e = (out.extension[i] as f64 - f(*p)).abs();
+            if (r - 8.0).abs() < 1.5 {
+                near = near.max(e);
+            } else if r > 4.0 {
+                far = far.max(e);
+            }
+        }
+        println!("extension of 2 + cos θ, {order:?}: max error {near:.4} near, {far:.4} at r > 4");
+        assert!(near < 0.08 && far < 0.06, "{order:?}: {near} near, {far} far");
+    }
+    // A uniform speed stays uniform; scikit-fmm's 1-D doctests.
+    let u = fmm::dense_extension_velocities(
+        &phi,
+        &vec![1.5; phi.len()],
+        None,
+        &grid,
+        None,
+        &opts(Order::Second),
+    )
+    .unwrap();
+    assert!(u.extension.iter().all(|&v| v == 1.5));
+    let g6 = DenseGrid::new([6, 1, 1], 1.0);
+    let phi6 = [1.0, -1.0, 1.0, 1.0, 1.0, 1.0];
+    let sp6 = [4.0, 1.0, 2.0, 2.0, 2.0, 2.0];
+    let e = fmm::dense_extension_velocities(&phi6, &sp6, None, &g6, None, &opts(Order::Second))
+        .unwrap();
+    assert_eq!(e.extension, [2.5, 2.5, 1.5, 1.5, 1.5, 1.5]);
+    let g6p = DenseGrid { periodic: [true, false, false], ..g6 };
+    let e = fmm::dense_extension_velocities(&phi6, &sp6, None, &g6p, None, &opts(Order::Second))
+        .unwrap();
+    assert_eq!(e.extension, [2.5, 2.5, 1.5, 1.5, 1.5, 2.5]);
+}
+
+#[test]
+fn dense_bad_input_is_an_error_before_any_work() {
+    let grid = DenseGrid::new([4, 4, 1], 1.0);
+    let phi: Vec<f32> = (0..16).map(|i| (i % 4) as f32 - 1.5).collect();
+    let o = opts(Order::Second);
+    let kind = |r: Result<fmm::DenseMarch, FmmError>| r.unwrap_err().kind();
+    let mut nan = phi.clone();
+    nan[5] = f32::NAN;
+    assert_eq!(kind(fmm::dense_distance(&nan, &grid, None, &o)), ErrorKind::InvalidData);
+    // NaN under an obstacle is not read.
+    let mut mask = vec![false; 16];
+    mask[5] = true;
+    assert!(fmm::dense_distance(&nan, &grid, Some(&mask), &o).is_ok());
+    assert_eq!(kind(fmm::dense_distance(&phi[..15], &grid, None, &o)), ErrorKind::InvalidInput);
+    assert_eq!(
+        kind(fmm::dense_distance(&phi, &grid, Some(&mask[..3]), &o)),
+        ErrorKind::InvalidInput
+    );
+    for h in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let g = DenseGrid { spacing: [1.0, h, 1.0], ..grid.clone() };
+        assert_eq!(kind(fmm::dense_distance(&phi, &g, None, &o)), ErrorKind::InvalidInput);
+    }
+    for w in [0.0, -1.0, f64::NAN] {
+        let o = DenseOptions { narrow: Some(w), ..Default::default() };
+        assert_eq!(kind(fmm::dense_distance(&phi, &grid, None, &o)), ErrorKind::InvalidInput);
+    }
+    let empty = DenseGrid::new([0, 4, 1], 1.0);
+    assert_eq!(kind(fmm::dense_distance(&[], &empty, None, &o)), ErrorKind::InvalidInput);
+    assert!(matches!(fmm::dense_distance(&[1.0; 16], &grid, None, &o), Err(FmmError::NoInterface)));
+    for bad in [-1.0, f32::NAN, f32::INFINITY] {
+        let mut s = vec![1.0f32; 16];
+        s[3] = bad;
+        let r = fmm::dense_travel_time(&phi, &s, &grid, None, &o);
+        assert!(matches!(r, Err(FmmError::BadSpeed { .. })), "{bad}: {r:?}");
+    }
+    assert_eq!(
+        kind(fmm::dense_travel_time(&phi, &[1.0; 15], &grid, None, &o)),
+        ErrorKind::InvalidInput
+    );
+    let r = fmm::dense_extension_velocities(&phi, &[1.0; 16], Some(&[false; 3]), &grid, None, &o);
+    assert_eq!(r.unwrap_err().kind(), ErrorKind::InvalidInput);
+    // Exact zeros are on the zero level set, with or without a sign change.
+    let z = fmm::dense_distance(&[0.0, 1.0, 1.0, 1.0], &DenseGrid::new([4, 1, 1], 0.5), None, &o)
+        .unwrap();
+    assert_eq!(z.values, [0.0, 0.5, 1.0, 1.5]);
+}
+
+#[test]
+fn dense_progress_counts_voxels_and_cancels() {
+    use sparse_levelset::progress::Progress;
+    use std::sync::{Arc, Mutex};
+    // 40 x 40 x 24 voxels: reports every 2^14 frozen voxels, as a share of the array.
+    let dims = [40, 40, 24];
+    let phi = dense_field(dims, [1.0; 3], |p| norm(p, [20.0, 20.0, 12.0]) - 6.0);
+    let grid = DenseGrid::new(dims, 1.0);
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let s = seen.clone();
+    let progress = Progress::new(move |done, total| {
+        s.lock().unwrap().push((done, total));
+        true
+    });
+    let o = DenseOptions { progress, ..Default::default() };
+    fmm::dense_distance(&phi, &grid, None, &o).unwrap();
+    let seen = seen.lock().unwrap().clone();
+    assert!(seen.len() >= 2, "{seen:?}");
+    assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "{seen:?}");
+    let (done, total) = *seen.last().unwrap();
+    assert!(total > 0 && done == total && seen[0].0 < total, "{seen:?}");
+    // A callback that answers false stops the march.
+    let o = DenseOptions { progress: Progress::new(|_, _| false), ..Default::default() };
+    let r = fmm::dense_travel_time(&phi, &vec![1.0; phi.len()], &grid, None, &o);
+    assert!(matches!(r, Err(FmmError::Cancelled(_))), "{r:?}");
 }

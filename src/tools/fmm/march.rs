@@ -93,6 +93,71 @@ pub(crate) fn solve_terms(terms: &mut [Term], cost: f64) -> f64 {
     k0 + cost / terms[0].a.sqrt()
 }
 
+/// A bounded box of voxels with per-axis spacing, periodic axes and obstacles: what a
+/// march over a dense array adds to the plain box of [`Marcher::new`].
+#[derive(Clone, Debug)]
+pub(crate) struct Lattice {
+    /// The box's first voxel.
+    pub lo: Coord,
+    /// Voxels along x, y, z (each ≥ 1; the product fits in memory).
+    pub dims: [usize; 3],
+    /// Per axis, `h₀ / hₐ` with `hₐ` the axis's spacing and `h₀` the unit the march
+    /// measures lengths in; the axis's terms in the quadratic carry the factor
+    /// `(h₀ / hₐ)²` (the one-sided differences divided by `hₐ`). All 1 for an isotropic
+    /// lattice.
+    pub ratios: [f64; 3],
+    /// Axes whose neighbours wrap around (voxel `n` of an axis of length `n` is voxel 0).
+    pub periodic: [bool; 3],
+    /// Obstacles, x fastest: never entered, never frozen, never read by an update.
+    pub blocked: Option<Vec<bool>>,
+}
+
+impl Lattice {
+    /// Index of `c` (inside the box) in x-fastest order.
+    #[inline]
+    pub(crate) fn index(&self, c: Coord) -> usize {
+        let [nx, ny, _] = self.dims;
+        let x = (c.x - self.lo.x) as usize;
+        let y = (c.y - self.lo.y) as usize;
+        let z = (c.z - self.lo.z) as usize;
+        (z * ny + y) * nx + x
+    }
+
+    /// `c + d · axis` within the box (wrapped along a periodic axis), `None` beyond a
+    /// non-periodic face or on an obstacle.
+    #[inline]
+    pub(crate) fn step(&self, c: Coord, axis: usize, d: i32) -> Option<Coord> {
+        let n = self.dims[axis] as i64;
+        let lo = [self.lo.x, self.lo.y, self.lo.z][axis] as i64;
+        let v = [c.x, c.y, c.z][axis] as i64 + d as i64 - lo;
+        let v = if self.periodic[axis] {
+            v.rem_euclid(n)
+        } else if (0..n).contains(&v) {
+            v
+        } else {
+            return None;
+        };
+        // In range: the box is representable.
+        let v = (v + lo) as i32;
+        let nb = match axis {
+            0 => Coord::new(v, c.y, c.z),
+            1 => Coord::new(c.x, v, c.z),
+            _ => Coord::new(c.x, c.y, v),
+        };
+        match &self.blocked {
+            Some(b) if b[self.index(nb)] => None,
+            _ => Some(nb),
+        }
+    }
+}
+
+/// Extension of a field from the interface along the characteristics of the march
+/// (Adalsteinsson & Sethian 1999): one value per voxel of the lattice's box, set for the
+/// initial voxels by the caller and for every voxel the march freezes.
+pub(crate) struct Extension {
+    pub values: Vec<f64>,
+}
+
 /// A march over a [`Store`] (see the module docs of [`super`]).
 pub(crate) struct Marcher<C: Cost> {
     pub(crate) store: Store,
@@ -100,6 +165,17 @@ pub(crate) struct Marcher<C: Cost> {
     second_order: bool,
     /// Inclusive voxel box the march may enter (`None`: the whole i32 range).
     domain: Option<(Coord, Coord)>,
+    /// Spacing, periodic axes and obstacles of a dense array (`None`: unit spacing, no
+    /// wrap, no obstacle, the box of `domain`).
+    lattice: Option<Lattice>,
+    /// The term factors `(h₀ / hₐ)²` (all 1 without a lattice).
+    weights: [f64; 3],
+    /// Per axis, whether it wraps (its neighbours are then looked up by coordinate).
+    wraps: [bool; 3],
+    /// The extended field, if one is carried along.
+    pub(crate) extension: Option<Extension>,
+    /// Voxels expected to freeze, for the progress of a march without a finite limit.
+    expected: u64,
     cost: C,
     /// The initial frozen voxels, in the order they were given.
     initial: Vec<Coord>,
@@ -113,15 +189,44 @@ impl<C: Cost> Marcher<C> {
             heap: IndexedHeap::new(),
             second_order,
             domain,
+            lattice: None,
+            weights: [1.0; 3],
+            wraps: [false; 3],
+            extension: None,
+            expected: 0,
             cost,
             initial: Vec::new(),
             next_memory_check: MEMORY_CHECK_BLOCKS,
         }
     }
 
-    /// `c + d · axis` when it exists (in the i32 range and the domain).
+    /// A march over the box of `lattice` with its spacing, periodic axes and obstacles.
+    pub(crate) fn on_lattice(second_order: bool, lattice: Lattice, cost: C) -> Self {
+        let hi = Coord::new(
+            lattice.lo.x + lattice.dims[0] as i32 - 1,
+            lattice.lo.y + lattice.dims[1] as i32 - 1,
+            lattice.lo.z + lattice.dims[2] as i32 - 1,
+        );
+        let mut m = Marcher::new(second_order, Some((lattice.lo, hi)), cost);
+        m.weights = lattice.ratios.map(|r| r * r);
+        m.wraps = lattice.periodic;
+        m.expected = lattice.dims.iter().product::<usize>() as u64;
+        m.lattice = Some(lattice);
+        m
+    }
+
+    /// The lattice of [`Marcher::on_lattice`].
+    pub(crate) fn lattice(&self) -> Option<&Lattice> {
+        self.lattice.as_ref()
+    }
+
+    /// `c + d · axis` when it exists (in the i32 range and the domain; on a lattice:
+    /// wrapped along periodic axes, not an obstacle).
     #[inline(always)]
     fn step(&self, c: Coord, axis: usize, d: i32) -> Option<Coord> {
+        if let Some(l) = &self.lattice {
+            return l.step(c, axis, d);
+        }
         let a = AXES[axis];
         let n = c.checked_add(Coord::new(a.x * d, a.y * d, a.z * d))?;
         match self.domain {
@@ -169,6 +274,20 @@ impl<C: Cost> Marcher<C> {
         self.check_memory()
     }
 
+    /// The voxels frozen initially, in the order they were given.
+    pub(crate) fn initial(&self) -> &[Coord] {
+        &self.initial
+    }
+
+    /// Replaces the value of every initial voxel `c` by `f(c, value)` (before
+    /// [`Marcher::run`]; `f` must keep the sign).
+    pub(crate) fn map_initial(&mut self, f: impl Fn(Coord, f64) -> f64) {
+        for &c in &self.initial {
+            let id = self.store.find(c).expect("frozen voxels are stored") as usize;
+            self.store.vox[id].value = f(c, self.store.vox[id].value);
+        }
+    }
+
     /// Number of voxels frozen initially.
     pub(crate) fn initial_len(&self) -> usize {
         self.initial.len()
@@ -195,6 +314,88 @@ impl<C: Cost> Marcher<C> {
     /// inside from outside), the two sides still cannot feed each other beyond that
     /// layer, so arrival times keep growing away from it and the march stays within the
     /// half-width.
+    #[inline(always)]
+    fn frozen_at(&self, c: Coord, id: u32, axis: usize, d: i32) -> Option<(f64, u8)> {
+        if self.wraps[axis] {
+            // Across a periodic face the neighbour is not the next voxel in the store.
+            let n = self.step(c, axis, d)?;
+            let v = &self.store.vox[self.store.find(n)? as usize];
+            (v.state & 3 == FROZEN).then_some((v.value, v.state))
+        } else {
+            self.store.frozen_step(id, axis, d)
+        }
+    }
+
+    /// The voxel id of the neighbour `n = c + d · axis` (from [`Marcher::step`]),
+    /// creating its block when needed.
+    #[inline(always)]
+    fn neighbour_id(&mut self, id: u32, axis: usize, d: i32, n: Coord) -> u32 {
+        if self.wraps[axis] {
+            self.store.find_or_insert(n)
+        } else {
+            self.store.step_or_insert(id, axis, d, n)
+        }
+    }
+
+    /// The extended value at a voxel just frozen with time `t` (side convention): the
+    /// discrete `∇f · ∇T = 0` of Adalsteinsson & Sethian, *The Fast Construction of
+    /// Extension Velocities in Level Set Methods*, J. Comput. Phys. 148 (1999) 2–22:
+    /// `Σₐ (f − f_a) gₐ / hₐ² = 0` over the upwind neighbour `a` of each axis (the
+    /// smaller usable frozen one, as in [`Marcher::update`]), with `f − f_a` the
+    /// first-order difference of the extended field and `gₐ / hₐ` the axis's component of
+    /// `∇T`: the second-order one-sided difference `(3T − 4T₁ + T₂) / 2` where the voxel
+    /// two steps away is frozen and not larger (Bærentzen 2001, Sec. 4, eq. (7)), else
+    /// `T − T₁`; only positive components count. So `f` is the average of the upwind
+    /// neighbours' values weighted by `gₐ / hₐ²` — the neighbours that determined `T`,
+    /// each by its share — and never leaves their range. (scikit-fmm weighs by the
+    /// first-order `T − T₁`; the second-order component, when the march has frozen the
+    /// voxel two steps away, gives the characteristics' direction more accurately, in
+    /// either order of the march.)
+    fn extend(&mut self, c: Coord, id: u32, inside: bool, t: f64) {
+        let Some(l) = &self.lattice else { return };
+        let Some(ext) = &self.extension else { return };
+        let s = if inside { -1.0 } else { 1.0 };
+        let side = if inside { INSIDE } else { 0 };
+        let usable = |st: u8| st & INITIAL != 0 || st & INSIDE == side;
+        let (mut num, mut den, mut sum, mut cnt) = (0.0, 0.0, 0.0, 0.0);
+        for axis in 0..3 {
+            // The upwind neighbour (value, direction), as in `update`.
+            let mut best: Option<(f64, i32)> = None;
+            for d in [-1, 1] {
+                let Some((tn, st)) = self.frozen_at(c, id, axis, d) else { continue };
+                if usable(st) && best.is_none_or(|(b, _)| s * tn < b) {
+                    best = Some((s * tn, d));
+                }
+            }
+            let Some((t1, d)) = best else { continue };
+            let n = self.step(c, axis, d).expect("a frozen neighbour exists");
+            let f = ext.values[l.index(n)];
+            // The axis's component of ∇T (times hₐ): the second-order one-sided
+            // difference (3T − 4T₁ + T₂)/2 where the voxel beyond is frozen and not
+            // larger, else T − T₁.
+            let g = match self.frozen_at(c, id, axis, 2 * d) {
+                Some((t2, st2)) if usable(st2) && s * t2 <= t1 => {
+                    (3.0 * t - 4.0 * t1 + s * t2) / 2.0
+                }
+                _ => t - t1,
+            };
+            if g > 0.0 {
+                let w = self.weights[axis] * g;
+                num += w * f;
+                den += w;
+            }
+            sum += f;
+            cnt += 1.0;
+        }
+        // A voxel is frozen from at least one upwind neighbour below its time; the plain
+        // average only guards against a zero weight sum.
+        let f = if den > 0.0 { num / den } else { sum / cnt };
+        let i = l.index(c);
+        if let Some(ext) = &mut self.extension {
+            ext.values[i] = f;
+        }
+    }
+
     #[inline]
     fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
@@ -206,7 +407,7 @@ impl<C: Cost> Marcher<C> {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                let Some((t1, st1)) = self.store.frozen_step(id, axis, d) else { continue };
+                let Some((t1, st1)) = self.frozen_at(c, id, axis, d) else { continue };
                 if !usable(st1) {
                     continue;
                 }
@@ -215,7 +416,7 @@ impl<C: Cost> Marcher<C> {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some((t2, st2)) = self.store.frozen_step(id, axis, 2 * d) {
+                        if let Some((t2, st2)) = self.frozen_at(c, id, axis, 2 * d) {
                             let t2 = s * t2;
                             if usable(st2) && t2 <= t1 {
                                 v2 = Some(t2);
@@ -225,9 +426,10 @@ impl<C: Cost> Marcher<C> {
                 }
             }
             if v1 < f64::INFINITY {
+                let w = self.weights[axis];
                 terms[n] = match v2 {
-                    Some(v2) => Term { a: 9.0 / 4.0, k: (4.0 * v1 - v2) / 3.0 },
-                    None => Term { a: 1.0, k: v1 },
+                    Some(v2) => Term { a: w * (9.0 / 4.0), k: (4.0 * v1 - v2) / 3.0 },
+                    None => Term { a: w, k: v1 },
                 };
                 n += 1;
             }
@@ -278,7 +480,7 @@ impl<C: Cost> Marcher<C> {
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.store.step_or_insert(id as u32, axis, d, n) as usize;
+                    let nid = self.neighbour_id(id as u32, axis, d, n) as usize;
                     let st = &mut self.store.vox[nid].state;
                     if *st == FAR {
                         *st = TRIAL | inside;
@@ -309,16 +511,26 @@ impl<C: Cost> Marcher<C> {
             let (t, c, id) = self.heap.pop().expect("non-empty");
             popped += 1;
             if popped.is_multiple_of(PROGRESS_EVERY) {
-                ticker.set((t / limit * PROGRESS_UNITS as f64) as u64)?;
+                // Without a finite limit (a dense array marched whole), the share of the
+                // array's voxels frozen.
+                let share = if limit.is_finite() || self.expected == 0 {
+                    t / limit
+                } else {
+                    popped as f64 / self.expected as f64
+                };
+                ticker.set(((share * PROGRESS_UNITS as f64) as u64).min(PROGRESS_UNITS))?;
             }
             let inside_bit = self.store.vox[id as usize].state & INSIDE;
             let inside = inside_bit != 0;
             self.store.vox[id as usize].state = FROZEN | inside_bit;
             self.store.vox[id as usize].value = if inside { -t } else { t };
+            if self.extension.is_some() {
+                self.extend(c, id, inside, t);
+            }
             for axis in 0..3 {
                 for d in [-1, 1] {
                     let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.store.step_or_insert(id, axis, d, n) as usize;
+                    let nid = self.neighbour_id(id, axis, d, n) as usize;
                     match self.store.vox[nid].state & 3 {
                         FROZEN => {}
                         TRIAL => {

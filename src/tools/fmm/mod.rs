@@ -24,6 +24,10 @@
 //!   (central differences; one-sided next to a clamped ±γ value), capped by the linearly
 //!   interpolated zero crossings on the voxel's edges. Inside and outside march
 //!   separately (arrival time `−φ` inside, `φ` outside), so signs are preserved.
+//! * **Dense arrays** ([`dense_distance`], [`dense_travel_time`],
+//!   [`dense_extension_velocities`]): the same march on a bounded box with per-axis
+//!   spacing, periodic axes, obstacles, a speed per voxel and an extended field — the
+//!   functions of scikit-fmm.
 //! * **Determinism**: the march is sequential and heap ties are broken by coordinate,
 //!   so the result does not depend on the thread count, on insertion order or on the
 //!   input grid type: tiles and DT-Grid give the same values bit for bit.
@@ -45,6 +49,7 @@
 //! assert_eq!(out.spec().half_width, 4.0);
 //! ```
 
+mod dense;
 mod heap;
 mod march;
 mod source;
@@ -52,6 +57,11 @@ mod store;
 
 #[cfg(test)]
 mod tests;
+
+pub use dense::{
+    dense_distance, dense_extension_velocities, dense_travel_time, DenseExtension, DenseGrid,
+    DenseMarch, DenseOptions, MIN_SPEED,
+};
 
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};

@@ -4,7 +4,7 @@
 //! narrow-band level set ([`LevelSet`]: its band voxels, neighbours through its cached
 //! accessor) and a dense field (every voxel, neighbours by index arithmetic).
 
-use super::march::{Cost, Marcher};
+use super::march::{Cost, Lattice, Marcher};
 use super::FmmError;
 use crate::coord::Coord;
 use crate::storage::dense::DenseField;
@@ -27,6 +27,18 @@ pub(crate) trait Source {
     /// Visits every voxel that can be next to the interface (the band voxels of a grid,
     /// every voxel of a dense field) with its value and six neighbours.
     fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star));
+
+    /// Per axis, `h₀ / hₐ`: how many march units one voxel step along the axis is (all 1
+    /// for the isotropic grids).
+    fn ratios(&self) -> [f64; 3] {
+        [1.0; 3]
+    }
+
+    /// Whether a voxel with φ = 0 exactly lies on the zero level set even without a
+    /// neighbour of the other sign (scikit-fmm's rule for dense arrays).
+    fn zero_is_interface(&self) -> bool {
+        false
+    }
 
     /// Whether `c` is inside (φ < 0); beyond the domain: outside.
     fn inside(&self, c: Coord) -> bool {
@@ -105,6 +117,65 @@ impl Source for DenseSource<'_> {
     }
 }
 
+/// A dense array on a [`Lattice`] (periodic axes wrap, obstacles read as absent) as a
+/// source: every voxel that is not an obstacle is a candidate.
+pub(crate) struct LatticeSource<'a> {
+    pub data: &'a [f32],
+    pub lattice: &'a Lattice,
+}
+
+impl Source for LatticeSource<'_> {
+    fn clamp(&self) -> f32 {
+        f32::INFINITY
+    }
+    fn value(&self, c: Coord) -> Option<f32> {
+        let l = self.lattice;
+        let inside = |v: i32, lo: i32, n: usize| v >= lo && ((v - lo) as usize) < n;
+        let ok = inside(c.x, l.lo.x, l.dims[0])
+            && inside(c.y, l.lo.y, l.dims[1])
+            && inside(c.z, l.lo.z, l.dims[2]);
+        let i = l.index(c);
+        (ok && !l.blocked.as_ref().is_some_and(|b| b[i])).then(|| self.data[i])
+    }
+    fn domain(&self) -> Option<(Coord, Coord)> {
+        let l = self.lattice;
+        let hi = |v: i32, n: usize| v + n as i32 - 1;
+        Some((
+            l.lo,
+            Coord::new(hi(l.lo.x, l.dims[0]), hi(l.lo.y, l.dims[1]), hi(l.lo.z, l.dims[2])),
+        ))
+    }
+    fn ratios(&self) -> [f64; 3] {
+        self.lattice.ratios
+    }
+    fn zero_is_interface(&self) -> bool {
+        true
+    }
+    fn star(&self, c: Coord) -> Star {
+        let mut star = [None; 6];
+        for (i, s) in star.iter_mut().enumerate() {
+            let d = if i % 2 == 0 { -1 } else { 1 };
+            *s = self.lattice.step(c, i / 2, d).and_then(|n| self.value(n));
+        }
+        star
+    }
+    fn for_each_candidate(&self, f: &mut dyn FnMut(Coord, f32, &Star)) {
+        let l = self.lattice;
+        let [nx, ny, nz] = l.dims;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    // In range: the lattice's box is representable.
+                    let c = Coord::new(l.lo.x + x as i32, l.lo.y + y as i32, l.lo.z + z as i32);
+                    if let Some(v) = self.value(c) {
+                        f(c, v, &self.star(c));
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The distance (in voxels, ≥ 0) from an interface voxel to the zero level set, or
 /// `None` when no 6-neighbour differs in sign (Bærentzen Sec. 4: "the voxel has a
 /// 6-neighbour on the other side of the surface").
@@ -116,16 +187,21 @@ impl Source for DenseSource<'_> {
 /// scaling of φ), and capped by the distance to the nearest zero crossing on the voxel's
 /// edges, found by linear interpolation `θ = φ_v / (φ_v − φ_n)` — that crossing lies on
 /// the interface, so the true distance can be no larger.
-pub(crate) fn interface_distance(v: f32, star: &Star, clamp: f32) -> Option<f64> {
+///
+/// With per-axis spacing, `ratios[a] = h₀ / hₐ` converts axis `a`'s differences and edge
+/// fractions to march units of length `h₀` (the gradient component is the difference
+/// times `ratios[a]`, the crossing lies `θ / ratios[a]` away); all 1 on an isotropic grid.
+pub(crate) fn interface_distance(v: f32, star: &Star, clamp: f32, ratios: [f64; 3]) -> Option<f64> {
     let vi = v < 0.0;
     let v = v as f64;
     let mut theta = f64::INFINITY;
-    for n in star.iter().flatten() {
+    for (i, n) in star.iter().enumerate() {
+        let Some(n) = n else { continue };
         if (*n < 0.0) != vi {
             // ±∞ is a far-away distance: the interpolant's crossing between it and a finite
             // neighbour lies at the neighbour (θ = 1 from an infinite voxel, 0 towards one).
             let t = if v.is_infinite() { 1.0 } else { v / (v - *n as f64) };
-            theta = theta.min(t);
+            theta = theta.min(t / ratios[i / 2]);
         }
     }
     if theta == f64::INFINITY {
@@ -141,6 +217,7 @@ pub(crate) fn interface_distance(v: f32, star: &Star, clamp: f32) -> Option<f64>
                 (None, Some(p)) => p - v,
                 (None, None) => 0.0,
             };
+            let g = g * ratios[a];
             g2 += g * g;
         }
     }
@@ -157,6 +234,8 @@ pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
     marcher: &mut Marcher<C>,
 ) -> Result<usize, FmmError> {
     let clamp = src.clamp();
+    let ratios = src.ratios();
+    let zeros = src.zero_is_interface();
     let mut extra: Vec<Coord> = Vec::new();
     let mut err = None;
     src.for_each_candidate(&mut |c, v, star| {
@@ -167,7 +246,9 @@ pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
             err = Some(FmmError::NonFinite { coord: c, value: v });
             return;
         }
-        if let Some(d) = interface_distance(v, star, clamp) {
+        let d = interface_distance(v, star, clamp, ratios);
+        let d = if d.is_none() && zeros && v == 0.0 { Some(0.0) } else { d };
+        if let Some(d) = d {
             for (i, n) in star.iter().enumerate() {
                 if let Some(n) = n {
                     if (*n < 0.0) != (v < 0.0) && n.abs() >= clamp {
@@ -188,7 +269,7 @@ pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
     extra.dedup();
     for c in extra {
         let v = src.value(c).expect("a neighbour that was read exists");
-        if let Some(d) = interface_distance(v, &src.star(c), clamp) {
+        if let Some(d) = interface_distance(v, &src.star(c), clamp, ratios) {
             let inside = v < 0.0;
             marcher.freeze_initial(c, if inside { -d } else { d }, inside)?;
         }

@@ -83,13 +83,56 @@ fn interface_distance_is_exact_for_a_linear_field_and_ignores_scaling() {
             Some(phi(0.0, 0.0, -1.0)),
             Some(phi(0.0, 0.0, 1.0)),
         ];
-        let d = interface_distance(phi(0.0, 0.0, 0.0), &star, f32::INFINITY).unwrap();
+        let d = interface_distance(phi(0.0, 0.0, 0.0), &star, f32::INFINITY, [1.0; 3]).unwrap();
         assert!((d - 0.3).abs() < 1e-6, "scale {s}: {d}");
     }
     // No sign change: not an interface voxel.
-    assert_eq!(interface_distance(0.5, &[Some(0.7); 6], 3.0), None);
+    assert_eq!(interface_distance(0.5, &[Some(0.7); 6], 3.0, [1.0; 3]), None);
     // Clamped neighbours are not used for the gradient; the edge crossing caps the result.
     let star = [Some(-0.2), Some(3.0), Some(3.0), Some(3.0), Some(3.0), Some(3.0)];
-    let d = interface_distance(0.6, &star, 3.0).unwrap();
+    let d = interface_distance(0.6, &star, 3.0, [1.0; 3]).unwrap();
     assert!((d - 0.75).abs() < 1e-6, "{d}");
+}
+
+#[test]
+fn interface_distance_with_per_axis_spacing() {
+    // φ = n · x − 0.3 in world units on spacings (0.5, 1, 2), measured in units of the
+    // smallest spacing h₀ = 0.5: ratios h₀ / hₐ = (1, 0.5, 0.25).
+    let n = [0.36f64, 0.48, 0.8];
+    let h = [0.5f64, 1.0, 2.0];
+    let phi =
+        |i: f64, j: f64, k: f64| (n[0] * i * h[0] + n[1] * j * h[1] + n[2] * k * h[2] - 0.3) as f32;
+    let star = [
+        Some(phi(-1.0, 0.0, 0.0)),
+        Some(phi(1.0, 0.0, 0.0)),
+        Some(phi(0.0, -1.0, 0.0)),
+        Some(phi(0.0, 1.0, 0.0)),
+        Some(phi(0.0, 0.0, -1.0)),
+        Some(phi(0.0, 0.0, 1.0)),
+    ];
+    let d = interface_distance(phi(0.0, 0.0, 0.0), &star, f32::INFINITY, [1.0, 0.5, 0.25]).unwrap();
+    // 0.3 world units = 0.6 units of h₀.
+    assert!((d - 0.6).abs() < 1e-6, "{d}");
+}
+
+#[test]
+fn lattice_steps_wrap_periodic_axes_and_stop_at_obstacles() {
+    use super::march::Lattice;
+    let mut blocked = vec![false; 4 * 3 * 2];
+    blocked[1 + 4] = true; // voxel (1, 1, 0)
+    let l = Lattice {
+        lo: Coord::new(0, 0, 0),
+        dims: [4, 3, 2],
+        ratios: [1.0; 3],
+        periodic: [true, false, false],
+        blocked: Some(blocked),
+    };
+    assert_eq!(l.step(Coord::new(3, 0, 0), 0, 1), Some(Coord::new(0, 0, 0)));
+    assert_eq!(l.step(Coord::new(0, 2, 1), 0, -1), Some(Coord::new(3, 2, 1)));
+    assert_eq!(l.step(Coord::new(0, 2, 1), 0, -2), Some(Coord::new(2, 2, 1)));
+    assert_eq!(l.step(Coord::new(0, 2, 1), 1, 1), None);
+    assert_eq!(l.step(Coord::new(0, 0, 0), 2, -1), None);
+    assert_eq!(l.step(Coord::new(0, 1, 0), 0, 1), None, "an obstacle");
+    assert_eq!(l.step(Coord::new(1, 0, 0), 1, 1), None, "an obstacle");
+    assert_eq!(l.index(Coord::new(3, 2, 1)), 23);
 }
