@@ -16,8 +16,17 @@ def distance(
     phi: _F32, dx: float, order: int, half_width: Optional[float], progress: _Progress = ...
 ) -> _F32: ...
 def isosurface(
-    volume: _F32, level: float, spacing: Tuple[float, float, float], progress: _Progress = ...
-) -> Tuple[_F32, npt.NDArray[np.uint32], _F32]: ...
+    volume: _F32,
+    level: Optional[float],
+    spacing: Tuple[float, float, float],
+    inside: str,
+    reverse: bool,
+    step: int = ...,
+    mask: Optional[npt.NDArray[np.bool_]] = ...,
+    closed: bool = ...,
+    allow_degenerate: bool = ...,
+    progress: _Progress = ...,
+) -> Tuple[_F32, npt.NDArray[np.uint32], _F32, npt.NDArray[np.float32]]: ...
 def save_mesh(
     path: str,
     verts: npt.NDArray[np.float64],
