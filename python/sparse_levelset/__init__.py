@@ -186,9 +186,10 @@ def isosurface(
     none (its vertices are kept apart), so both settings give the same mesh.
 
     ``method``: ``"lewiner"`` or ``"lorensen"``; both give this library's surface, which
-    is simplicial (Min 2003: every cube split into six tetrahedra, so no ambiguous cases
-    and no holes), not either marching-cubes table. Expect about 1.5 to 2 times as many
-    triangles as scikit-image on the same volume.
+    is simplicial (C. Min, "Simplicial Isosurfacing in Arbitrary Dimension and
+    Codimension", 2003: every cube split into six tetrahedra, so no ambiguous cases and no
+    holes), not either marching-cubes table: its vertices on the cubes' edges are
+    scikit-image's, and it has about three times as many triangles.
 
     ``closed``: ``False`` (scikit-image's behaviour) leaves the surface open where the
     object reaches the array's border; ``True`` closes it with the array's faces (the

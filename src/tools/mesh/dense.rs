@@ -126,7 +126,8 @@ fn mid_range(field: &DenseField) -> Result<f64, MeshError> {
 /// per-vertex values.
 ///
 /// The surface is the simplicial one of [`super::isosurface_dense`] (cubes split into
-/// six tetrahedra, Min 2003), on the lattice of every `step`-th voxel and restricted to
+/// six tetrahedra: C. Min, "Simplicial isosurfacing in arbitrary dimension and
+/// codimension", 2003), on the lattice of every `step`-th voxel and restricted to
 /// the cells the mask and the border admit; with the default options it is the mesh of
 /// [`super::isosurface_dense`], vertex for vertex. Vertices that no meshed cell uses are
 /// dropped and the others keep their order. Same bits for any thread count.
