@@ -134,6 +134,25 @@ fn mid_range(field: &DenseField) -> Result<f64, MeshError> {
 ///
 /// Errors: NaN in the array, a non-finite iso value, `step` = 0, a mask whose length is
 /// not the array's, an array without finite values when the iso value is the default.
+///
+/// ```
+/// use sparse_levelset::{grid::GridSpec, storage::dense::DenseField, tools::mesh, Coord};
+/// use mesh::{Border, DenseMeshOptions, Inside};
+///
+/// // A bright ball (100 at the centre, falling off by 10 per voxel) cut by the face x = 0.
+/// let image = DenseField::from_fn(Coord::new(0, 0, 0), [24; 3], |c| {
+///     let d = [c.x as f32 - 2.5, c.y as f32 - 11.5, c.z as f32 - 12.0];
+///     100.0 - 10.0 * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+/// })
+/// .unwrap();
+/// let opts = DenseMeshOptions { iso: Some(20.0), inside: Inside::Above, ..Default::default() };
+/// let closed = mesh::isosurface_dense_with(&image, &GridSpec::default(), &opts).unwrap();
+/// assert!(closed.mesh.is_closed_manifold() && closed.mesh.enclosed_volume() > 0.0);
+/// let open = DenseMeshOptions { border: Border::Open, ..opts };
+/// let open = mesh::isosurface_dense_with(&image, &GridSpec::default(), &open).unwrap();
+/// assert!(!open.mesh.is_closed_manifold() && open.mesh.area() < closed.mesh.area());
+/// assert_eq!(open.values.len(), open.mesh.num_vertices());
+/// ```
 pub fn isosurface_dense_with(
     field: &DenseField,
     spec: &GridSpec,
