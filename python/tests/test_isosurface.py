@@ -200,6 +200,17 @@ def test_bright_object_at_the_border_is_open_like_marching_cubes():
     compare(ours, theirs, "bright ball at the border", scale=1.25)
     v, f = ours[0], ours[1]
     top = (np.array(vol.shape) - 1) * spacing
+    # Normals on the cut faces (one-sided differences) agree with scikit-image's: mean dot
+    # product > 0.999 at the matched vertices there (measured 0.99986). Unit spacing:
+    # with anisotropic spacing scikit-image's normals are in index units, ours in world
+    # units (mean dot 0.987 on the cut faces, 0.990 elsewhere, for the spacing above).
+    w, _, n1, _ = sl.isosurface(vol, 100.0)
+    V, _, N, _ = measure.marching_cubes(vol, 100.0)
+    _, i = cKDTree(w).query(V)
+    cut = (np.abs(V[:, 0]) < 1e-4) | (np.abs(V[:, 1] - (n - 1)) < 1e-4)
+    dots = np.einsum("ij,ij->i", n1[i[cut]], N[cut])
+    print(f"normals on the cut faces: {cut.sum()} vertices, mean dot {dots.mean():.4f}")
+    assert cut.sum() > 50 and dots.mean() > 0.999
     assert (v >= 0).all() and (v <= top + 1e-4).all()
     # No box faces: no triangle lies in one of the array's outer faces.
     tri = v[f]

@@ -971,6 +971,23 @@ fn dense_options_default_to_isosurface_dense_and_values_are_cell_ranges() {
         let extent = [7.0, 6.0].map(|e: f64| (e / step as f64).floor() * step as f64);
         close(&format!("ramp plane, step {step}"), s.mesh.area(), extent[0] * extent[1], 1e-6);
     }
+    // An open border extrapolates the array linearly, so on a tilted plane (a linear
+    // field) every normal is the plane's, also at the border (within f32 rounding).
+    let tilted = DenseField::from_fn(Coord::new(2, -1, 0), [8, 9, 6], |c| {
+        c.x as f32 + 0.5 * c.y as f32 - 0.25 * c.z as f32 - 4.3
+    })
+    .unwrap();
+    let opts = DenseMeshOptions { border: Border::Open, ..Default::default() };
+    let s = isosurface_dense_with(&tilted, &spec, &opts).unwrap();
+    let len = (1.0f64 + 0.25 + 0.0625).sqrt();
+    let exact = [1.0 / len, 0.5 / len, -0.25 / len];
+    let worst = s
+        .mesh
+        .normals
+        .iter()
+        .fold(0f64, |w, n| (0..3).fold(w, |w, a| w.max((n[a] as f64 - exact[a]).abs())));
+    println!("tilted plane: {} vertices, largest normal error {worst:.1e}", s.mesh.num_vertices());
+    assert!(worst < 1e-6, "{worst}");
     // level = None: the middle of the finite values (−3.5 and 4.5: 0.5), the plane x = 4
     // through voxels (moved off them by less than 10⁻³ voxel, see the module docs).
     let opts = DenseMeshOptions { iso: None, border: Border::Open, ..Default::default() };

@@ -40,8 +40,9 @@ pub enum Border {
     Closed,
     /// Only cells with all eight corners in the array are meshed, as scikit-image does:
     /// the surface ends on the array's outer faces (its boundary edges lie on them) and
-    /// no part of the array's box is meshed. Voxels beyond the array read the nearest
-    /// voxel of the array, so the normals there are one-sided differences.
+    /// no part of the array's box is meshed. Voxels beyond the array read the linear
+    /// extrapolation of the array along each axis, so the normals at the border come from
+    /// one-sided differences of the same scale as the central ones inside.
     Open,
 }
 
