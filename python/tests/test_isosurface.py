@@ -176,6 +176,10 @@ def test_every_marching_cubes_keyword_is_accepted():
     tri = v[f]
     areas = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     assert areas.min() > 0
+    # Progress counts tiles, and the last report is the end.
+    reports = []
+    sl.isosurface(vol, 100.0, progress=reports.append, **kw)
+    assert reports and reports[-1]["done"] == reports[-1]["total"] > 0
 
 
 def test_masked_ball_matches_marching_cubes():
