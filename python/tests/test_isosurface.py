@@ -293,3 +293,8 @@ def test_mask_in_fortran_order_and_any_dtype():
     np.testing.assert_allclose(np.sort(c[0], axis=0), np.sort(f[0], axis=0), atol=1e-5)
     np.testing.assert_allclose(np.sort(c[3]), np.sort(f[3]), rtol=1e-6, atol=1e-5)
     compare(f, measure.marching_cubes(vol, 100.0, mask=mask), "Fortran order, uint8 mask")
+    # A mask that admits no cut cube: four empty arrays (marching_cubes raises).
+    empty = sl.isosurface(vol, 100.0, mask=np.zeros(vol.shape, bool))
+    assert [a.shape for a in empty] == [(0, 3), (0, 3), (0, 3), (0,)]
+    with pytest.raises(RuntimeError):
+        measure.marching_cubes(vol, 100.0, mask=np.zeros(vol.shape, bool))
