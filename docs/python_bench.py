@@ -85,7 +85,7 @@ def iso_row(n, repeat):
     vol = np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2) - radius
     exact = 4 * np.pi * radius**2
     t_them, (v, f, _, _) = best_of(repeat, lambda: measure.marching_cubes(vol, 0.0))
-    t_us, (vo, fo, _) = best_of(repeat, lambda: sl.isosurface(vol, 0.0))
+    t_us, (vo, fo, _, _) = best_of(repeat, lambda: sl.isosurface(vol, 0.0))
     a = trimesh.Trimesh(v, f, process=False)
     b = trimesh.Trimesh(vo, fo, process=False)
     return {

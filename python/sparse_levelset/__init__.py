@@ -324,34 +324,100 @@ def extension_velocities(
 
 def isosurface(
     volume,
-    level: float = 0.0,
+    level: Optional[float] = 0.0,
     spacing: Sequence[float] = (1.0, 1.0, 1.0),
     *,
-    inside: str = "below",
+    gradient_direction: str = "descent",
+    step_size: int = 1,
+    allow_degenerate: bool = True,
+    method: str = "lewiner",
+    mask=None,
+    closed: bool = False,
+    inside: Optional[str] = None,
     progress: Progress = None,
 ):
-    """The surface ``volume == level`` as a closed, welded triangle mesh, in the form of
-    ``skimage.measure.marching_cubes(volume, level, spacing=spacing)``.
+    """The surface ``volume == level`` as a welded triangle mesh, in the form of
+    ``skimage.measure.marching_cubes``: every keyword of ``marching_cubes`` is accepted
+    with its meaning, and the result is ``(verts, faces, normals, values)``.
 
-    Returns ``(verts, faces, normals)``: ``verts`` ``(n, 3)`` float32 in array-axis order
-    times ``spacing`` (as scikit-image), ``faces`` ``(m, 3)`` int32 indices, counter-clockwise
-    seen from outside, ``normals`` ``(n, 3)`` float32 unit vectors pointing out of the
-    inside region. ``inside="below"`` (a signed distance: values below ``level`` are
-    inside) or ``"above"`` (a bright object in an image).
+    * ``verts`` ``(n, 3)`` float32: positions in array-axis order times ``spacing``.
+    * ``faces`` ``(m, 3)`` int32: vertex indices.
+    * ``normals`` ``(n, 3)`` float32 unit vectors along ``-∇volume`` (toward lower values),
+      as scikit-image's, whatever ``gradient_direction``; with anisotropic ``spacing`` they
+      are the gradient in world units (scikit-image's are in index units).
+    * ``values`` ``(n,)`` float32: per vertex, the largest value range (largest minus
+      smallest corner value) of the cells whose triangles use it, as scikit-image defines
+      them.
 
-    The mesh is simplicial (every cube split into tetrahedra: no ambiguous cases, no holes)
-    and closed where the object touches the array's border (the outside is continued
-    beyond the array), so it is always watertight. Raises ``ValueError`` when ``level``
-    is not strictly inside the data range, or for NaN.
+    ``level``: ``None`` takes the midpoint of the smallest and largest finite values (the
+    default of scikit-image); the default here is ``0.0``, the zero level set of a signed
+    distance. A given level must lie strictly inside the data range.
+
+    ``gradient_direction``: as scikit-image, only the faces' winding depends on it:
+    ``"ascent"`` gives faces counter-clockwise seen from where the normals point,
+    ``"descent"`` (the default) the reverse. A value equal to ``level`` counts as below it.
+
+    ``step_size``: mesh the lattice of every ``step_size``-th voxel along each axis.
+
+    ``mask``: boolean array of the volume's shape. As in scikit-image, the cube at index
+    ``(i, j, k)`` (corners ``(i, j, k)`` to ``(i + s, j + s, k + s)``, ``s = step_size``) is
+    meshed only when ``mask[i + s, j + s, k + s]`` is true.
+
+    ``allow_degenerate=False`` removes zero-area triangles; the simplicial surface has
+    none (its vertices are kept apart), so both settings give the same mesh.
+
+    ``method``: ``"lewiner"`` or ``"lorensen"``; both give this library's surface, which
+    is simplicial (C. Min, "Simplicial Isosurfacing in Arbitrary Dimension and
+    Codimension", 2003: every cube split into six tetrahedra, so no ambiguous cases and no
+    holes), not either marching-cubes table: its vertices on the cubes' edges are
+    scikit-image's, and it has about three times as many triangles.
+
+    ``closed``: ``False`` (scikit-image's behaviour) leaves the surface open where the
+    object reaches the array's border; ``True`` closes it with the array's faces (the
+    outside continued beyond the array), so the mesh is watertight and encloses a volume.
+
+    ``inside`` (this library's): ``"below"`` (values below ``level`` are inside, a signed
+    distance) or ``"above"`` (a bright object) orients normals and faces consistently out
+    of the inside region (faces counter-clockwise seen from outside); ``gradient_direction``
+    must then keep its default. ``None`` (the default): scikit-image's orientation above.
+
+    Raises ``ValueError`` for NaN, a level outside the data range, a bad keyword value or
+    a mask of the wrong shape.
     """
     a = _float32(volume, "volume", allow_int=True)
     s = _spacing(spacing, 3)
-    if inside == "above":
-        a, level = -a, -float(level)
-    elif inside != "below":
-        raise ValueError(f'inside must be "below" or "above", got {inside!r}')
-    verts, faces, normals = _native.isosurface(a, float(level), s, progress)
-    return verts, faces.astype(np.int32), normals
+    if method not in ("lewiner", "lorensen"):
+        raise ValueError(f"method should be either 'lewiner' or 'lorensen', got {method!r}")
+    if gradient_direction not in ("descent", "ascent"):
+        raise ValueError(
+            f"gradient_direction must be 'descent' or 'ascent', got {gradient_direction!r}"
+        )
+    if inside is None:
+        side, reverse = "above", gradient_direction == "descent"
+    elif inside in ("below", "above"):
+        if gradient_direction != "descent":
+            raise ValueError(
+                "inside= orients the mesh out of the inside region; gradient_direction "
+                "(scikit-image's orientation) applies only with inside=None"
+            )
+        side, reverse = inside, False
+    else:
+        raise ValueError(f'inside must be "below", "above" or None, got {inside!r}')
+    step = int(step_size)
+    if step < 1:
+        raise ValueError(f"step_size must be at least one, got {step_size}")
+    m = None
+    if mask is not None:
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != a.shape:
+            raise ValueError(f"volume and mask must have the same shape, got {a.shape} and {m.shape}")
+        fortran = a.flags.f_contiguous and not a.flags.c_contiguous
+        m = np.asfortranarray(m) if fortran else np.ascontiguousarray(m)
+    lv = None if level is None else float(level)
+    verts, faces, normals, values = _native.isosurface(
+        a, lv, s, side, reverse, step, m, bool(closed), bool(allow_degenerate), progress
+    )
+    return verts, faces.astype(np.int32), normals, values
 
 
 def save_mesh(path: Union[str, os.PathLike], verts, faces, normals=None) -> None:

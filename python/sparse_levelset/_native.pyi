@@ -47,8 +47,17 @@ def extension_velocities(
     progress: _Progress = ...,
 ) -> Tuple[_F32, _Bool, _F32]: ...
 def isosurface(
-    volume: _F32, level: float, spacing: Tuple[float, float, float], progress: _Progress = ...
-) -> Tuple[_F32, npt.NDArray[np.uint32], _F32]: ...
+    volume: _F32,
+    level: Optional[float],
+    spacing: Tuple[float, float, float],
+    inside: str,
+    reverse: bool,
+    step: int = ...,
+    mask: Optional[npt.NDArray[np.bool_]] = ...,
+    closed: bool = ...,
+    allow_degenerate: bool = ...,
+    progress: _Progress = ...,
+) -> Tuple[_F32, npt.NDArray[np.uint32], _F32, npt.NDArray[np.float32]]: ...
 def save_mesh(
     path: str,
     verts: npt.NDArray[np.float64],

@@ -13,8 +13,12 @@ pub type MeshArrays<'py> =
     (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>);
 
 /// An isosurface of an array: vertices (float32, array axes), triangles, normals.
-pub type IsoArrays<'py> =
-    (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>);
+pub type IsoArrays<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray2<u32>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, numpy::PyArray1<f32>>,
+);
 
 /// A mesh read from a file: vertices and triangles.
 pub type FacesArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);

@@ -196,44 +196,94 @@ fn extension_velocities<'py>(
     ))
 }
 
-/// The isosurface of a 3-D array: vertices in the array's axis order times `spacing`.
+/// The isosurface of a 3-D array, scikit-image's `marching_cubes` (see the Python docs):
+/// vertices in the array's axis order times `spacing`, faces, normals, values.
+/// `level = None`: the middle of the data range. `inside`: "above" (scikit-image's
+/// normals, −∇volume) or "below". `reverse`: faces clockwise seen from where the normals
+/// point (scikit-image's `gradient_direction="descent"`).
 #[pyfunction]
-#[pyo3(signature = (volume, level, spacing, progress=None))]
+#[pyo3(signature = (volume, level, spacing, inside, reverse, step=1, mask=None, closed=false, allow_degenerate=true, progress=None))]
+#[allow(clippy::too_many_arguments)]
 fn isosurface<'py>(
     py: Python<'py>,
     volume: PyReadonlyArray3<'py, f32>,
-    level: f64,
+    level: Option<f64>,
     spacing: [f64; 3],
+    inside: &str,
+    reverse: bool,
+    step: u32,
+    mask: Option<PyReadonlyArray3<'py, bool>>,
+    closed: bool,
+    allow_degenerate: bool,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<IsoArrays<'py>> {
     if spacing.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(crate::value_error(format!("spacing must be finite and > 0, got {spacing:?}")));
     }
-    if !level.is_finite() {
-        return Err(crate::value_error(format!("level must be finite, got {level}")));
+    let inside = match inside {
+        "below" => mesh::Inside::Below,
+        "above" => mesh::Inside::Above,
+        o => {
+            return Err(crate::value_error(format!(
+                r#"inside must be "below" or "above", got {o:?}"#
+            )))
+        }
+    };
+    if step == 0 {
+        return Err(crate::value_error("step_size must be at least 1"));
     }
+    use numpy::PyUntypedArrayMethods;
     let mut vol = Volume::from_array(&volume)?;
+    let flags = match &mask {
+        None => None,
+        Some(m) => {
+            let s = m.shape();
+            let fortran = !m.is_c_contiguous() && m.is_fortran_contiguous();
+            if [s[0], s[1], s[2]] != vol.shape || fortran != vol.fortran {
+                return Err(crate::value_error(format!(
+                    "mask must have the volume's shape {:?} and memory order, got {s:?}",
+                    vol.shape
+                )));
+            }
+            Some(m.as_slice().map_err(crate::value_error)?)
+        }
+    };
     let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
         .map_err(crate::lib_error)?;
-    let (lo, hi) = field
-        .data()
-        .iter()
-        .filter(|v| !v.is_nan())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v as f64), hi.max(v as f64))
-        });
-    if !(lo < level && level < hi) && field.data().iter().all(|v| !v.is_nan()) {
-        return Err(crate::value_error(format!(
-            "surface level {level} must be strictly within the volume's data range [{lo}, {hi}]"
-        )));
+    if let Some(level) = level {
+        if !level.is_finite() {
+            return Err(crate::value_error(format!("level must be finite, got {level}")));
+        }
+        let (lo, hi) = field
+            .data()
+            .iter()
+            .filter(|v| !v.is_nan())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v as f64), hi.max(v as f64))
+            });
+        if !(lo < level && level < hi) && field.data().iter().all(|v| !v.is_nan()) {
+            return Err(crate::value_error(format!(
+                "surface level {level} must be strictly within the volume's data range [{lo}, {hi}]"
+            )));
+        }
     }
     let spec = GridSpec::default();
-    let m = watch::run(py, progress.as_ref(), "isosurface", |_| {
-        mesh::isosurface_dense(&field, &spec, level)
+    let s = watch::run(py, progress.as_ref(), "isosurface", |w8| {
+        let opts = mesh::DenseMeshOptions {
+            iso: level,
+            inside,
+            step,
+            mask: flags,
+            border: if closed { mesh::Border::Closed } else { mesh::Border::Open },
+            drop_degenerate: !allow_degenerate,
+            progress: w8.progress(),
+        };
+        mesh::isosurface_dense_with(&field, &spec, &opts)
     })?
     .map_err(crate::lib_error)?;
+    let m = &s.mesh;
     // Lattice (x, y, z) → array axes; reversing the axes (C order) mirrors the mesh, so the
-    // triangles are reversed to stay counter-clockwise seen from outside.
+    // triangles are reversed to keep their orientation (and once more for `reverse`).
     let axis = vol.axis_of();
     let mut verts = vec![[0f32; 3]; m.positions.len()];
     let mut normals = vec![[0f32; 3]; m.positions.len()];
@@ -247,12 +297,13 @@ fn isosurface<'py>(
         let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
         normals[i] = if len > 0.0 { q.map(|c| (c / len) as f32) } else { [0.0; 3] };
     }
-    let faces: Vec<[u32; 3]> = if vol.fortran {
-        m.triangles
+    let faces: Vec<[u32; 3]> = if vol.fortran != reverse {
+        s.mesh.triangles
     } else {
-        m.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect()
+        s.mesh.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect()
     };
-    Ok((to_rows(py, &verts)?, to_rows(py, &faces)?, to_rows(py, &normals)?))
+    let values = numpy::PyArray1::from_vec(py, s.values);
+    Ok((to_rows(py, &verts)?, to_rows(py, &faces)?, to_rows(py, &normals)?, values))
 }
 
 /// A mesh from NumPy arrays, checked: finite vertices, faces indexing them.

@@ -9,8 +9,8 @@ use sparse_levelset::storage::convert::{
 use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::storage::shapes::Shape;
 use sparse_levelset::tools::mesh::{
-    cell_simplex_bound, isosurface, isosurface_dense, isosurface_nd, MeshError, MeshOptions,
-    NdField, TriangleMesh,
+    cell_simplex_bound, isosurface, isosurface_dense, isosurface_dense_with, isosurface_nd, Border,
+    DenseMeshOptions, Inside, MeshError, MeshOptions, NdField, TriangleMesh,
 };
 use sparse_levelset::Coord;
 use std::collections::HashMap;
@@ -924,4 +924,225 @@ fn coarser_meshes_keep_the_surface() {
     let tiles = tiles_from_shape(&Shape::Sphere { center: [0.0; 3], radius: 5.0 }, spec).unwrap();
     let err = isosurface(&tiles, &MeshOptions { coarsen: 0, ..Default::default() }).unwrap_err();
     assert!(matches!(err, MeshError::InvalidParameter(_)), "{err}");
+}
+
+/// A signed distance to a sphere sampled on an `n`³ array at the origin (voxel = index).
+fn ball(n: usize, center: [f64; 3], r: f64) -> DenseField {
+    DenseField::from_fn(Coord::new(0, 0, 0), [n; 3], |c| {
+        let d = [c.x as f64 - center[0], c.y as f64 - center[1], c.z as f64 - center[2]];
+        ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - r) as f32
+    })
+    .unwrap()
+}
+
+/// Undirected edges used by one triangle only (the boundary of an open mesh).
+fn boundary_edges(m: &TriangleMesh) -> Vec<(u32, u32)> {
+    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let mut out: Vec<_> = count.into_iter().filter(|&(_, c)| c == 1).map(|(e, _)| e).collect();
+    out.sort_unstable();
+    out
+}
+
+/// The default options give `isosurface_dense`'s mesh, and the values are the cells'
+/// ranges: on the ramp φ = x − 3.5 every cell's corners span exactly 1 (2 with step 2).
+#[test]
+fn dense_options_default_to_isosurface_dense_and_values_are_cell_ranges() {
+    let spec = GridSpec::default();
+    let f = ball(24, [11.3, 12.1, 10.7], 7.2);
+    let plain = isosurface_dense(&f, &spec, 0.0).unwrap();
+    let s = isosurface_dense_with(&f, &spec, &DenseMeshOptions::default()).unwrap();
+    assert_eq!(s.mesh, plain);
+    assert_eq!(s.values.len(), plain.num_vertices());
+    assert!(s.values.iter().all(|&v| v > 0.0 && v <= 3f32.sqrt() + 1e-5), "distance: ranges ≤ √3");
+    let ramp = DenseField::from_fn(Coord::new(0, 0, 0), [9, 8, 7], |c| c.x as f32 - 3.5).unwrap();
+    for step in [1u32, 2] {
+        let opts = DenseMeshOptions { step, border: Border::Open, ..Default::default() };
+        let s = isosurface_dense_with(&ramp, &spec, &opts).unwrap();
+        assert!(!s.mesh.is_empty());
+        assert!(s.values.iter().all(|&v| v == step as f32), "step {step}: {:?}", &s.values[..4]);
+        // The plane x = 3.5 across the whole array: area 7 × 6 (the array's y, z extent
+        // to the last full step), exact for a plane up to rounding.
+        let extent = [7.0, 6.0].map(|e: f64| (e / step as f64).floor() * step as f64);
+        close(&format!("ramp plane, step {step}"), s.mesh.area(), extent[0] * extent[1], 1e-6);
+    }
+    // An open border extrapolates the array linearly, so on a tilted plane (a linear
+    // field) every normal is the plane's, also at the border (within f32 rounding).
+    let tilted = DenseField::from_fn(Coord::new(2, -1, 0), [8, 9, 6], |c| {
+        c.x as f32 + 0.5 * c.y as f32 - 0.25 * c.z as f32 - 4.3
+    })
+    .unwrap();
+    let opts = DenseMeshOptions { border: Border::Open, ..Default::default() };
+    let s = isosurface_dense_with(&tilted, &spec, &opts).unwrap();
+    let len = (1.0f64 + 0.25 + 0.0625).sqrt();
+    let exact = [1.0 / len, 0.5 / len, -0.25 / len];
+    let worst = s
+        .mesh
+        .normals
+        .iter()
+        .fold(0f64, |w, n| (0..3).fold(w, |w, a| w.max((n[a] as f64 - exact[a]).abs())));
+    println!("tilted plane: {} vertices, largest normal error {worst:.1e}", s.mesh.num_vertices());
+    assert!(worst < 1e-6, "{worst}");
+    // level = None: the middle of the finite values (−3.5 and 4.5: 0.5), the plane x = 4
+    // through voxels (moved off them by less than 10⁻³ voxel, see the module docs).
+    let opts = DenseMeshOptions { iso: None, border: Border::Open, ..Default::default() };
+    let s = isosurface_dense_with(&ramp, &spec, &opts).unwrap();
+    assert_eq!(s.iso, 0.5);
+    assert!(s.mesh.positions.iter().all(|p| (p[0] - 4.0).abs() < 1e-3), "plane at x = 4");
+}
+
+/// An open border: a ball cut by the array's faces x = 0 and y = n − 1 gives a mesh
+/// whose boundary edges all lie on those faces, no vertex outside the array, and exactly
+/// the triangles of the closed mesh that lie in cells inside the array (same positions,
+/// bit for bit). The closed mesh is a closed manifold.
+#[test]
+fn open_border_ends_the_surface_on_the_array_faces() {
+    let spec = GridSpec::default();
+    let n = 20;
+    let f = ball(n, [2.4, 16.8, 9.6], 7.3);
+    let closed = isosurface_dense(&f, &spec, 0.0).unwrap();
+    assert!(closed.is_closed_manifold());
+    let opts = DenseMeshOptions { border: Border::Open, ..Default::default() };
+    let open = isosurface_dense_with(&f, &spec, &opts).unwrap().mesh;
+    let top = (n - 1) as f64;
+    assert!(open.positions.iter().all(|p| p.iter().all(|&c| (0.0..=top).contains(&c))));
+    let edges = boundary_edges(&open);
+    println!(
+        "open: {} triangles, {} boundary edges; closed: {} triangles",
+        open.num_triangles(),
+        edges.len(),
+        closed.num_triangles()
+    );
+    assert!(edges.len() > 50, "{}", edges.len());
+    for &(a, b) in &edges {
+        let (p, q) = (open.positions[a as usize], open.positions[b as usize]);
+        let on = |c: usize, v: f64| p[c] == v && q[c] == v;
+        assert!(on(0, 0.0) || on(1, top), "boundary edge {p:?} {q:?} off the cut faces");
+    }
+    // No other boundary: the faces the ball does not reach carry none.
+    let closed_set = canonical(&closed);
+    let open_set = canonical(&open);
+    assert!(open_set.iter().all(|t| closed_set.binary_search(t).is_ok()), "open ⊄ closed");
+    // Closed minus open: the triangles in the cells that reach beyond the array (the
+    // caps), all with a vertex outside [0, n − 1]³.
+    let caps = closed_set.len() - open_set.len();
+    let outside = closed
+        .triangles
+        .iter()
+        .filter(|t| {
+            t.iter()
+                .any(|&v| closed.positions[v as usize].iter().any(|&c| !(0.0..=top).contains(&c)))
+        })
+        .count();
+    assert_eq!(caps, outside);
+    // Orientation is kept: every interior edge is used once each way.
+    let mut directed: Vec<(u32, u32)> =
+        open.triangles.iter().flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3]))).collect();
+    directed.sort_unstable();
+    assert!(directed.windows(2).all(|w| w[0] != w[1]), "an edge used twice the same way");
+}
+
+/// A mask meshes the cells whose upper corner it holds (scikit-image's rule): the
+/// meshes of a mask and of its complement split the full mesh's triangles between them,
+/// and the mask x ≥ 12 ends the surface on the plane x = 11.
+#[test]
+fn mask_meshes_the_cells_whose_upper_corner_it_holds() {
+    let spec = GridSpec::default();
+    let n = 24;
+    let f = ball(n, [11.3, 12.1, 10.7], 7.2);
+    let full = isosurface_dense(&f, &spec, 0.0).unwrap();
+    let mask: Vec<bool> = (0..n * n * n).map(|i| i % n >= 12).collect();
+    let rest: Vec<bool> = mask.iter().map(|m| !m).collect();
+    let mesh = |m: &[bool]| {
+        let opts = DenseMeshOptions { mask: Some(m), ..Default::default() };
+        isosurface_dense_with(&f, &spec, &opts).unwrap().mesh
+    };
+    let (a, b) = (mesh(&mask), mesh(&rest));
+    println!(
+        "mask x ≥ 12: {} triangles, complement {}, full {}",
+        a.num_triangles(),
+        b.num_triangles(),
+        full.num_triangles()
+    );
+    let mut both = canonical(&a);
+    both.extend(canonical(&b));
+    both.sort_unstable();
+    assert_eq!(both, canonical(&full), "mask and complement partition the triangles");
+    assert!(a.positions.iter().all(|p| p[0] >= 11.0));
+    assert!(b.positions.iter().all(|p| p[0] <= 11.0));
+    let edges = boundary_edges(&a);
+    assert!(!edges.is_empty());
+    for &(u, v) in &edges {
+        let (p, q) = (a.positions[u as usize], a.positions[v as usize]);
+        assert!(p[0] == 11.0 && q[0] == 11.0, "boundary edge {p:?} {q:?} off x = 11");
+    }
+    let bad = DenseMeshOptions { mask: Some(&mask[1..]), ..Default::default() };
+    assert!(matches!(isosurface_dense_with(&f, &spec, &bad), Err(MeshError::InvalidParameter(_))));
+}
+
+/// `step` = k meshes the lattice of every k-th voxel: the mesh of the sampled array with
+/// voxel size k, bit for bit; about k² fewer triangles and the sphere's area within 2 %.
+#[test]
+fn step_meshes_every_kth_voxel() {
+    let spec = GridSpec::default();
+    let (n, c, r) = (41, [20.3, 19.6, 20.9], 14.2);
+    let f = ball(n, c, r);
+    let fine = isosurface_dense(&f, &spec, 0.0).unwrap();
+    for k in [2usize, 3] {
+        let opts = DenseMeshOptions { step: k as u32, ..Default::default() };
+        let s = isosurface_dense_with(&f, &spec, &opts).unwrap();
+        let m = (n - 1) / k + 1;
+        let sampled = DenseField::from_fn(Coord::new(0, 0, 0), [m; 3], |v| {
+            f.get(Coord::new(k as i32 * v.x, k as i32 * v.y, k as i32 * v.z)).unwrap()
+        })
+        .unwrap();
+        let coarse_spec = GridSpec { voxel_size: k as f32, ..spec };
+        assert_eq!(s.mesh, isosurface_dense(&sampled, &coarse_spec, 0.0).unwrap(), "step {k}");
+        let ratio = fine.num_triangles() as f64 / s.mesh.num_triangles() as f64 / (k * k) as f64;
+        println!("step {k}: {} triangles, fine/k² ratio {ratio:.3}", s.mesh.num_triangles());
+        assert!((0.7..1.4).contains(&ratio), "{ratio}");
+        close(&format!("area, step {k}"), s.mesh.area(), 4.0 * PI * r * r, 0.02);
+        assert!(s.mesh.is_closed_manifold());
+    }
+    let bad = DenseMeshOptions { step: 0, ..Default::default() };
+    assert!(matches!(isosurface_dense_with(&f, &spec, &bad), Err(MeshError::InvalidParameter(_))));
+}
+
+/// `Inside::Above` is the mesh of the negated array at the negated iso value (normals
+/// along −∇φ, triangles reversed), and every option gives the same bits on 1 to 3
+/// threads; dropping zero-area triangles changes nothing on exact zeros.
+#[test]
+fn inside_above_threads_and_degenerate_triangles() {
+    let spec = GridSpec::default();
+    let n = 22;
+    // A bright blob with exact iso values on voxels (integer values, level 4).
+    let f = DenseField::from_fn(Coord::new(-3, 2, 0), [n; 3], |c| {
+        let d = [c.x as f64 - 7.0, c.y as f64 - 12.0, c.z as f64 - 10.0];
+        (12.0 - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()).round() as f32
+    })
+    .unwrap();
+    let neg = DenseField::from_fn(f.origin(), f.dims(), |c| -f.get(c).unwrap()).unwrap();
+    let opts = DenseMeshOptions { iso: Some(4.0), inside: Inside::Above, ..Default::default() };
+    let s = isosurface_dense_with(&f, &spec, &opts).unwrap();
+    assert_eq!(s.mesh, isosurface_dense(&neg, &spec, -4.0).unwrap());
+    assert!(s.mesh.is_closed_manifold() && s.mesh.enclosed_volume() > 0.0);
+    assert_eq!(s.mesh.degenerate_triangles(), 0);
+    let kept = DenseMeshOptions { drop_degenerate: true, ..opts.clone() };
+    assert_eq!(isosurface_dense_with(&f, &spec, &kept).unwrap(), s);
+    let mask: Vec<bool> = (0..n * n * n).map(|i| (i / n) % n < 15).collect();
+    let all = DenseMeshOptions { step: 2, mask: Some(&mask), border: Border::Open, ..opts.clone() };
+    let runs: Vec<_> = [1, 2, 3]
+        .iter()
+        .map(|&t| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+            pool.install(|| isosurface_dense_with(&f, &spec, &all)).unwrap()
+        })
+        .collect();
+    assert!(!runs[0].mesh.is_empty());
+    assert!(runs.iter().all(|r| *r == runs[0]), "thread counts differ");
 }

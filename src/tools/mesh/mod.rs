@@ -6,6 +6,9 @@
 //!   coordinates with per-vertex normals from ∇φ, tile by tile in parallel and the same
 //!   bits for any thread count; with [`MeshOptions::coarsen`] = k, the surface of φ
 //!   sampled at every k-th voxel (about k² fewer triangles, the same guarantees);
+//! * [`isosurface_dense_with`]: the dense case with scikit-image's choices (iso value
+//!   defaulting to the middle of the data range, which side is inside, a lattice step, a
+//!   mask, a surface left open or closed at the array's border) and per-vertex values;
 //! * [`isosurface_nd`]: the zero set of a dense φ: Zⁿ → Rᵐ, n ≤ 5, m < n, as a
 //!   [`SimplicialComplex`] of dimension n − m (successive hyperplane cuts, Sec. 4);
 //! * [`crate::io::mesh::save_mesh`]: binary or ASCII PLY, OBJ and binary STL, written
@@ -49,10 +52,12 @@
 mod cells;
 mod check;
 mod coarse;
+mod dense;
 mod simplicial;
 mod surface;
 pub mod tables;
 
+pub use dense::{isosurface_dense_with, Border, DenseMeshOptions, DenseSurface, Inside};
 pub use simplicial::{cell_simplex_bound, isosurface_nd, ComplexStats, NdField, SimplicialComplex};
 pub use surface::{isosurface, isosurface_dense};
 

@@ -52,6 +52,15 @@
 //! vertices and triangles in the same order; the arithmetic of a vertex depends on its
 //! edge and the values around it alone.
 //!
+//! # Cell rules and cell ranges (dense arrays)
+//! [`super::isosurface_dense_with`] restricts the cells (a mask, an open border) through
+//! [`Source::meshed_cells`]: a bit per cell of the tile's block, in the layout of the
+//! cut-cell masks, ANDed with them in both passes, so counts and writes agree. The
+//! vertices stay those of the cut edges; the ones no admitted cell uses are dropped
+//! afterwards, in order. Pass 2 can also write, per triangle, the value range of its
+//! cell (scikit-image's per-vertex `values` are the largest of these around a vertex).
+//! Without a rule every cell is admitted and nothing else changes.
+//!
 //! # Speed
 //! On the r = 100 sphere (753 990 band voxels, 563 606 vertices, 1 127 208 triangles;
 //! `cargo bench --bench mesh`, 2-core AMD EPYC with AVX-512, quiet moment): 41 ms on one
@@ -157,6 +166,14 @@ trait Source: Sync {
     /// φ at a voxel, exactly as [`Source::gather`] reads it (for vertices on edges that
     /// start in a tile without a slot).
     fn value(&self, v: [i64; 3]) -> f32;
+    /// Which cells of the block of tile `t` may be meshed, in the layout of
+    /// [`super::cells::cut_cells`] (bit `x + 8 y` of layer `z`: the cell whose lower
+    /// corner is block voxel `(x, y, z)`). All of them unless a source restricts them
+    /// (a dense array's mask or open border); the two passes read the same bits.
+    #[inline(always)]
+    fn meshed_cells(&self, _t: Coord) -> [u64; 8] {
+        [!0; 8]
+    }
 }
 
 /// A tile grid: slots are its tiles; absent tiles read ±γ with the sign the grid records
@@ -271,7 +288,8 @@ fn copy_rows(parts: &[&[f32; 64]; 27], values: &mut [f32; BLOCK]) {
 
 /// A dense array: slots are the tiles whose block the surface crosses, stored are all
 /// tiles that meet the array or the voxel layer before it; values beyond the array read
-/// `iso + γ`, ±∞ as `iso ± γ`.
+/// `iso + γ` (for an open border the linear extrapolation of
+/// [`DenseSource::extrapolated`]), ±∞ as `iso ± γ`.
 struct DenseSource<'a> {
     field: &'a DenseField,
     spec: GridSpec,
@@ -281,9 +299,91 @@ struct DenseSource<'a> {
     thi: [i64; 3],
     outside: f32,
     inside: f32,
+    /// Which cells are meshed; `None`: all.
+    cells: Option<CellRule<'a>>,
 }
 
 impl DenseSource<'_> {
+    /// Whether voxels beyond the array read an extrapolation of the array (an open
+    /// border, see [`DenseSource::extrapolated`]) rather than `iso + γ`.
+    fn clamps(&self) -> bool {
+        self.cells.is_some_and(|r| r.open)
+    }
+
+    /// For a voxel `c` beyond the array: the value at the nearest array voxel p plus,
+    /// along each axis on which `c` lies beyond, the distance times the one-sided
+    /// difference at p toward the outside (zero where the array is one voxel thick). So
+    /// the central differences at the array's border voxels are one-sided differences
+    /// of the same scale. `None` for a voxel of the array.
+    fn extrapolated(&self, c: [i64; 3]) -> Option<f32> {
+        let (lo, hi) = (self.field.origin(), self.field.max_coord());
+        let (lo, hi) =
+            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
+        let p = [0, 1, 2].map(|a| c[a].clamp(lo[a], hi[a]));
+        if p == c {
+            return None;
+        }
+        let base = self.value(p) as f64;
+        let mut v = base;
+        for a in 0..3 {
+            let beyond = c[a] - p[a];
+            if beyond != 0 && lo[a] < hi[a] {
+                let mut q = p;
+                q[a] -= beyond.signum();
+                v += beyond.abs() as f64 * (base - self.value(q) as f64);
+            }
+        }
+        Some(v as f32)
+    }
+}
+
+/// The cells of a dense array that may be meshed (see [`super::DenseMeshOptions`]).
+#[derive(Clone, Copy)]
+pub(super) struct CellRule<'a> {
+    /// Only cells with all eight corners in the array; voxels beyond the array read a
+    /// linear extrapolation of the array (so the normals at the border come from
+    /// one-sided differences).
+    pub open: bool,
+    /// Only cells whose upper corner (lower corner + (1, 1, 1)) is in the array and true
+    /// in this mask (array order, x fastest).
+    pub mask: Option<&'a [bool]>,
+}
+
+impl DenseSource<'_> {
+    /// The cells of tile `t`'s block that the rule admits (see [`Source::meshed_cells`]).
+    fn rule_cells(&self, rule: &CellRule, t: Coord) -> [u64; 8] {
+        let o = self.field.origin();
+        let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
+        let n = dims.map(|d| d as i64);
+        let lo = [t.x as i64, t.y as i64, t.z as i64].map(|c| 4 * c - 2);
+        let mut out = [0u64; 8];
+        for (z, layer) in out.iter_mut().enumerate().take(7) {
+            for y in 0..8 {
+                for x in 0..8 {
+                    // The cell's lower corner, relative to the array's first voxel.
+                    let r =
+                        [lo[0] + x as i64 - o[0], lo[1] + y as i64 - o[1], lo[2] + z as i64 - o[2]];
+                    let in_array = |a: usize, c: i64| (0..n[a]).contains(&c);
+                    if rule.open && !(0..3).all(|a| in_array(a, r[a]) && in_array(a, r[a] + 1)) {
+                        continue;
+                    }
+                    if let Some(mask) = rule.mask {
+                        let u = r.map(|c| c + 1);
+                        if !(0..3).all(|a| in_array(a, u[a])) {
+                            continue;
+                        }
+                        let i = u[0] as usize + dims[0] * (u[1] as usize + dims[1] * u[2] as usize);
+                        if !mask[i] {
+                            continue;
+                        }
+                    }
+                    *layer |= 1 << (x + 8 * y);
+                }
+            }
+        }
+        out
+    }
+
     fn stored(&self, t: [i64; 3]) -> bool {
         (0..3).all(|a| (self.tlo[a]..=self.thi[a]).contains(&t[a]))
     }
@@ -350,6 +450,11 @@ impl Source for DenseSource<'_> {
     }
 
     fn value(&self, c: [i64; 3]) -> f32 {
+        if self.clamps() {
+            if let Some(v) = self.extrapolated(c) {
+                return v;
+            }
+        }
         let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);
         if c.iter().all(|&v| ok(v)) {
             match self.field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)) {
@@ -360,6 +465,13 @@ impl Source for DenseSource<'_> {
             }
         } else {
             self.outside
+        }
+    }
+
+    fn meshed_cells(&self, t: Coord) -> [u64; 8] {
+        match &self.cells {
+            None => [!0; 8],
+            Some(rule) => self.rule_cells(rule, t),
         }
     }
 }
@@ -432,15 +544,21 @@ fn edge_bounds(tile: Coord, edges: &[u64; 7]) -> ([i64; 3], [i64; 3]) {
     ([0, 1, 2].map(|a| base[a] + lo[a]), [0, 1, 2].map(|a| base[a] + hi[a]))
 }
 
-/// The cells a slot owns with a sign change, in (z, y, x) order of their lower corners
-/// (block coordinates): `f(x, y, z, pattern)` for each.
+/// The cells a slot owns with a sign change that `meshed` admits (layout of
+/// [`Source::meshed_cells`]), in (z, y, x) order of their lower corners (block
+/// coordinates): `f(x, y, z, pattern)` for each.
 #[inline(always)]
-fn for_each_cut_cell(s: &[u64; 8], stored: u32, mut f: impl FnMut(usize, usize, usize, usize)) {
+fn for_each_cut_cell(
+    s: &[u64; 8],
+    stored: u32,
+    meshed: &[u64; 8],
+    mut f: impl FnMut(usize, usize, usize, usize),
+) {
     // The cells one voxel before the tile belong to the tile before them when that one is
     // stored (always, in a band whose absent tiles keep a voxel off the surface).
     let (zs, xy) = if stored & BEFORE == BEFORE { (2, TILE_XY) } else { (1, CELL_XY) };
-    for z in zs..6 {
-        let mut cut = cut_cells(s, z) & xy;
+    for (z, &admitted) in meshed.iter().enumerate().take(6).skip(zs) {
+        let mut cut = cut_cells(s, z) & xy & admitted;
         while cut != 0 {
             let b = cut.trailing_zeros() as usize;
             cut &= cut - 1;
@@ -459,8 +577,15 @@ fn orphan_key(t: Coord, v: [usize; 3], d: u8) -> Orphan {
     ([w(2, t.z), w(1, t.y), w(0, t.x)], d)
 }
 
-/// The mesh of a source in two passes over its slots (see the module docs).
-fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, MeshError> {
+/// The mesh of a source in two passes over its slots (see the module docs). With
+/// `ranges`, also per triangle the range (largest minus smallest) of the values at the
+/// eight corners of its cell, as the block reads them; otherwise an empty vector.
+fn run<S: Source>(
+    src: &S,
+    iso: f64,
+    ticker: &Ticker,
+    ranges: bool,
+) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     let coords = src.coords();
     let n = coords.len();
     let below = f32_threshold(iso);
@@ -486,13 +611,14 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
                     if uniform(&s) {
                         continue;
                     }
+                    let meshed = src.meshed_cells(nb.coord);
                     let edges = edge_masks(&s);
                     if edges != [0; 7] {
                         out.bounds = union(out.bounds, edge_bounds(nb.coord, &edges));
                     }
                     info[k].edges = edges;
                     let mut tris = 0u32;
-                    for_each_cut_cell(&s, stored, |x, y, z, p| {
+                    for_each_cut_cell(&s, stored, &meshed, |x, y, z, p| {
                         let case = &cases[p];
                         tris += case.n_tris as u32;
                         if cell_tiles(x, y, z) & !nb.matched == 0 {
@@ -533,7 +659,7 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
         bounds = union(bounds, (lo, hi));
     }
     let Some((vmin, vmax)) = bounds else {
-        return Ok(TriangleMesh::default());
+        return Ok((TriangleMesh::default(), Vec::new()));
     };
 
     // Numbering: slot vertices in slot order, then the orphans; triangles in slot order.
@@ -564,8 +690,8 @@ fn run<S: Source>(src: &S, iso: f64, ticker: &Ticker) -> Result<TriangleMesh, Me
     let placer = Placer::new(src.spec(), vmin, vmax)?;
     // The precision is decided once, outside the loops.
     match placer.precision {
-        Precision::F32 => fill::<S, true>(src, iso, ticker, &counted, &placer),
-        Precision::F64 => fill::<S, false>(src, iso, ticker, &counted, &placer),
+        Precision::F32 => fill::<S, true>(src, iso, ticker, &counted, &placer, ranges),
+        Precision::F64 => fill::<S, false>(src, iso, ticker, &counted, &placer, ranges),
     }
 }
 
@@ -589,14 +715,16 @@ impl Counted {
 }
 
 /// Pass 2: every slot writes its vertices and triangles into its own ranges of the mesh,
-/// chunks in parallel; then the orphans. `F32`: the placer's precision.
+/// chunks in parallel; then the orphans. `F32`: the placer's precision. `want_ranges`:
+/// also the value range of each triangle's cell (see [`run`]).
 fn fill<S: Source, const F32: bool>(
     src: &S,
     iso: f64,
     ticker: &Ticker,
     c: &Counted,
     placer: &Placer,
-) -> Result<TriangleMesh, MeshError> {
+    want_ranges: bool,
+) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     let coords = src.coords();
     let n = coords.len();
     let below = f32_threshold(iso);
@@ -617,10 +745,12 @@ fn fill<S: Source, const F32: bool>(
     let (slot_pos, orphan_pos) = positions.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let (slot_nrm, orphan_nrm) = normals.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let vstart = |s: usize| if s < n { info[s].base[0] as usize } else { slot_verts };
+    // Cell ranges per triangle, when asked for (zeroed: a plain, safe buffer).
+    let mut ranges = vec![0f32; if want_ranges { tris } else { 0 }];
     let mut work = Vec::with_capacity(n.div_ceil(CHUNK));
     {
-        let (mut p, mut q, mut r) =
-            (slot_pos, slot_nrm, &mut triangles.spare_capacity_mut()[..tris]);
+        let (mut p, mut q, mut r, mut g) =
+            (slot_pos, slot_nrm, &mut triangles.spare_capacity_mut()[..tris], &mut ranges[..]);
         for start in (0..n).step_by(CHUNK) {
             let end = (start + CHUNK).min(n);
             let nv = vstart(end) - vstart(start);
@@ -628,8 +758,9 @@ fn fill<S: Source, const F32: bool>(
             let (p0, p1) = p.split_at_mut(nv);
             let (q0, q1) = q.split_at_mut(nv);
             let (r0, r1) = r.split_at_mut(nt);
-            work.push((start, end, p0, q0, r0));
-            (p, q, r) = (p1, q1, r1);
+            let (g0, g1) = g.split_at_mut(if want_ranges { nt } else { 0 });
+            work.push((start, end, p0, q0, r0, g0));
+            (p, q, r, g) = (p1, q1, r1, g1);
         }
     }
     let orphan_index = |key: Orphan| -> u32 {
@@ -640,7 +771,7 @@ fn fill<S: Source, const F32: bool>(
         .into_par_iter()
         .map_init(
             || (Box::new([0f32; BLOCK]), VertexBatch::new()),
-            |(values, batch), (start, end, pos, nrm, tri)| {
+            |(values, batch), (start, end, pos, nrm, tri, rng)| {
                 ticker.check()?;
                 let mut missing = false;
                 let (v0, t0) = (vstart(start), tri_start[start]);
@@ -681,7 +812,8 @@ fn fill<S: Source, const F32: bool>(
                         std::array::from_fn(|k| nb.get(k).map(|p| &info[p]));
                     let mut w = tri_start[nb.pos] - t0;
                     let mut idx = [0u32; CELL_EDGES];
-                    for_each_cut_cell(&s, stored, |x, y, z, p| {
+                    let meshed = src.meshed_cells(t);
+                    for_each_cut_cell(&s, stored, &meshed, |x, y, z, p| {
                         let case = &cases[p];
                         for (i, &e) in idx.iter_mut().zip(&case.edges[..case.n_edges as usize]) {
                             let (lo, d) = ((e & 7) as usize, e >> 3);
@@ -695,6 +827,10 @@ fn fill<S: Source, const F32: bool>(
                                 }
                                 None => orphan_index(orphan_key(t, v, d)),
                             };
+                        }
+                        if want_ranges {
+                            let range = cell_range(values, x, y, z);
+                            rng[w..w + case.n_tris as usize].fill(range);
                         }
                         for tr in &case.tris[..case.n_tris as usize] {
                             tri[w].write(tr.map(|k| idx[k as usize]));
@@ -740,7 +876,20 @@ fn fill<S: Source, const F32: bool>(
     if missing {
         mesh.fill_missing_normals();
     }
-    Ok(mesh)
+    Ok((mesh, ranges))
+}
+
+/// The largest minus the smallest value at the eight corners of the cell whose lower
+/// corner is block voxel `(x, y, z)`, computed in f64 and rounded to f32.
+#[inline]
+fn cell_range(values: &[f32; BLOCK], x: usize, y: usize, z: usize) -> f32 {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for c in 0..8 {
+        let v = values[bidx(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    (hi as f64 - lo as f64) as f32
 }
 
 /// Asks Linux to back the 2 MiB-aligned interior of a fresh output buffer with
@@ -897,7 +1046,7 @@ pub fn isosurface<G: LevelSet + ?Sized>(
         grid
     };
     let ticker = opts.progress.start(grid.len() as u64);
-    run(&GridSource::new(grid), iso, &ticker)
+    Ok(run(&GridSource::new(grid), iso, &ticker, false)?.0)
 }
 
 /// The isosurface φ = `iso` of a dense field, voxel size and origin from `spec` (the
@@ -912,6 +1061,20 @@ pub fn isosurface_dense(
     spec: &GridSpec,
     iso: f64,
 ) -> Result<TriangleMesh, MeshError> {
+    let none = crate::progress::Progress::none();
+    Ok(dense_mesh(field, spec, iso, None, false, &none)?.0)
+}
+
+/// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
+/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles.
+pub(super) fn dense_mesh(
+    field: &DenseField,
+    spec: &GridSpec,
+    iso: f64,
+    cells: Option<CellRule>,
+    ranges: bool,
+    progress: &crate::progress::Progress,
+) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     check_iso(iso)?;
     if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
         return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
@@ -930,6 +1093,7 @@ pub fn isosurface_dense(
         thi: hi.map(|c| c.div_euclid(4)),
         outside: (iso + spec.gamma() as f64) as f32,
         inside: (iso - spec.gamma() as f64) as f32,
+        cells,
     };
     // The slots: the stored tiles whose block the surface crosses (any other tile has no
     // cut edge and no cut cell).
@@ -951,7 +1115,8 @@ pub fn isosurface_dense(
         })
         .collect();
     src.coords = coords;
-    run(&src, iso, &crate::progress::Progress::none().start(0))
+    let ticker = progress.start(src.coords.len() as u64);
+    run(&src, iso, &ticker, ranges)
 }
 
 #[cfg(test)]
