@@ -858,6 +858,13 @@ fn evolve_equals_the_library_from_every_format() {
     assert!(stderr(&o).contains("--time T"), "{}", stderr(&o));
 }
 
+/// `levelset evolve IN -o OUT ARGS…`.
+fn evolve(input: &str, output: &str, args: &[&str]) -> Output {
+    let mut all = vec!["evolve", input, "-o", output];
+    all.extend_from_slice(args);
+    levelset(&all)
+}
+
 /// A float32 `.npy` of shape (nz, ny, nx, 3) written by hand (C order): `u(x, y, z)`.
 fn vector_npy(name: &str, dims: [usize; 3], u: impl Fn([usize; 3]) -> [f32; 3]) -> PathBuf {
     let [nx, ny, nz] = dims;
@@ -918,23 +925,23 @@ fn evolve_by_a_velocity_field_file_equals_the_library() {
             .unwrap();
     sim.run_until(f64::INFINITY, 20, |_, _| {}).unwrap();
     let out = tmp("evov-out.sls");
-    let o = levelset(&[
-        "evolve",
+    let o = evolve(
         sls.to_str().unwrap(),
-        "-o",
         out.to_str().unwrap(),
-        "--velocity",
-        field.to_str().unwrap(),
-        "--velocity-origin",
-        "2,2,2",
-        "--speed",
-        "0.1",
-        "--steps",
-        "20",
-        "--threads",
-        "2",
-        "--quiet",
-    ]);
+        &[
+            "--velocity",
+            field.to_str().unwrap(),
+            "--velocity-origin",
+            "2,2,2",
+            "--speed",
+            "0.1",
+            "--steps",
+            "20",
+            "--threads",
+            "2",
+            "--quiet",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(sparse_levelset::io::sls::load(&out).unwrap().0.checksum(), sim.checksum());
 
@@ -942,17 +949,11 @@ fn evolve_by_a_velocity_field_file_equals_the_library() {
     // the interface voxels (|φ| < 1) moves so, within 0.25 voxels.
     let uni = vector_npy("evov-uni.npy", [32, 32, 32], |_| [1.0, -0.5, 0.25]);
     let moved = tmp("evov-moved.sls");
-    let o = levelset(&[
-        "evolve",
+    let o = evolve(
         sls.to_str().unwrap(),
-        "-o",
         moved.to_str().unwrap(),
-        "--velocity",
-        uni.to_str().unwrap(),
-        "--time",
-        "4",
-        "--quiet",
-    ]);
+        &["--velocity", uni.to_str().unwrap(), "--time", "4", "--quiet"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     fn centre(g: &impl LevelSet) -> [f64; 3] {
         let (mut sum, mut n) = ([0f64; 3], 0f64);
@@ -981,16 +982,11 @@ fn evolve_by_a_velocity_field_file_equals_the_library() {
         }
     });
     for (file, msg) in [(&f, "(nz, ny, nx, 3)"), (&nan, "NaN at voxel (x, y, z) = (1, 2, 3)")] {
-        let o = levelset(&[
-            "evolve",
+        let o = evolve(
             sls.to_str().unwrap(),
-            "-o",
             bad_out.to_str().unwrap(),
-            "--velocity",
-            file.to_str().unwrap(),
-            "--steps",
-            "1",
-        ]);
+            &["--velocity", file.to_str().unwrap(), "--steps", "1"],
+        );
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         assert!(stderr(&o).contains(msg), "{}", stderr(&o));
         assert!(!bad_out.exists());
@@ -1044,16 +1040,11 @@ fn evolve_by_an_openvdb_vector_grid_equals_the_library() {
     let obj = tmp("evovdb.obj");
     std::fs::write(&obj, "v 0 0 0\n").unwrap();
     for (file, msg) in [(&sphere, "no vector grid"), (&obj, "unknown vector-field file type")] {
-        let o = levelset(&[
-            "evolve",
+        let o = evolve(
             f.to_str().unwrap(),
-            "-o",
             tmp("evovdb-bad.sls").to_str().unwrap(),
-            "--velocity",
-            file.to_str().unwrap(),
-            "--steps",
-            "1",
-        ]);
+            &["--velocity", file.to_str().unwrap(), "--steps", "1"],
+        );
         assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
         assert!(stderr(&o).contains(msg), "{}", stderr(&o));
     }

@@ -119,3 +119,20 @@ fn a_failed_second_output_leaves_the_first_as_it_was() {
     assert_ne!(std::fs::read(&mask).unwrap(), b"the previous mask");
     assert!(std::fs::metadata(&phi).unwrap().len() > 48 * 48 * 48 * 4);
 }
+
+/// Under an MPI launcher (its environment variables), a command that runs in one process
+/// refuses before any work instead of running whole on every rank.
+#[test]
+fn single_process_commands_refuse_several_mpi_ranks() {
+    let f = npy("mpi-ball.npy", &ball([16, 16, 16], [7.5; 3], 4.0, 1.0));
+    let out = tmp("mpi-out.sls");
+    let o = Command::new(env!("CARGO_BIN_EXE_levelset"))
+        .args(["evolve", f.to_str().unwrap(), "-o", out.to_str().unwrap(), "--steps", "1"])
+        .env("OMPI_COMM_WORLD_SIZE", "2")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("started on 2 MPI ranks"), "{err}");
+    assert!(!out.exists());
+}

@@ -48,6 +48,9 @@ pub struct ConvertArgs {
     /// No progress spinner.
     #[arg(long)]
     pub quiet: bool,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -63,6 +66,11 @@ enum Out {
 }
 
 pub fn run(a: &ConvertArgs) -> Result<(), String> {
+    let (pool, _) = crate::source::worker_pool(a.threads)?;
+    pool.install(|| convert(a))
+}
+
+fn convert(a: &ConvertArgs) -> Result<(), String> {
     let out = if LevelSetFormat::from_path(&a.output).is_some() {
         Out::LevelSet
     } else if let Some(format) = MeshFormat::from_path(&a.output) {

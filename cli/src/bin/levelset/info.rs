@@ -14,9 +14,17 @@ pub struct InfoArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
 }
 
 pub fn run(a: &InfoArgs) -> Result<(), String> {
+    let (pool, _) = crate::source::worker_pool(a.threads)?;
+    pool.install(|| info(a))
+}
+
+fn info(a: &InfoArgs) -> Result<(), String> {
     let spec = a.source.spec()?;
     // The three grids are held at once.
     let expect = Expect { copies: 3.0, ..Expect::new(spec) };

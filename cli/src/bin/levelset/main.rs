@@ -60,8 +60,9 @@ enum Command {
     /// dilate, erode, open, close, mean-curvature motion, Gaussian, mean and median of the
     /// band, renormalisation; several in one call, in the order given.
     Filter(filter::FilterArgs),
-    /// Evolve a level set (.npy, .sls, .vdb) under a normal speed and mean-curvature
-    /// motion for a time or a number of steps; the result in any format.
+    /// Evolve a level set (.npy, .sls, .vdb) under a normal speed, mean-curvature motion
+    /// and advection by a velocity field (.npy, .vdb) for a time or a number of steps; the
+    /// result in any format.
     Evolve(evolve::EvolveArgs),
     /// Signed distance to a triangle mesh (.obj, .ply, .stl) on a narrow band: exact
     /// distances, inside/outside by ray votes robust to holes, into a .npy field; a
@@ -93,6 +94,18 @@ fn main() -> ExitCode {
             return if e.use_stderr() { ExitCode::FAILURE } else { ExitCode::SUCCESS };
         }
     };
+    // Under an MPI launcher, only the commands that spread their work over the ranks run;
+    // any other would run whole on every rank and write the same files.
+    let spreads =
+        matches!(cli.command, Command::Run(_) | Command::Segment(_) | Command::Voxelize(_));
+    if let Some(n) = levelset_cli::ranks::launched_ranks().filter(|&n| n > 1 && !spreads) {
+        eprintln!(
+            "error: started on {n} MPI ranks, but this command runs in one process (every rank \
+             would do the whole job and write the same files): run it without mpirun; run, \
+             segment and voxelize spread their work over the ranks"
+        );
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Info(a) => plain(info::run(&a)),
         Command::Run(a) => plain(run::run(&a)),

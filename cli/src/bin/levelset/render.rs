@@ -51,9 +51,17 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Worker threads [default: all cores].
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
 }
 
 pub fn run(a: &RenderArgs) -> Result<(), String> {
+    let (pool, _) = crate::source::worker_pool(a.threads)?;
+    pool.install(|| render_file(a))
+}
+
+fn render_file(a: &RenderArgs) -> Result<(), String> {
     let opts = render::RenderOptions {
         width: a.width,
         height: a.height,
