@@ -390,6 +390,17 @@ impl Simulation {
         }
     }
 
+    /// The whole band as one tile grid, on every rank: when distributed, the ranks' own
+    /// tiles gathered (collective: every rank must call it), equal to the single-process
+    /// run's grid; a copy of the tile grid otherwise; `None` on a DT-Grid or a dense box.
+    pub fn gathered_tiles(&self) -> Result<Option<TileGrid>, EvolveError> {
+        let r = match &self.rep {
+            Rep::Tiles(t) => t.gather().map(Some).map_err(EvolveError::from),
+            _ => Ok(None),
+        };
+        self.agree(r)
+    }
+
     /// The DT-Grid, when running on a DT-Grid.
     pub fn dtgrid(&self) -> Option<&DtGrid> {
         match &self.rep {

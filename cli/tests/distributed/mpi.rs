@@ -1,6 +1,7 @@
-//! `mpirun -n N levelset run ...` (feature `mpi`): the papers' scenarios distributed over
-//! 2 ranks and over 3 (oversubscribed on a 2-core machine) end with the single-process
-//! band, bit for bit (the checksum), and the same volume and area records.
+//! `mpirun -n N levelset run ...` and `levelset evolve` (feature `mpi`): the papers'
+//! scenarios and a user's level set distributed over 2 ranks and over 3 (oversubscribed on
+//! a 2-core machine) end with the single-process band, bit for bit (the checksum, the
+//! output), and the same volume and area records.
 #![cfg(feature = "mpi")]
 
 use crate::common::{stderr, tmp};
@@ -118,4 +119,73 @@ fn what_needs_the_whole_band_is_refused_under_mpirun() {
         .expect("mpirun runs");
     assert!(!dt.status.success());
     assert!(stderr(&dt).contains("tile engine"), "{}", stderr(&dt));
+}
+
+/// `mpirun -n N levelset evolve`: a user's `.sls` ball under mean curvature and a normal
+/// speed, on 2 and 3 ranks, writes the single-process output
+/// byte for byte (the dense `.npy` of the band's box: values, and inside/outside beyond the
+/// band) and the same checksum, gathered by rank 0; a command that runs in one process is
+/// refused under mpirun.
+#[test]
+fn evolve_on_2_and_3_ranks_matches_one_process() {
+    let bin = env!("CARGO_BIN_EXE_levelset");
+    let ball = crate::common::npy(
+        "mpi-evo-ball.npy",
+        &crate::common::ball([40, 40, 40], [19.5, 18.2, 20.1], 11.0, 1.0),
+    );
+    let sls = tmp("mpi-evo-ball.sls");
+    let o =
+        Command::new(bin).args(["convert"]).arg(&ball).arg(&sls).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut outputs = Vec::new();
+    for ranks in [None, Some(2), Some(3)] {
+        let out = tmp(&format!("mpi-evo-{ranks:?}.npy"));
+        let summary = tmp(&format!("mpi-evo-{ranks:?}.json"));
+        let mut cmd = match ranks {
+            None => Command::new(bin),
+            Some(n) => {
+                let mut c = Command::new("mpirun");
+                c.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+                    .args(["-n", &n.to_string(), "--oversubscribe", bin]);
+                c
+            }
+        };
+        let o = cmd
+            .arg("evolve")
+            .arg(&sls)
+            .arg("-o")
+            .arg(&out)
+            .args(["--curvature", "1", "--speed", "0.3", "--steps", "12", "--threads", "1"])
+            .arg("--summary")
+            .arg(&summary)
+            .arg("--quiet")
+            .output()
+            .expect("mpirun runs");
+        assert!(o.status.success(), "{ranks:?} ranks: {}", stderr(&o));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        assert_eq!(s["ranks"], ranks.unwrap_or(1) as u64);
+        outputs.push((
+            std::fs::read(&out).unwrap(),
+            s["checksum"].clone(),
+            s["band_voxels"].clone(),
+        ));
+    }
+    for (k, o) in outputs.iter().enumerate().skip(1) {
+        assert!(o.0 == outputs[0].0, "output {k} differs from one process's");
+        assert_eq!((&o.1, &o.2), (&outputs[0].1, &outputs[0].2));
+    }
+    let filter = Command::new("mpirun")
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .args(["-n", "2", "--oversubscribe", bin, "filter"])
+        .arg(&sls)
+        .arg("-o")
+        .arg(tmp("mpi-evo-filter.sls"))
+        .args(["--op", "dilate:1"])
+        .output()
+        .expect("mpirun runs");
+    assert!(!filter.status.success());
+    assert!(stderr(&filter).contains("runs in one process"), "{}", stderr(&filter));
 }

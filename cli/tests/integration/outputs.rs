@@ -127,7 +127,7 @@ fn single_process_commands_refuse_several_mpi_ranks() {
     let f = npy("mpi-ball.npy", &ball([16, 16, 16], [7.5; 3], 4.0, 1.0));
     let out = tmp("mpi-out.sls");
     let o = Command::new(env!("CARGO_BIN_EXE_levelset"))
-        .args(["evolve", f.to_str().unwrap(), "-o", out.to_str().unwrap(), "--steps", "1"])
+        .args(["filter", f.to_str().unwrap(), "-o", out.to_str().unwrap(), "--op", "dilate:1"])
         .env("OMPI_COMM_WORLD_SIZE", "2")
         .output()
         .unwrap();

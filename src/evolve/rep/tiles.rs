@@ -211,6 +211,40 @@ impl TilesRep {
         self.part.as_ref().map(|p| p.comm.stats())
     }
 
+    /// The whole band as one grid (collective when distributed): every rank's own tiles
+    /// with their border flags, gathered in rank order, which is [`Coord`] order. A tile's
+    /// 26 neighbours lie in its rank's own or ghost slabs, so its flags are the whole
+    /// band's. A copy of the grid when the band is not distributed.
+    pub(crate) fn gather(&self) -> Result<TileGrid, crate::grid::GridError> {
+        let Some(p) = &self.part else { return Ok(self.grid.clone()) };
+        const RECORD: usize = 16 + 4 * crate::storage::tiles::TILE_LEN;
+        let mut bytes = Vec::with_capacity(p.owned.len() * RECORD);
+        for pos in p.owned.clone() {
+            let c = self.grid.tile_coords()[pos];
+            for v in [c.x, c.y, c.z] {
+                bytes.extend(v.to_le_bytes());
+            }
+            bytes.extend(self.grid.border_flags(pos).to_le_bytes());
+            for v in self.grid.tile(pos).0 {
+                bytes.extend(v.to_le_bytes());
+            }
+        }
+        let word = |b: &[u8], k: usize| -> [u8; 4] { b[4 * k..4 * k + 4].try_into().expect("4") };
+        let mut g = TileGrid::new(*self.grid.spec());
+        for part in p.comm.gather(&bytes) {
+            for r in part.chunks_exact(RECORD) {
+                let i = |k| i32::from_le_bytes(word(r, k));
+                let mut t = Tile::splat(0.0);
+                for (k, v) in t.0.iter_mut().enumerate() {
+                    *v = f32::from_le_bytes(word(r, 4 + k));
+                }
+                g.append(Coord::new(i(0), i(1), i(2)), &t, u32::from_le_bytes(word(r, 3)))?;
+            }
+        }
+        g.build_directory();
+        Ok(g)
+    }
+
     /// This rank and the cuts of a distributed band.
     pub fn cuts(&self) -> Option<(usize, &[i32])> {
         self.part.as_ref().map(|p| (p.comm.rank(), &p.cuts[..]))

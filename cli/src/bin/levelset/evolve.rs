@@ -2,7 +2,8 @@
 //! the normal direction, by mean curvature, volume-conserving, advection by a velocity
 //! field read from a file, or their sum — for a time or a number of steps, with the
 //! engine's defaults (first-order upwind, forward Euler at CFL 1, the coupled
-//! renormalisation).
+//! renormalisation). Under `mpirun` the band is split into z-slabs over the ranks, as
+//! `levelset run` does, and gathered for the output.
 
 use crate::source::{level_set_output, FileGridArgs};
 use clap::Args;
@@ -118,10 +119,24 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         ..Flow::rest()
     };
     let settings = Settings { pool: Some(pool.clone()), ..Settings::default() };
-    let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)
-        .map_err(|e| format!("{name}: {e}"))?;
+    // Under mpirun (a build with the mpi feature): every rank evolves its z-slabs of the
+    // band; rank 0 gathers the band, reports and writes.
+    let transport = levelset_cli::ranks::transport()?;
+    let ranks = transport.as_ref().map_or(1, |t| t.size());
+    let lead = transport.as_ref().is_none_or(|t| t.rank() == 0);
+    let mut sim = match &transport {
+        Some(t) => {
+            Simulation::distributed(t.clone(), tiles, Lanes::Simd, flow, settings, Some(0.1))
+        }
+        None => Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings),
+    }
+    .map_err(|e| format!("{name}: {e}"))?;
     let len = if steps == u64::MAX { 1000 } else { steps };
-    let bar = progress::bar(a.quiet, len, "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}%");
+    let bar = progress::bar(
+        a.quiet || !lead,
+        len,
+        "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}%",
+    );
     let start = std::time::Instant::now();
     sim.run_until(time, steps, |s, _| {
         bar.set_position(if steps == u64::MAX {
@@ -133,8 +148,15 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     .map_err(|e| format!("{name}: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    // One pass each over the band.
+    // One pass each over the band (collective when distributed), and the whole band.
     let (band_voxels, checksum) = (sim.band_voxels(), sim.checksum());
+    let gathered = match transport {
+        Some(_) => sim.gathered_tiles().map_err(|e| format!("{name}: {e}"))?,
+        None => None,
+    };
+    if !lead {
+        return Ok(());
+    }
     let summary = serde_json::json!({
         "input": name,
         "steps": sim.steps(),
@@ -144,12 +166,17 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         "checksum": format!("{checksum:016x}"),
         "seconds": seconds,
         "threads": threads,
+        "ranks": ranks,
     });
     // The level set and the summary appear together.
     let mut outputs = Outputs::new();
     let staged = outputs.stage(&a.output);
-    pool.install(|| io::save_level_set(&staged, &sim, &io::SaveOptions::default()))
-        .map_err(|e| outputs.named(e))?;
+    let opts = io::SaveOptions::default();
+    match &gathered {
+        Some(whole) => pool.install(|| io::save_level_set(&staged, whole, &opts)),
+        None => pool.install(|| io::save_level_set(&staged, &sim, &opts)),
+    }
+    .map_err(|e| outputs.named(e))?;
     if let Some(s) = &a.summary {
         let staged = outputs.stage(s);
         write_json(&staged, &summary).map_err(|e| outputs.named(e))?;

@@ -96,13 +96,15 @@ fn main() -> ExitCode {
     };
     // Under an MPI launcher, only the commands that spread their work over the ranks run;
     // any other would run whole on every rank and write the same files.
-    let spreads =
-        matches!(cli.command, Command::Run(_) | Command::Segment(_) | Command::Voxelize(_));
+    let spreads = matches!(
+        cli.command,
+        Command::Run(_) | Command::Evolve(_) | Command::Segment(_) | Command::Voxelize(_)
+    );
     if let Some(n) = levelset_cli::ranks::launched_ranks().filter(|&n| n > 1 && !spreads) {
         eprintln!(
             "error: started on {n} MPI ranks, but this command runs in one process (every rank \
              would do the whole job and write the same files): run it without mpirun; run, \
-             segment and voxelize spread their work over the ranks"
+             evolve, segment and voxelize spread their work over the ranks"
         );
         return ExitCode::FAILURE;
     }
