@@ -224,8 +224,17 @@ impl<C: Cost> Marcher<C> {
     /// wrapped along periodic axes, not an obstacle).
     #[inline(always)]
     fn step(&self, c: Coord, axis: usize, d: i32) -> Option<Coord> {
-        if let Some(l) = &self.lattice {
-            return l.step(c, axis, d);
+        self.step_in::<true>(c, axis, d)
+    }
+
+    /// [`Marcher::step`], the lattice looked at only when `LATTICE` (a march without one
+    /// pays nothing for it: the run loop is compiled once for each).
+    #[inline(always)]
+    fn step_in<const LATTICE: bool>(&self, c: Coord, axis: usize, d: i32) -> Option<Coord> {
+        if LATTICE {
+            if let Some(l) = &self.lattice {
+                return l.step(c, axis, d);
+            }
         }
         let a = AXES[axis];
         let n = c.checked_add(Coord::new(a.x * d, a.y * d, a.z * d))?;
@@ -316,7 +325,19 @@ impl<C: Cost> Marcher<C> {
     /// half-width.
     #[inline(always)]
     fn frozen_at(&self, c: Coord, id: u32, axis: usize, d: i32) -> Option<(f64, u8)> {
-        if self.wraps[axis] {
+        self.frozen_in::<true>(c, id, axis, d)
+    }
+
+    /// [`Marcher::frozen_at`], periodic axes looked at only when `LATTICE`.
+    #[inline(always)]
+    fn frozen_in<const LATTICE: bool>(
+        &self,
+        c: Coord,
+        id: u32,
+        axis: usize,
+        d: i32,
+    ) -> Option<(f64, u8)> {
+        if LATTICE && self.wraps[axis] {
             // Across a periodic face the neighbour is not the next voxel in the store.
             let n = self.step(c, axis, d)?;
             let v = &self.store.vox[self.store.find(n)? as usize];
@@ -329,8 +350,8 @@ impl<C: Cost> Marcher<C> {
     /// The voxel id of the neighbour `n = c + d · axis` (from [`Marcher::step`]),
     /// creating its block when needed.
     #[inline(always)]
-    fn neighbour_id(&mut self, id: u32, axis: usize, d: i32, n: Coord) -> u32 {
-        if self.wraps[axis] {
+    fn neighbour_id<const LATTICE: bool>(&mut self, id: u32, axis: usize, d: i32, n: Coord) -> u32 {
+        if LATTICE && self.wraps[axis] {
             self.store.find_or_insert(n)
         } else {
             self.store.step_or_insert(id, axis, d, n)
@@ -397,7 +418,12 @@ impl<C: Cost> Marcher<C> {
     }
 
     #[inline]
-    fn update<const SECOND: bool>(&self, c: Coord, id: u32, inside: bool) -> Result<f64, FmmError> {
+    fn update<const SECOND: bool, const LATTICE: bool>(
+        &self,
+        c: Coord,
+        id: u32,
+        inside: bool,
+    ) -> Result<f64, FmmError> {
         let s = if inside { -1.0 } else { 1.0 };
         let side = if inside { INSIDE } else { 0 };
         let usable = |st: u8| st & INITIAL != 0 || st & INSIDE == side;
@@ -407,7 +433,7 @@ impl<C: Cost> Marcher<C> {
             let mut v1 = f64::INFINITY;
             let mut v2 = None;
             for d in [-1, 1] {
-                let Some((t1, st1)) = self.frozen_at(c, id, axis, d) else { continue };
+                let Some((t1, st1)) = self.frozen_in::<LATTICE>(c, id, axis, d) else { continue };
                 if !usable(st1) {
                     continue;
                 }
@@ -416,7 +442,7 @@ impl<C: Cost> Marcher<C> {
                     v1 = t1;
                     v2 = None;
                     if SECOND {
-                        if let Some((t2, st2)) = self.frozen_at(c, id, axis, 2 * d) {
+                        if let Some((t2, st2)) = self.frozen_in::<LATTICE>(c, id, axis, 2 * d) {
                             let t2 = s * t2;
                             if usable(st2) && t2 <= t1 {
                                 v2 = Some(t2);
@@ -426,7 +452,7 @@ impl<C: Cost> Marcher<C> {
                 }
             }
             if v1 < f64::INFINITY {
-                let w = self.weights[axis];
+                let w = if LATTICE { self.weights[axis] } else { 1.0 };
                 terms[n] = match v2 {
                     Some(v2) => Term { a: w * (9.0 / 4.0), k: (4.0 * v1 - v2) / 3.0 },
                     None => Term { a: w, k: v1 },
@@ -457,14 +483,15 @@ impl<C: Cost> Marcher<C> {
     /// `progress` hears the marched distance as a share of `limit` (in thousandths).
     pub(crate) fn run(&mut self, limit: f64, progress: &Progress) -> Result<(), FmmError> {
         let ticker = progress.start(PROGRESS_UNITS);
-        if self.second_order {
-            self.run_impl::<true>(limit, &ticker)
-        } else {
-            self.run_impl::<false>(limit, &ticker)
+        match (self.second_order, self.lattice.is_some()) {
+            (true, true) => self.run_impl::<true, true>(limit, &ticker),
+            (true, false) => self.run_impl::<true, false>(limit, &ticker),
+            (false, true) => self.run_impl::<false, true>(limit, &ticker),
+            (false, false) => self.run_impl::<false, false>(limit, &ticker),
         }
     }
 
-    fn run_impl<const SECOND: bool>(
+    fn run_impl<const SECOND: bool, const LATTICE: bool>(
         &mut self,
         limit: f64,
         ticker: &Ticker,
@@ -479,8 +506,8 @@ impl<C: Cost> Marcher<C> {
             let inside = self.store.vox[id].state & INSIDE;
             for axis in 0..3 {
                 for d in [-1, 1] {
-                    let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.neighbour_id(id as u32, axis, d, n) as usize;
+                    let Some(n) = self.step_in::<LATTICE>(c, axis, d) else { continue };
+                    let nid = self.neighbour_id::<LATTICE>(id as u32, axis, d, n) as usize;
                     let st = &mut self.store.vox[nid].state;
                     if *st == FAR {
                         *st = TRIAL | inside;
@@ -499,7 +526,7 @@ impl<C: Cost> Marcher<C> {
         for &c in &trial {
             let id = self.store.find(c).expect("trial voxels are stored");
             let inside = self.store.vox[id as usize].state & INSIDE != 0;
-            let t = self.update::<SECOND>(c, id, inside)?;
+            let t = self.update::<SECOND, LATTICE>(c, id, inside)?;
             self.store.vox[id as usize].handle = self.heap.push(t, c, id);
         }
         // The loop.
@@ -524,18 +551,18 @@ impl<C: Cost> Marcher<C> {
             let inside = inside_bit != 0;
             self.store.vox[id as usize].state = FROZEN | inside_bit;
             self.store.vox[id as usize].value = if inside { -t } else { t };
-            if self.extension.is_some() {
+            if LATTICE && self.extension.is_some() {
                 self.extend(c, id, inside, t);
             }
             for axis in 0..3 {
                 for d in [-1, 1] {
-                    let Some(n) = self.step(c, axis, d) else { continue };
-                    let nid = self.neighbour_id(id, axis, d, n) as usize;
+                    let Some(n) = self.step_in::<LATTICE>(c, axis, d) else { continue };
+                    let nid = self.neighbour_id::<LATTICE>(id, axis, d, n) as usize;
                     match self.store.vox[nid].state & 3 {
                         FROZEN => {}
                         TRIAL => {
                             let inside_n = self.store.vox[nid].state & INSIDE != 0;
-                            let t = self.update::<SECOND>(n, nid as u32, inside_n)?;
+                            let t = self.update::<SECOND, LATTICE>(n, nid as u32, inside_n)?;
                             let h = self.store.vox[nid].handle;
                             if self.heap.key(h) != t {
                                 self.heap.update(h, t);
@@ -543,7 +570,7 @@ impl<C: Cost> Marcher<C> {
                         }
                         _ => {
                             self.store.vox[nid].state = TRIAL | inside_bit;
-                            let t = self.update::<SECOND>(n, nid as u32, inside)?;
+                            let t = self.update::<SECOND, LATTICE>(n, nid as u32, inside)?;
                             self.store.vox[nid].handle = self.heap.push(t, n, nid as u32);
                         }
                     }
