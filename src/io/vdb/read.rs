@@ -181,6 +181,19 @@ fn read_values(r: &mut Reader, ctx: &Ctx, n: usize, active: &[u64]) -> Res<Vec<f
     if count == n {
         return Ok(stored);
     }
+    if k == 1 {
+        // A float grid: one number a value.
+        let mut it = stored.into_iter();
+        return Ok((0..n)
+            .map(|i| {
+                if bit(active, i) {
+                    it.next().expect("one stored value per active bit")
+                } else {
+                    inactive[bit(&selection, i) as usize][0]
+                }
+            })
+            .collect());
+    }
     let mut it = stored.chunks_exact(k);
     let mut out = Vec::with_capacity(n * k);
     for i in 0..n {
