@@ -8,24 +8,30 @@ use crate::common::{stderr, tmp};
 use std::path::Path;
 use std::process::Command;
 
+/// `levelset` on `ranks` MPI ranks (`None`: without mpirun).
+fn launch(ranks: Option<usize>) -> Command {
+    let bin = env!("CARGO_BIN_EXE_levelset");
+    match ranks {
+        None => Command::new(bin),
+        Some(n) => {
+            let mut c = Command::new("mpirun");
+            // OpenMPI refuses root unless told; CI runs as root. More ranks than cores need
+            // --oversubscribe.
+            c.env("OMPI_ALLOW_RUN_AS_ROOT", "1").env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1").args([
+                "-n",
+                &n.to_string(),
+                "--oversubscribe",
+                bin,
+            ]);
+            c
+        }
+    }
+}
+
 /// Runs `levelset run ARGS --out DIR` on `ranks` MPI ranks (`None`: without mpirun) with
 /// one thread each and returns the summary.
 fn run(ranks: Option<usize>, args: &[&str], dir: &Path) -> serde_json::Value {
-    let bin = env!("CARGO_BIN_EXE_levelset");
-    let mut cmd =
-        match ranks {
-            None => Command::new(bin),
-            Some(n) => {
-                let mut c = Command::new("mpirun");
-                // OpenMPI refuses root unless told; CI runs as root. More ranks than cores
-                // need --oversubscribe.
-                c.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-                    .args(["-n", &n.to_string(), "--oversubscribe", bin]);
-                c
-            }
-        };
-    let out = cmd
+    let out = launch(ranks)
         .args(["run"])
         .args(args)
         .args(["--threads", "1", "--quiet", "--out"])
@@ -141,17 +147,7 @@ fn evolve_on_2_and_3_ranks_matches_one_process() {
     for ranks in [None, Some(2), Some(3)] {
         let out = tmp(&format!("mpi-evo-{ranks:?}.npy"));
         let summary = tmp(&format!("mpi-evo-{ranks:?}.json"));
-        let mut cmd = match ranks {
-            None => Command::new(bin),
-            Some(n) => {
-                let mut c = Command::new("mpirun");
-                c.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-                    .args(["-n", &n.to_string(), "--oversubscribe", bin]);
-                c
-            }
-        };
-        let o = cmd
+        let o = launch(ranks)
             .arg("evolve")
             .arg(&sls)
             .arg("-o")
@@ -176,10 +172,8 @@ fn evolve_on_2_and_3_ranks_matches_one_process() {
         assert!(o.0 == outputs[0].0, "output {k} differs from one process's");
         assert_eq!((&o.1, &o.2), (&outputs[0].1, &outputs[0].2));
     }
-    let filter = Command::new("mpirun")
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .args(["-n", "2", "--oversubscribe", bin, "filter"])
+    let filter = launch(Some(2))
+        .arg("filter")
         .arg(&sls)
         .arg("-o")
         .arg(tmp("mpi-evo-filter.sls"))
