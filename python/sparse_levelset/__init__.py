@@ -247,7 +247,6 @@ def distance(
     return f.result(values, reached)
 
 
-
 @_with_fmm_notes
 def travel_time(
     phi,
@@ -279,7 +278,6 @@ def travel_time(
         f.phi, sp, f.dx, int(order), f.narrow, f.periodic, f.mask, progress
     )
     return f.result(values, reached)
-
 
 
 @_with_fmm_notes
@@ -319,7 +317,6 @@ def extension_velocities(
         f.phi, sp, f.dx, int(order), f.narrow, f.periodic, f.mask, em, progress
     )
     return f.result(d, reached), f.result(ext, reached)
-
 
 
 def isosurface(

@@ -31,8 +31,8 @@ pub(crate) fn order_of(order: u8) -> PyResult<Order> {
     }
 }
 
-/// The values of `a`, an array of `phi`'s shape and memory order (C or Fortran, as read
-/// into `vol`), in `vol`'s lattice order.
+/// The values of `a`, an array of the input's shape and memory order (C or Fortran, as
+/// read into `vol`), in `vol`'s lattice order.
 fn like_phi<T: numpy::Element + Copy>(
     a: &PyReadonlyArray3<'_, T>,
     vol: &Volume,
@@ -41,7 +41,7 @@ fn like_phi<T: numpy::Element + Copy>(
     let s = a.shape();
     if s != vol.shape {
         return Err(crate::value_error(format!(
-            "phi and {what} must have the same shape, got {:?} and {s:?}",
+            "{what} must have the input array's shape {:?}, got {s:?}",
             vol.shape
         )));
     }
@@ -49,7 +49,7 @@ fn like_phi<T: numpy::Element + Copy>(
     match a.as_slice() {
         Ok(d) if fortran == vol.fortran => Ok(d.to_vec()),
         _ => Err(crate::value_error(format!(
-            "{what} must be contiguous in the same order as phi (C or Fortran)"
+            "{what} must be contiguous in the input array's order (C or Fortran)"
         ))),
     }
 }
@@ -232,22 +232,8 @@ fn isosurface<'py>(
     if step == 0 {
         return Err(crate::value_error("step_size must be at least 1"));
     }
-    use numpy::PyUntypedArrayMethods;
     let mut vol = Volume::from_array(&volume)?;
-    let flags = match &mask {
-        None => None,
-        Some(m) => {
-            let s = m.shape();
-            let fortran = !m.is_c_contiguous() && m.is_fortran_contiguous();
-            if [s[0], s[1], s[2]] != vol.shape || fortran != vol.fortran {
-                return Err(crate::value_error(format!(
-                    "mask must have the volume's shape {:?} and memory order, got {s:?}",
-                    vol.shape
-                )));
-            }
-            Some(m.as_slice().map_err(crate::value_error)?)
-        }
-    };
+    let flags = mask_of(mask, &vol, "mask")?;
     let field = DenseField::from_vec(Coord::new(0, 0, 0), vol.dims, std::mem::take(&mut vol.data))
         .map_err(crate::lib_error)?;
     if let Some(level) = level {
@@ -273,7 +259,7 @@ fn isosurface<'py>(
             iso: level,
             inside,
             step,
-            mask: flags,
+            mask: flags.as_deref(),
             border: if closed { mesh::Border::Closed } else { mesh::Border::Open },
             drop_degenerate: !allow_degenerate,
             progress: w8.progress(),

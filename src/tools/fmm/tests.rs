@@ -69,20 +69,27 @@ fn the_solver_drops_directions_that_would_not_be_upwind() {
     assert!((t - exact).abs() < 1e-6, "{t} vs {exact}");
 }
 
+/// The six axis neighbours of the origin, −x, +x, −y, +y, −z, +z, of `phi`.
+fn star_of(phi: impl Fn(f64, f64, f64) -> f32) -> [Option<f32>; 6] {
+    [
+        Some(phi(-1.0, 0.0, 0.0)),
+        Some(phi(1.0, 0.0, 0.0)),
+        Some(phi(0.0, -1.0, 0.0)),
+        Some(phi(0.0, 1.0, 0.0)),
+        Some(phi(0.0, 0.0, -1.0)),
+        Some(phi(0.0, 0.0, 1.0)),
+    ]
+}
+
 #[test]
 fn interface_distance_is_exact_for_a_linear_field_and_ignores_scaling() {
     // φ = s · (n · x − 0.3) at the origin, n a unit vector not aligned with the axes.
     let n = [0.36f32, 0.48, 0.8];
     for s in [1.0f32, 3.0, 0.2] {
-        let phi = |x: f32, y: f32, z: f32| s * (n[0] * x + n[1] * y + n[2] * z - 0.3);
-        let star = [
-            Some(phi(-1.0, 0.0, 0.0)),
-            Some(phi(1.0, 0.0, 0.0)),
-            Some(phi(0.0, -1.0, 0.0)),
-            Some(phi(0.0, 1.0, 0.0)),
-            Some(phi(0.0, 0.0, -1.0)),
-            Some(phi(0.0, 0.0, 1.0)),
-        ];
+        let phi = |x: f64, y: f64, z: f64| {
+            s * (n[0] * x as f32 + n[1] * y as f32 + n[2] * z as f32 - 0.3)
+        };
+        let star = star_of(phi);
         let d = interface_distance(phi(0.0, 0.0, 0.0), &star, f32::INFINITY, [1.0; 3]).unwrap();
         assert!((d - 0.3).abs() < 1e-6, "scale {s}: {d}");
     }
@@ -102,14 +109,7 @@ fn interface_distance_with_per_axis_spacing() {
     let h = [0.5f64, 1.0, 2.0];
     let phi =
         |i: f64, j: f64, k: f64| (n[0] * i * h[0] + n[1] * j * h[1] + n[2] * k * h[2] - 0.3) as f32;
-    let star = [
-        Some(phi(-1.0, 0.0, 0.0)),
-        Some(phi(1.0, 0.0, 0.0)),
-        Some(phi(0.0, -1.0, 0.0)),
-        Some(phi(0.0, 1.0, 0.0)),
-        Some(phi(0.0, 0.0, -1.0)),
-        Some(phi(0.0, 0.0, 1.0)),
-    ];
+    let star = star_of(phi);
     let d = interface_distance(phi(0.0, 0.0, 0.0), &star, f32::INFINITY, [1.0, 0.5, 0.25]).unwrap();
     // 0.3 world units = 0.6 units of h₀.
     assert!((d - 0.6).abs() < 1e-6, "{d}");
