@@ -798,9 +798,9 @@ pub(super) fn decode_vector(bytes: &[u8], want: Option<&str>) -> Res<super::VdbV
         let (a, b): (Vec<i64>, Vec<i64>) = (0..3)
             .map(|k| (lo[k].max(o[k] as i64), hi[k].min(o[k] as i64 + (1i64 << log2))))
             .unzip();
-        for z in a[2]..b[2].max(a[2]) {
-            for y in a[1]..b[1].max(a[1]) {
-                for x in a[0]..b[0].max(a[0]) {
+        for z in a[2]..b[2] {
+            for y in a[1]..b[1] {
+                for x in a[0]..b[0] {
                     let c = Coord::new(x as i32, y as i32, z as i32);
                     for (f, val) in fields.iter_mut().zip(v) {
                         f.set(c, *val)?;
