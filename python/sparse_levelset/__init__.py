@@ -863,6 +863,7 @@ def segment(
     progress: Progress = None,
     feature_image=None,
     leak_guard: bool = True,
+    edge_gate: bool = True,
 ) -> Segmentation:
     """Segments a 3-D (or 2-D) image with a level set grown from seeds, with SimpleITK's
     parameter names.
@@ -889,6 +890,11 @@ def segment(
     or grows past half the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
     pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``).
+
+    GAC's balloon turns inward beyond the intensity midway across the first edge that rays
+    from the seeds cross (``report["params"]["edge_level"]``), so that a stretch of weak
+    or missing edge does not let the front run on; ``edge_gate=False`` gives SimpleITK's
+    plain balloon.
 
     ``sigma`` (Gaussian smoothing, world units), ``propagation_scaling`` β,
     ``curvature_scaling`` ε, ``advection_scaling`` α default to values chosen from the image
@@ -924,7 +930,7 @@ def segment(
         None if sigmoid is None else (float(sigmoid[0]), float(sigmoid[1])),
         float(lambda1), float(lambda2), float(nu), float(maximum_rms_error),
         float(volume_change), int(window), int(number_of_iterations), term_list, threads,
-        progress, feat, bool(leak_guard),
+        progress, feat, bool(leak_guard), bool(edge_gate),
     )
     out_shape = tuple(np.shape(image)) if not isinstance(image, _native.Image) else tuple(im.shape)
     result = Segmentation(native, out_shape)

@@ -342,7 +342,7 @@ fn segment_in_pool(
     let spec = GridSpec::new(h_max, [0.0; 3], HALF_WIDTH)?;
     let field = initial_field(image, init, &lattice, spec.gamma())?;
     let prepared = prepare(image, init, params, &field)?;
-    let Prepared { smoothed, norm, g, mut resolved } = prepared;
+    let Prepared { smoothed, norm, g, gate, mut resolved } = prepared;
     let lookup = Lookup { dims: image.dims };
     let inputs = MethodInputs {
         params,
@@ -351,6 +351,7 @@ fn segment_in_pool(
         lookup,
         h_min,
         noise_smoothed: resolved.noise_smoothed / norm.scale,
+        gate,
     };
     let (mut flow, mut region) = method_flow(params.method, 1.0, &inputs, &norm, &mut resolved)?;
     if !params.terms.is_empty() {
@@ -526,6 +527,8 @@ struct MethodInputs<'a> {
     h_min: f64,
     /// The noise σ left in `smoothed`, normalised units.
     noise_smoothed: f64,
+    /// GAC's balloon gate.
+    gate: Option<Gate>,
 }
 
 /// The flow of one method with its weight (β, ε and α scaled by it), and its region
@@ -537,7 +540,7 @@ fn method_flow(
     norm: &Normalization,
     resolved: &mut Resolved,
 ) -> Result<(Flow, Option<Arc<RegionForce>>), SegmentError> {
-    let MethodInputs { params, smoothed, g, lookup, h_min, noise_smoothed } = *inputs;
+    let MethodInputs { params, smoothed, g, lookup, h_min, noise_smoothed, gate } = *inputs;
     let beta = params.propagation.unwrap_or(1.0);
     let propagation = weight * beta;
     // Beyond the image the front is pushed back, whichever way it propagates.
@@ -572,7 +575,21 @@ fn method_flow(
             resolved.advection = params.advection.unwrap_or(GAC_ADVECTION);
             let alpha = weight * resolved.advection;
             let gg = features::gradient(g)?.map(|c| c.data);
-            let speed: Vec<f32> = g.data.par_iter().map(|&v| propagation * v).collect();
+            let speed: Vec<f32> = match gate {
+                // The balloon pushes outward up to the first edge's level and, weakening,
+                // for two threshold scales w beyond it; then inward, in full 4w past it.
+                Some(Gate { level, side }) => {
+                    let inv = (1.0 / threshold_scale(level, f32::INFINITY, noise_smoothed)) as f32;
+                    g.data
+                        .par_iter()
+                        .zip(smoothed.data.par_iter())
+                        .map(|(&v, &i)| {
+                            propagation * v * (0.5 * side * (i - level) * inv + 1.0).clamp(-1.0, 1.0)
+                        })
+                        .collect()
+                }
+                None => g.data.par_iter().map(|&v| propagation * v).collect(),
+            };
             let velocity =
                 gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
             let z = VoxelField { lookup, data: Arc::new(g.data.clone()), outside: 1.0 };
@@ -627,7 +644,40 @@ struct Prepared {
     norm: Normalization,
     /// GAC's edge potential.
     g: Option<Image>,
+    /// GAC's balloon gate.
+    gate: Option<Gate>,
     resolved: Resolved,
+}
+
+/// Where GAC's balloon turns: the intensity midway across the first edge that the rays
+/// from the seeds cross (normalised units), and on which side of it the seeds lie.
+#[derive(Clone, Copy, Debug)]
+struct Gate {
+    level: f32,
+    /// +1 when the seeds are brighter than `level`, −1 when darker.
+    side: f32,
+}
+
+/// The balloon gate from the rays' edges: the median intensity at the edges' gradient
+/// peaks, when at least a quarter of the rays met an edge and three quarters of those
+/// agree on its side (a seed between a darker and a brighter neighbour has no one level).
+fn edge_gate(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
+    let n = probe.contrasts.len();
+    if n == 0 || n * 4 < probe.rays {
+        return None;
+    }
+    let darker = probe.contrasts.iter().filter(|&&c| c < 0.0).count();
+    let side = if darker * 4 >= n * 3 {
+        1.0
+    } else if (n - darker) * 4 >= n * 3 {
+        -1.0
+    } else {
+        return None;
+    };
+    let same: Vec<f64> =
+        probe.contrasts.iter().copied().filter(|&c| (c < 0.0) == (side > 0.0)).collect();
+    let c = stats::quantile(&same, 0.5)?;
+    Some(Gate { level: (m + 0.5 * c) as f32, side })
 }
 
 /// The defaults of a run from the image's own statistics (module docs, "Defaults").
@@ -674,6 +724,7 @@ fn prepare(
         edge_scale: None,
         sigmoid: None,
         edge_contrast: None,
+        edge_level: None,
         threshold_scale: None,
         noise: noise * norm.scale,
         noise_smoothed: 0.0,
@@ -685,6 +736,7 @@ fn prepare(
     };
     // σ in voxels of each axis (the default), or world units (given).
     let mut gac: Option<(Image, Image, stats::EdgeProbe, f64)> = None;
+    let mut gate: Option<Gate> = None;
     let voxels = match (params.sigma, params.method) {
         (Some(_), _) => None,
         (None, _) if feature.is_some() && !only_gac => Some(0.0),
@@ -755,8 +807,8 @@ fn prepare(
                 features::edge_potential(&grad, k / norm.scale)?
             }
             (_, None, given) => {
-                let (grad, probe) = match gac.take() {
-                    Some((_, grad, probe, _)) => (grad, Some(probe)),
+                let (grad, probe, m) = match gac.take() {
+                    Some((_, grad, probe, m)) => (grad, Some(probe), m),
                     None => {
                         let grad = voxel_gradient(&smoothed)?;
                         let m = inside_quantile(&smoothed, field, 0.5)?;
@@ -769,9 +821,13 @@ fn prepare(
                             tau,
                             3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b)),
                         );
-                        (grad, Some(probe))
+                        (grad, Some(probe), m)
                     }
                 };
+                if params.edge_gate && params.propagation.unwrap_or(1.0) > 0.0 {
+                    gate = probe.as_ref().and_then(|p| edge_gate(p, m));
+                    resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
+                }
                 let (alpha, beta) = match given {
                     Some((a, b)) => (a / norm.scale, b / norm.scale),
                     None => {
@@ -790,7 +846,7 @@ fn prepare(
     } else {
         None
     };
-    Ok(Prepared { smoothed, norm, g, resolved })
+    Ok(Prepared { smoothed, norm, g, gate, resolved })
 }
 
 /// The smoothing `resolved` holds, in voxels of the axis it smooths least (axes of one

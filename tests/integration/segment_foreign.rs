@@ -157,6 +157,49 @@ fn a_front_through_a_gap_is_reported_as_leaked() {
     assert!(off.report.voxels > s.report.voxels);
 }
 
+/// A stretch of edge too gradual for the edge potential, as between white matter and
+/// the deep grey nuclei of a brain: a ball of 1 on 0 whose edge, inside a square channel
+/// to the image's +x face, falls over 8 voxels to a plateau of 0.3. ITK's plain balloon
+/// runs down the ramp and along the channel to the face; the default balloon turns at the
+/// first edge's level (0.5) and stops there.
+#[test]
+fn gac_stops_at_the_first_edges_level_where_the_edge_is_weak() {
+    let (n, c, r) = (48usize, 20.0f64, 10.0f64);
+    let mut rng = fastrand::Rng::with_seed(9);
+    let mut data = Vec::with_capacity(n * n * n);
+    let mut truth = Vec::with_capacity(n * n * n);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let [px, py, pz] = [x as f64, y as f64, z as f64];
+                let rho2 = (py - c).powi(2) + (pz - c).powi(2);
+                let in_ball = (px - c).powi(2) + rho2 <= r * r;
+                let in_channel = px > c && (py - c).abs() < 5.0 && (pz - c).abs() < 5.0;
+                let clean = if in_ball {
+                    1.0
+                } else if in_channel {
+                    let surface = c + (r * r - rho2).max(0.0).sqrt();
+                    (1.0 - 0.7 * (px - surface) / 8.0).max(0.3)
+                } else {
+                    0.0
+                };
+                truth.push((clean > 0.5) as u8);
+                data.push((clean + 0.05 * (rng.f64() - 0.5)) as f32);
+            }
+        }
+    }
+    let im = Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY };
+    let init = seeds(&[([c; 3], 4.0)]);
+    let plain = run(&im, &init, &Params { edge_gate: false, ..Params::new(Method::Gac) });
+    assert_eq!(plain.report.stop, Stop::Leaked, "{} voxels", plain.report.voxels);
+    let s = run(&im, &init, &Params::new(Method::Gac));
+    assert_ne!(s.report.stop, Stop::Leaked);
+    let level = s.report.params.edge_level.unwrap();
+    assert!((level - 0.5).abs() < 0.1, "edge level {level}");
+    let d = dice(&s.mask, &truth).unwrap();
+    assert!(d > 0.95, "Dice {d}, {} voxels, {:?}", s.report.voxels, s.report.stop);
+}
+
 /// ITK's negative propagation: a large initial region shrinks onto the object.
 #[test]
 fn a_negative_propagation_shrinks_onto_the_object() {

@@ -72,6 +72,12 @@ pub struct SegmentArgs {
     /// did not touch, or grows past half the image): for objects that fill the image.
     #[arg(long)]
     pub no_leak_guard: bool,
+    /// GAC with ITK's plain balloon, outward wherever the edge potential lets it. By
+    /// default the balloon turns inward beyond the intensity midway across the first edge
+    /// that rays from the seeds cross (the report's `edge_level`), so that a weak or
+    /// missing stretch of edge does not let the front run into what lies beyond.
+    #[arg(long)]
+    pub no_edge_gate: bool,
     /// σ of the Gaussian smoothing in world units (0: none) [default: from the image's noise].
     #[arg(long, allow_hyphen_values = true)]
     pub sigma: Option<f64>,
@@ -385,6 +391,7 @@ fn params_of(a: &SegmentArgs, method: Method, threads: usize) -> Result<Params, 
     params.advection = a.advection;
     params.edge_scale = a.edge_scale;
     params.leak_guard = !a.no_leak_guard;
+    params.edge_gate = !a.no_edge_gate;
     if let Some(v) = a.rms {
         params.rms = v;
     }
