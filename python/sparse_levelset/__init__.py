@@ -863,7 +863,7 @@ def segment(
     progress: Progress = None,
     feature_image=None,
     leak_guard: bool = True,
-    edge_gate: bool = True,
+    first_edge: bool = True,
 ) -> Segmentation:
     """Segments a 3-D (or 2-D) image with a level set grown from seeds, with SimpleITK's
     parameter names.
@@ -891,10 +891,12 @@ def segment(
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
     pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``).
 
-    GAC's balloon turns inward beyond the intensity midway across the first edge that rays
-    from the seeds cross (``report["params"]["edge_level"]``), so that a stretch of weak
-    or missing edge does not let the front run on; ``edge_gate=False`` gives SimpleITK's
-    plain balloon.
+    The first edge that rays from the seeds cross shapes GAC and Chan–Vese: GAC's balloon
+    turns inward beyond the intensity midway across it (``report["params"]["edge_level"]``),
+    so that a weak stretch of edge does not let the front run on, and Chan–Vese's outside
+    mean is no farther from the inside's than the intensity beyond it (the neighbouring
+    tissue, not the whole outside); ``first_edge=False`` gives SimpleITK's plain balloon
+    and the textbook Chan–Vese.
 
     ``sigma`` (Gaussian smoothing, world units), ``propagation_scaling`` β,
     ``curvature_scaling`` ε, ``advection_scaling`` α default to values chosen from the image
@@ -930,7 +932,7 @@ def segment(
         None if sigmoid is None else (float(sigmoid[0]), float(sigmoid[1])),
         float(lambda1), float(lambda2), float(nu), float(maximum_rms_error),
         float(volume_change), int(window), int(number_of_iterations), term_list, threads,
-        progress, feat, bool(leak_guard), bool(edge_gate),
+        progress, feat, bool(leak_guard), bool(first_edge),
     )
     out_shape = tuple(np.shape(image)) if not isinstance(image, _native.Image) else tuple(im.shape)
     result = Segmentation(native, out_shape)

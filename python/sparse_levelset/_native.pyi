@@ -204,5 +204,5 @@ def segment(
     progress: _Progress = ...,
     feature: Optional[_F32] = ...,
     leak_guard: bool = ...,
-    edge_gate: bool = ...,
+    first_edge: bool = ...,
 ) -> Segmentation: ...

@@ -202,7 +202,7 @@ fn method_of(
     sigma, propagation_scaling, curvature_scaling, advection_scaling, edge_scale, sigmoid,
     lambda1, lambda2, nu, maximum_rms_error, volume_change, window, number_of_iterations,
     terms, threads, progress=None, feature=None, leak_guard=true,
-    edge_gate=true
+    first_edge=true
 ))]
 #[allow(clippy::too_many_arguments)]
 fn segment(
@@ -233,7 +233,7 @@ fn segment(
     progress: Option<Bound<'_, PyAny>>,
     feature: Option<PyReadonlyArray3<'_, f32>>,
     leak_guard: bool,
-    edge_gate: bool,
+    first_edge: bool,
 ) -> PyResult<Segmentation> {
     let loaded = Arc::clone(&image.loaded);
     let dims = loaded.image.dims;
@@ -307,7 +307,7 @@ fn segment(
         terms: terms_list,
         feature,
         leak_guard,
-        edge_gate,
+        first_edge,
         ..Params::new(method)
     };
     let seg = watch::run(py, progress.as_ref(), "segment", |w| {

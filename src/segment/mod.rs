@@ -179,10 +179,12 @@ pub struct Params {
     /// 16 voxels) of a face of the image that the initial region did not touch, or grows past half the image. On by
     /// default; turn it off for objects that fill the image or cross its border.
     pub leak_guard: bool,
-    /// GAC's balloon turns inward beyond the intensity level of the first edge that rays
-    /// from the seeds cross ([`Resolved::edge_level`]); on by default. `false` gives ITK's
-    /// plain balloon, outward wherever the edge potential lets it.
-    pub edge_gate: bool,
+    /// The first edge that rays from the seeds cross shapes the flows (on by default, for
+    /// a positive propagation): GAC's balloon turns inward beyond its intensity level
+    /// ([`Resolved::edge_level`]), and Chan–Vese's outside mean is no farther from the
+    /// inside's than the intensity beyond it (the neighbouring tissue, not the whole
+    /// outside). `false` gives ITK's plain balloon and the textbook Chan–Vese.
+    pub first_edge: bool,
 }
 
 impl Params {
@@ -204,7 +206,7 @@ impl Params {
             terms: Vec::new(),
             feature: None,
             leak_guard: true,
-            edge_gate: true,
+            first_edge: true,
         }
     }
 }
@@ -228,8 +230,9 @@ pub struct Resolved {
     /// The contrast of the first edge the rays from the seeds crossed (GAC; median over
     /// the rays), intensity units.
     pub edge_contrast: Option<f64>,
-    /// The intensity where GAC's balloon turns (the median intensity at the first edge's
-    /// gradient peaks along the rays), intensity units; `None` for the plain balloon.
+    /// The intensity level of the first edge that rays from the seeds cross (the median
+    /// intensity at its gradient peaks), where GAC's balloon turns, intensity units; `None`
+    /// when not used ([`Params::first_edge`]) or when the rays found no one edge.
     pub edge_level: Option<f64>,
     /// The intensity over which the threshold speed goes from 0 to 1 (threshold method).
     pub threshold_scale: Option<f64>,

@@ -418,7 +418,15 @@ fn segment_in_pool(
         if let (Some(force), Some(fp)) = (&region, &sums) {
             let n = image.data.len() as u64;
             let c1 = fp.mean(inside_sum, voxels);
-            let c2 = fp.mean(fp.total - inside_sum, n - voxels);
+            let mut c2 = fp.mean(fp.total - inside_sum, n - voxels);
+            // The outside's competitor is the intensity beyond the seeds' first edge when
+            // that lies on the outside mean's side and clearly nearer (a neighbouring
+            // tissue, not the same background measured along a few rays).
+            if let Some(far) = gate.map(|g| g.far as f64) {
+                if (far - c1) * (c2 - c1) > 0.0 && (far - c1).abs() < NEIGHBOUR * (c2 - c1).abs() {
+                    c2 = far;
+                }
+            }
             force.set_means(c1, c2);
             means = Some([norm.back(c1), norm.back(c2)]);
         }
@@ -527,7 +535,7 @@ struct MethodInputs<'a> {
     h_min: f64,
     /// The noise σ left in `smoothed`, normalised units.
     noise_smoothed: f64,
-    /// GAC's balloon gate.
+    /// The seeds' first edge ([`Params::first_edge`]).
     gate: Option<Gate>,
 }
 
@@ -578,13 +586,15 @@ fn method_flow(
             let speed: Vec<f32> = match gate {
                 // The balloon pushes outward up to the first edge's level and, weakening,
                 // for two threshold scales w beyond it; then inward, in full 4w past it.
-                Some(Gate { level, side }) => {
+                Some(Gate { level, side, .. }) => {
                     let inv = (1.0 / threshold_scale(level, f32::INFINITY, noise_smoothed)) as f32;
                     g.data
                         .par_iter()
                         .zip(smoothed.data.par_iter())
                         .map(|(&v, &i)| {
-                            propagation * v * (0.5 * side * (i - level) * inv + 1.0).clamp(-1.0, 1.0)
+                            propagation
+                                * v
+                                * (0.5 * side * (i - level) * inv + 1.0).clamp(-1.0, 1.0)
                         })
                         .collect()
                 }
@@ -644,24 +654,27 @@ struct Prepared {
     norm: Normalization,
     /// GAC's edge potential.
     g: Option<Image>,
-    /// GAC's balloon gate.
+    /// The seeds' first edge ([`Params::first_edge`]).
     gate: Option<Gate>,
     resolved: Resolved,
 }
 
-/// Where GAC's balloon turns: the intensity midway across the first edge that the rays
-/// from the seeds cross (normalised units), and on which side of it the seeds lie.
+/// The first edge that the rays from the seeds cross ([`Params::first_edge`]), in
+/// normalised units: where GAC's balloon turns, what Chan–Vese's outside competes with,
+/// and on which side the seeds lie.
 #[derive(Clone, Copy, Debug)]
 struct Gate {
     level: f32,
+    /// The intensity beyond the edge (the neighbouring tissue).
+    far: f32,
     /// +1 when the seeds are brighter than `level`, −1 when darker.
     side: f32,
 }
 
-/// The balloon gate from the rays' edges: the median intensity at the edges' gradient
-/// peaks, when at least a quarter of the rays met an edge and three quarters of those
+/// The first edge from the rays: the median intensity at the edges' gradient peaks (and
+/// twice as far from the seeds' median m, beyond), when at least a quarter of the rays met an edge and three quarters of those
 /// agree on its side (a seed between a darker and a brighter neighbour has no one level).
-fn edge_gate(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
+fn first_edge(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
     let n = probe.contrasts.len();
     if n == 0 || n * 4 < probe.rays {
         return None;
@@ -677,7 +690,7 @@ fn edge_gate(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
     let same: Vec<f64> =
         probe.contrasts.iter().copied().filter(|&c| (c < 0.0) == (side > 0.0)).collect();
     let c = stats::quantile(&same, 0.5)?;
-    Some(Gate { level: (m + 0.5 * c) as f32, side })
+    Some(Gate { level: (m + 0.5 * c) as f32, far: (m + c) as f32, side })
 }
 
 /// The defaults of a run from the image's own statistics (module docs, "Defaults").
@@ -798,6 +811,20 @@ fn prepare(
         if sigma_max > 0.0 { features::gaussian(&normed, resolved.sigma)? } else { normed.clone() };
     // The noise left after smoothing.
     resolved.noise_smoothed = noise * resolved_factor(&resolved, image, axes) * norm.scale;
+    if gate.is_none()
+        && params.first_edge
+        && params.propagation.unwrap_or(1.0) > 0.0
+        && methods.iter().any(|m| matches!(m, Method::ChanVese { .. }))
+    {
+        let grad = voxel_gradient(&smoothed)?;
+        let m = inside_quantile(&smoothed, field, 0.5)?;
+        let tau = edge_departure(noise, resolved_factor(&resolved, image, axes));
+        let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
+        let probe =
+            stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+        gate = first_edge(&probe, m);
+        resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
+    }
     let g = if has_gac {
         Some(match (feature, params.edge_scale, params.sigmoid) {
             (Some(f), _, _) if only_gac => f.clone(),
@@ -824,8 +851,8 @@ fn prepare(
                         (grad, Some(probe), m)
                     }
                 };
-                if params.edge_gate && params.propagation.unwrap_or(1.0) > 0.0 {
-                    gate = probe.as_ref().and_then(|p| edge_gate(p, m));
+                if params.first_edge && params.propagation.unwrap_or(1.0) > 0.0 {
+                    gate = probe.as_ref().and_then(|p| first_edge(p, m));
                     resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
                 }
                 let (alpha, beta) = match given {
@@ -1290,6 +1317,9 @@ const GAC_ADVECTION: f32 = 3.0;
 /// The quantile of the rays' edge peaks taken as the edge's gradient K₂: a robust
 /// minimum, as the ITK guide's "minimum value along the contour".
 const EDGE_QUANTILE: f64 = 0.1;
+/// Chan–Vese competes with the tissue beyond the seeds' first edge when that is nearer
+/// the inside than this fraction of the outside mean's distance.
+const NEIGHBOUR: f64 = 0.75;
 
 /// The threshold method's default smoothing puts the noise left in Ĩ this many times
 /// below the distance from the seeds' intensity to the nearer threshold.

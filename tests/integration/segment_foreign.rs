@@ -190,7 +190,7 @@ fn gac_stops_at_the_first_edges_level_where_the_edge_is_weak() {
     }
     let im = Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY };
     let init = seeds(&[([c; 3], 4.0)]);
-    let plain = run(&im, &init, &Params { edge_gate: false, ..Params::new(Method::Gac) });
+    let plain = run(&im, &init, &Params { first_edge: false, ..Params::new(Method::Gac) });
     assert_eq!(plain.report.stop, Stop::Leaked, "{} voxels", plain.report.voxels);
     let s = run(&im, &init, &Params::new(Method::Gac));
     assert_ne!(s.report.stop, Stop::Leaked);
@@ -198,6 +198,43 @@ fn gac_stops_at_the_first_edges_level_where_the_edge_is_weak() {
     assert!((level - 0.5).abs() < 0.1, "edge level {level}");
     let d = dice(&s.mask, &truth).unwrap();
     assert!(d > 0.95, "Dice {d}, {} voxels, {:?}", s.report.voxels, s.report.stop);
+}
+
+/// Three tissues, as white matter, grey matter and the rest of a head: a bright ball (1)
+/// in a shell of 0.6 on a dark background (0). The textbook Chan–Vese from seeds in the
+/// ball takes ball and shell (the whole outside's mean is near 0); by default its outside
+/// mean is the neighbouring tissue's, and it takes the ball.
+#[test]
+fn chan_vese_competes_with_the_neighbouring_tissue() {
+    let (n, c) = (48usize, 24.0f64);
+    let mut rng = fastrand::Rng::with_seed(5);
+    let mut data = Vec::with_capacity(n * n * n);
+    let mut truth = Vec::with_capacity(n * n * n);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let r = [x, y, z].iter().map(|&q| (q as f64 - c).powi(2)).sum::<f64>().sqrt();
+                let clean = if r <= 9.0 {
+                    1.0
+                } else if r <= 15.0 {
+                    0.6
+                } else {
+                    0.0
+                };
+                truth.push((r <= 9.0) as u8);
+                data.push((clean + 0.1 * (rng.f64() - 0.5)) as f32);
+            }
+        }
+    }
+    let im = Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY };
+    let init = seeds(&[([c; 3], 3.0)]);
+    let textbook =
+        run(&im, &init, &Params { first_edge: false, ..Params::new(Method::chan_vese()) });
+    let d = dice(&textbook.mask, &truth).unwrap();
+    assert!(d < 0.6, "the textbook Chan–Vese: Dice {d}");
+    let s = run(&im, &init, &Params::new(Method::chan_vese()));
+    let d = dice(&s.mask, &truth).unwrap();
+    assert!(d > 0.97, "Dice {d}, {} voxels, {:?}", s.report.voxels, s.report.stop);
 }
 
 /// ITK's negative propagation: a large initial region shrinks onto the object.

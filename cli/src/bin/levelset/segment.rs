@@ -72,12 +72,14 @@ pub struct SegmentArgs {
     /// did not touch, or grows past half the image): for objects that fill the image.
     #[arg(long)]
     pub no_leak_guard: bool,
-    /// GAC with ITK's plain balloon, outward wherever the edge potential lets it. By
-    /// default the balloon turns inward beyond the intensity midway across the first edge
-    /// that rays from the seeds cross (the report's `edge_level`), so that a weak or
-    /// missing stretch of edge does not let the front run into what lies beyond.
+    /// ITK's plain GAC balloon (outward wherever the edge potential lets it) and the
+    /// textbook Chan–Vese. By default the first edge that rays from the seeds cross shapes
+    /// both: GAC's balloon turns inward beyond the intensity midway across it (the report's
+    /// `edge_level`), so that a weak stretch of edge does not let the front run on, and
+    /// Chan–Vese's outside mean is no farther from the inside's than the intensity beyond
+    /// it (the neighbouring tissue, not the whole outside)
     #[arg(long)]
-    pub no_edge_gate: bool,
+    pub no_first_edge: bool,
     /// σ of the Gaussian smoothing in world units (0: none) [default: from the image's noise].
     #[arg(long, allow_hyphen_values = true)]
     pub sigma: Option<f64>,
@@ -391,7 +393,7 @@ fn params_of(a: &SegmentArgs, method: Method, threads: usize) -> Result<Params, 
     params.advection = a.advection;
     params.edge_scale = a.edge_scale;
     params.leak_guard = !a.no_leak_guard;
-    params.edge_gate = !a.no_edge_gate;
+    params.first_edge = !a.no_first_edge;
     if let Some(v) = a.rms {
         params.rms = v;
     }
