@@ -45,12 +45,14 @@
 //! Every default comes from robust statistics of the image, none from an intensity scale:
 //! the flows see the image normalised by order statistics ((I − median) / (p99 − p1)), so
 //! the mask of a·I + b (a > 0) is the mask of I; the noise σ is the median absolute second
-//! difference over 0.6745 √6; the smoothing is the smallest (for the threshold method
-//! possibly none) that puts the noise far below
-//! the contrast that matters (the distance to the nearer threshold; the contrast of the
-//! first edge that rays cast from the seeds cross); GAC's sigmoid follows the ITK Software
-//! Guide's rule with K₁ measured inside the seeds and K₂ on those rays; GAC's weights are
-//! (β, ε, α) = (1, 1.5 h, 3). [`Report::params`] holds every value chosen.
+//! difference over 0.6745 √6; the smoothing is the smallest (for the threshold method and
+//! Chan–Vese possibly none) that puts the noise far below the contrast that matters (the
+//! distance to the nearer threshold; the contrast of the first edge that rays cast from the
+//! seeds cross); GAC's sigmoid follows the ITK Software Guide's rule with K₁ measured
+//! inside the seeds and K₂ on those rays; GAC's weights are (β, ε, α) = (1, 1.5 h, 3).
+//! That first edge also shapes the flows ([`Params::first_edge`]): GAC's balloon turns
+//! back beyond its intensity level, and Chan–Vese competes with the tissue beyond it.
+//! [`Report::params`] holds every value chosen.
 //!
 //! # Stopping
 //! After every step: the RMS over the voxels next to the interface (|φ| < the smallest

@@ -798,7 +798,31 @@ fn prepare(
             }
             Some(v)
         }
-        (None, Method::ChanVese { .. }) => Some(1.0),
+        (None, Method::ChanVese { .. }) => {
+            // As for the threshold method, with the decision level midway between the
+            // seeds' intensity and the first edge's far side: none when the image's own
+            // noise is THRESHOLD_MARGIN times below half the edge's contrast, otherwise the
+            // smallest σ that puts it there; one voxel when the rays found no edge.
+            let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
+            let found = probe.2.peaks.len() * 4 >= probe.2.rays && !probe.2.peaks.is_empty();
+            let contrast = stats::quantile(
+                &probe.2.contrasts.iter().map(|c| c.abs()).collect::<Vec<_>>(),
+                0.5,
+            );
+            Some(match contrast {
+                Some(c) if found && c > 0.0 => {
+                    let margin = 0.5 * c;
+                    if THRESHOLD_MARGIN * noise <= margin {
+                        0.0
+                    } else {
+                        stats::smoothing_voxels(0.5, 2.0, |v| {
+                            THRESHOLD_MARGIN * noise * stats::noise_factor(v, axes) <= margin
+                        })
+                    }
+                }
+                _ => 1.0,
+            })
+        }
     };
     let sigmas = match (params.sigma, voxels) {
         (Some(s), _) => [s; 3],
