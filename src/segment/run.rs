@@ -840,12 +840,8 @@ fn prepare(
         && params.propagation.unwrap_or(1.0) > 0.0
         && methods.iter().any(|m| matches!(m, Method::ChanVese { .. }))
     {
-        let grad = voxel_gradient(&smoothed)?;
-        let m = inside_quantile(&smoothed, field, 0.5)?;
-        let tau = edge_departure(noise, resolved_factor(&resolved, image, axes));
-        let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
-        let probe =
-            stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+        let factor = resolved_factor(&resolved, image, axes);
+        let (_, probe, m) = probe_of(image, init, field, &smoothed, noise * factor)?;
         gate = first_edge(&probe, m);
         resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
     }
@@ -861,17 +857,9 @@ fn prepare(
                 let (grad, probe, m) = match gac.take() {
                     Some((_, grad, probe, m)) => (grad, Some(probe), m),
                     None => {
-                        let grad = voxel_gradient(&smoothed)?;
-                        let m = inside_quantile(&smoothed, field, 0.5)?;
-                        let tau = edge_departure(noise, resolved_factor(&resolved, image, axes));
-                        let probe = stats::probe_edges(
-                            &smoothed,
-                            &grad,
-                            &ray_origins(image, init, field),
-                            m,
-                            tau,
-                            3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b)),
-                        );
+                        let factor = resolved_factor(&resolved, image, axes);
+                        let (grad, probe, m) =
+                            probe_of(image, init, field, &smoothed, noise * factor)?;
                         (grad, Some(probe), m)
                     }
                 };
@@ -918,8 +906,8 @@ fn resolved_factor(resolved: &Resolved, image: &Image, axes: usize) -> f64 {
 /// How far (normalised units) the smoothed intensity must depart from the seeds' for a
 /// ray to have met an edge: five times the noise left after smoothing, and at least 5 %
 /// of the image's robust range.
-fn edge_departure(noise: f64, factor: f64) -> f64 {
-    (5.0 * noise * factor).max(0.05)
+fn edge_departure(noise_left: f64) -> f64 {
+    (5.0 * noise_left).max(0.05)
 }
 
 /// |∇Ĩ| per voxel step (unit spacing): a step between two slices 2.5 mm apart is as much
@@ -940,13 +928,27 @@ fn gac_probe(
     axes: usize,
 ) -> Result<(Image, Image, stats::EdgeProbe, f64), GridError> {
     let smoothed = smooth(v)?;
-    let grad = voxel_gradient(&smoothed)?;
-    let m = inside_quantile(&smoothed, field, 0.5)?;
-    let tau = edge_departure(noise, stats::noise_factor(v, axes).min(1.0));
+    let (grad, probe, m) =
+        probe_of(image, init, field, &smoothed, noise * stats::noise_factor(v, axes).min(1.0))?;
+    Ok((smoothed, grad, probe, m))
+}
+
+/// |∇Ĩ|, the rays' edges through `smoothed` (Ĩ, holding `noise_left`) and the seeds'
+/// median intensity m.
+fn probe_of(
+    image: &Image,
+    init: &Init,
+    field: &DenseField,
+    smoothed: &Image,
+    noise_left: f64,
+) -> Result<(Image, stats::EdgeProbe, f64), GridError> {
+    let grad = voxel_gradient(smoothed)?;
+    let m = inside_quantile(smoothed, field, 0.5)?;
+    let tau = edge_departure(noise_left);
     let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
     let probe =
-        stats::probe_edges(&smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
-    Ok((smoothed, grad, probe, m))
+        stats::probe_edges(smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+    Ok((grad, probe, m))
 }
 
 /// Where rays start, in voxel coordinates: the seeds' centres, or the deepest voxel of an
