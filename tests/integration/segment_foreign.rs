@@ -54,6 +54,24 @@ fn image(
     (Image { dims, spacing, data, to_world: IDENTITY }, truth)
 }
 
+/// An n³ image of unit voxels whose clean intensity and truth `f` gives at each voxel
+/// centre, plus uniform noise of width `noise` (no blur).
+fn piecewise(
+    n: usize,
+    noise: f64,
+    seed: u64,
+    f: impl Fn([f64; 3]) -> (f64, bool),
+) -> (Image, Vec<u8>) {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let (mut data, mut truth) = (Vec::with_capacity(n * n * n), Vec::with_capacity(n * n * n));
+    for i in 0..n * n * n {
+        let (clean, inside) = f([(i % n) as f64, ((i / n) % n) as f64, (i / (n * n)) as f64]);
+        truth.push(inside as u8);
+        data.push((clean + noise * (rng.f64() - 0.5)) as f32);
+    }
+    (Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY }, truth)
+}
+
 fn ball(c: [f64; 3], r: f64) -> impl Fn([f64; 3]) -> bool {
     move |p| (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>() <= r * r
 }
@@ -164,31 +182,20 @@ fn a_front_through_a_gap_is_reported_as_leaked() {
 /// first edge's level (0.5) and stops there.
 #[test]
 fn gac_stops_at_the_first_edges_level_where_the_edge_is_weak() {
-    let (n, c, r) = (48usize, 20.0f64, 10.0f64);
-    let mut rng = fastrand::Rng::with_seed(9);
-    let mut data = Vec::with_capacity(n * n * n);
-    let mut truth = Vec::with_capacity(n * n * n);
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let [px, py, pz] = [x as f64, y as f64, z as f64];
-                let rho2 = (py - c).powi(2) + (pz - c).powi(2);
-                let in_ball = (px - c).powi(2) + rho2 <= r * r;
-                let in_channel = px > c && (py - c).abs() < 5.0 && (pz - c).abs() < 5.0;
-                let clean = if in_ball {
-                    1.0
-                } else if in_channel {
-                    let surface = c + (r * r - rho2).max(0.0).sqrt();
-                    (1.0 - 0.7 * (px - surface) / 8.0).max(0.3)
-                } else {
-                    0.0
-                };
-                truth.push((clean > 0.5) as u8);
-                data.push((clean + 0.05 * (rng.f64() - 0.5)) as f32);
-            }
-        }
-    }
-    let im = Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY };
+    let (c, r) = (20.0f64, 10.0f64);
+    let (im, truth) = piecewise(48, 0.05, 9, |[px, py, pz]| {
+        let rho2 = (py - c).powi(2) + (pz - c).powi(2);
+        let in_channel = px > c && (py - c).abs() < 5.0 && (pz - c).abs() < 5.0;
+        let clean = if (px - c).powi(2) + rho2 <= r * r {
+            1.0
+        } else if in_channel {
+            let surface = c + (r * r - rho2).max(0.0).sqrt();
+            (1.0 - 0.7 * (px - surface) / 8.0).max(0.3)
+        } else {
+            0.0
+        };
+        (clean, clean > 0.5)
+    });
     let init = seeds(&[([c; 3], 4.0)]);
     let plain = run(&im, &init, &Params { first_edge: false, ..Params::new(Method::Gac) });
     assert_eq!(plain.report.stop, Stop::Leaked, "{} voxels", plain.report.voxels);
@@ -206,27 +213,18 @@ fn gac_stops_at_the_first_edges_level_where_the_edge_is_weak() {
 /// mean is the neighbouring tissue's, and it takes the ball.
 #[test]
 fn chan_vese_competes_with_the_neighbouring_tissue() {
-    let (n, c) = (48usize, 24.0f64);
-    let mut rng = fastrand::Rng::with_seed(5);
-    let mut data = Vec::with_capacity(n * n * n);
-    let mut truth = Vec::with_capacity(n * n * n);
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let r = [x, y, z].iter().map(|&q| (q as f64 - c).powi(2)).sum::<f64>().sqrt();
-                let clean = if r <= 9.0 {
-                    1.0
-                } else if r <= 15.0 {
-                    0.6
-                } else {
-                    0.0
-                };
-                truth.push((r <= 9.0) as u8);
-                data.push((clean + 0.1 * (rng.f64() - 0.5)) as f32);
-            }
-        }
-    }
-    let im = Image { dims: [n; 3], spacing: [1.0; 3], data, to_world: IDENTITY };
+    let c = 24.0f64;
+    let (im, truth) = piecewise(48, 0.1, 5, |p| {
+        let r = p.iter().map(|&q| (q - c).powi(2)).sum::<f64>().sqrt();
+        let clean = if r <= 9.0 {
+            1.0
+        } else if r <= 15.0 {
+            0.6
+        } else {
+            0.0
+        };
+        (clean, r <= 9.0)
+    });
     let init = seeds(&[([c; 3], 3.0)]);
     let textbook =
         run(&im, &init, &Params { first_edge: false, ..Params::new(Method::chan_vese()) });
