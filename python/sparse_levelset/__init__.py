@@ -52,6 +52,7 @@ __all__ = [
     "segment",
     "Segmentation",
     "LeakWarning",
+    "ContrastWarning",
     "save_mesh",
     "load_mesh",
     "__version__",
@@ -889,7 +890,9 @@ def segment(
     A run whose region spreads over an image face the seeds did not touch (0.5 % of it),
     or grows past half the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
-    pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``).
+    pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``). A
+    Chan–Vese region whose mean ends within four noise levels of the outside's issues a
+    :class:`ContrastWarning` the same way.
 
     The first edge that rays from the seeds cross shapes GAC and Chan–Vese: GAC's balloon
     turns inward beyond the intensity midway across it (``report["params"]["edge_level"]``),
@@ -942,7 +945,15 @@ def segment(
             LeakWarning,
             stacklevel=2,
         )
+    if result.report.get("weak_contrast"):
+        warnings.warn(result.report["weak_contrast"], ContrastWarning, stacklevel=2)
     return result
+
+
+class ContrastWarning(UserWarning):
+    """A Chan–Vese region was not told apart from its surroundings: its mean lies within four
+    noise levels of the outside's (``report["weak_contrast"]`` says by how much), so the mask
+    segments nothing in particular, though the run stopped normally."""
 
 
 class LeakWarning(UserWarning):

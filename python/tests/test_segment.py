@@ -215,3 +215,24 @@ def test_a_leak_is_a_warning_and_a_flag():
         warnings.simplefilter("error")
         quiet = sl.segment(image, "gac", seeds=[(c, c, c, 4)], leak_guard=False, number_of_iterations=200)
     assert not quiet.leaked
+
+
+
+def test_chan_vese_that_tells_nothing_apart_warns():
+    # A closed bright shell at SNR 2, seeded in its cavity of the background's intensity:
+    # the region's mean ends within a noise level of the outside's.
+    c = 32.0
+
+    def shell(x, y, z):
+        r = np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2)
+        return (r >= 20) & (r <= 24)
+
+    image, _ = blurred_phantom((64, 64, 64), shell, noise=0.5)
+    with pytest.warns(sl.ContrastWarning, match="not told apart"):
+        cv = sl.segment(image, "chan-vese", seeds=[(c, c, c, 4)])
+    assert cv.report["weak_contrast"] and cv.report["stop"] != "leaked"
+    ball, _ = blurred_phantom((40, 40, 40), lambda x, y, z: (x - 20) ** 2 + (y - 20) ** 2 + (z - 20) ** 2 <= 144)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert sl.segment(ball, "chan-vese", seeds=[(20, 20, 20, 3)]).report["weak_contrast"] is None

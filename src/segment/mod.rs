@@ -287,6 +287,10 @@ pub struct Report {
     pub means: Option<[f64; 2]>,
     /// Why the leak guard stopped the run ([`Stop::Leaked`]).
     pub leak: Option<String>,
+    /// Why Chan–Vese's region is not told apart from its surroundings, if it is not: its
+    /// mean lies within four noise levels of the outside's. The mask is then no
+    /// segmentation of anything, though the run stopped normally.
+    pub weak_contrast: Option<String>,
     /// Band voxels at the end.
     pub band_voxels: usize,
     /// Σ over steps of the stored voxels times the stages (the voxels the kernels updated).

@@ -504,6 +504,7 @@ fn segment_in_pool(
     let seconds_evolution = evolution.elapsed().as_secs_f64();
     let mask = mask_of(&sim, image.dims)?;
     let voxels = mask.iter().map(|&m| m as u64).sum::<u64>();
+    let weak_contrast = means.and_then(|[c1, c2]| weak_contrast(c1, c2, resolved.noise_smoothed));
     let report = Report {
         params: resolved,
         stop,
@@ -514,6 +515,7 @@ fn segment_in_pool(
         volume: voxels as f64 * voxel_volume,
         means,
         leak,
+        weak_contrast,
         band_voxels: sim.band_voxels(),
         voxel_updates: updates,
         seconds_features,
@@ -522,6 +524,22 @@ fn segment_in_pool(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok(Segmentation { mask, simulation: sim, report })
+}
+
+/// Why Chan–Vese's region is not told apart from its surroundings, if it is not: its
+/// mean c₁ lies within [`CONTRAST_NOISE`] noise levels (left after smoothing) of the
+/// outside's c₂, so that the two classes overlap and a voxel's side is a coin toss (the
+/// seeds lie in a region of the background's intensity, or the object has no contrast).
+fn weak_contrast(c1: f64, c2: f64, noise_smoothed: f64) -> Option<String> {
+    let d = (c1 - c2).abs();
+    (d < CONTRAST_NOISE * noise_smoothed).then(|| {
+        format!(
+            "the region's mean {c1:.4} is within {:.1} noise levels ({noise_smoothed:.3}) of \
+             the outside's {c2:.4}: the region is not told apart from its surroundings (do \
+             the seeds lie in a region of the background's intensity?)",
+            d / noise_smoothed.max(f64::MIN_POSITIVE)
+        )
+    })
 }
 
 /// What every method's flow is built from.
@@ -1343,6 +1361,9 @@ const GAC_ADVECTION: f32 = 3.0;
 /// The quantile of the rays' edge peaks taken as the edge's gradient K₂: a robust
 /// minimum, as the ITK guide's "minimum value along the contour".
 const EDGE_QUANTILE: f64 = 0.1;
+/// Chan–Vese's inside and outside means closer than this many noise levels are reported
+/// ([`Report::weak_contrast`]): the classes overlap by about Φ(−2), 2 % of voxels either way.
+const CONTRAST_NOISE: f64 = 4.0;
 /// Chan–Vese competes with the tissue beyond the seeds' first edge when that is nearer
 /// the inside than this fraction of the outside mean's distance.
 const NEIGHBOUR: f64 = 0.75;

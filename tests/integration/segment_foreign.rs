@@ -173,6 +173,25 @@ fn a_front_through_a_gap_is_reported_as_leaked() {
     );
     assert_ne!(off.report.stop, Stop::Leaked);
     assert!(off.report.voxels > s.report.voxels);
+    // Chan–Vese in the cavity: its region has the background's intensity; it leaks out
+    // or ends without telling anything apart, and the report says so either way.
+    let cv = run(&im, &init, &Params::new(Method::chan_vese()));
+    assert!(
+        cv.report.stop == Stop::Leaked || cv.report.weak_contrast.is_some(),
+        "{:?} {:?}",
+        cv.report.stop,
+        cv.report.means
+    );
+    // Closed and noisier (SNR 2): no way out, and the region's mean ends within a noise
+    // level or two of the outside's.
+    let closed = move |p: [f64; 3]| {
+        let r = (0..3).map(|a| (p[a] - 32.0).powi(2)).sum::<f64>().sqrt();
+        (20.0..=24.0).contains(&r)
+    };
+    let (im, _) = image([64, 64, 64], [1.0; 3], 0.5, 3, closed);
+    let cv = run(&im, &seeds(&[([32.0; 3], 4.0)]), &Params::new(Method::chan_vese()));
+    assert_ne!(cv.report.stop, Stop::Leaked);
+    assert!(cv.report.weak_contrast.is_some(), "{:?}", cv.report.means);
 }
 
 /// A stretch of edge too gradual for the edge potential, as between white matter and
@@ -233,6 +252,7 @@ fn chan_vese_competes_with_the_neighbouring_tissue() {
     let s = run(&im, &init, &Params::new(Method::chan_vese()));
     let d = dice(&s.mask, &truth).unwrap();
     assert!(d > 0.97, "Dice {d}, {} voxels, {:?}", s.report.voxels, s.report.stop);
+    assert_eq!(s.report.weak_contrast, None);
 }
 
 /// ITK's negative propagation: a large initial region shrinks onto the object.

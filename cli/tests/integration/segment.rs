@@ -170,6 +170,23 @@ fn a_leak_is_reported_with_exit_code_3() {
     assert!(mask.is_file(), "the mask of a leaked run is written");
     let o = one(&["--no-leak-guard", "--max-iterations", "60"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Chan–Vese in the cavity: the region has the background's intensity; it leaks out
+    // through the hole or ends without telling anything apart, and says so either way.
+    let o = levelset(&[
+        "segment",
+        shell.to_str().unwrap(),
+        "--method",
+        "chan-vese",
+        "--seed",
+        "20,20,20:3",
+        "-o",
+        mask.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("warning:"), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(v["leaked"] == true || v["weak_contrast"].is_string(), "{v}");
     // A batch: the shell leaks, a phantom ball does not.
     let o =
         levelset(&["phantom", "ball", "--size", "24", "--snr", "4", "-o", input.to_str().unwrap()]);

@@ -472,21 +472,23 @@ fn summary_line(v: &serde_json::Value) -> String {
     )
 }
 
-/// The exit code of a run (or batch) that leaked ([`Stop::Leaked`]): its outputs are
-/// written, and a warning says why.
+/// The exit code of a run (or batch) whose mask is not a segmentation of the seeded
+/// object: it leaked ([`Stop::Leaked`]), or Chan–Vese's region was not told apart from its
+/// surroundings (`weak_contrast`). Its outputs are written, and a warning says why.
 pub const EXIT_LEAKED: u8 = 3;
 
-/// The warning for a record that leaked, if it did.
+/// The warning for a record whose mask is not the seeded object, if it is not.
 fn leak_warning(v: &serde_json::Value) -> Option<String> {
-    (v["leaked"].as_bool() == Some(true)).then(|| {
-        format!(
-            "warning: {}: the segmentation leaked and was stopped: {} (the mask is not the \
+    let image = v["image"].as_str().unwrap_or("?");
+    if v["leaked"].as_bool() == Some(true) {
+        return Some(format!(
+            "warning: {image}: the segmentation leaked and was stopped: {} (the mask is not the \
              seeded object; check the seeds and window, or give --no-leak-guard if the object \
              does fill the image)",
-            v["image"].as_str().unwrap_or("?"),
             v["leak"].as_str().unwrap_or("?")
-        )
-    })
+        ));
+    }
+    v["weak_contrast"].as_str().map(|why| format!("warning: {image}: {why}"))
 }
 
 /// Runs `levelset segment`; `Ok(true)` when a segmentation leaked.
@@ -576,10 +578,13 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
     })?;
     let Some(results) = results else { return Ok(false) };
     let failed = results.iter().filter(|r| r.is_err()).count();
-    let leaked = results
-        .iter()
-        .filter(|r| r.as_ref().is_ok_and(|v| v["leaked"].as_bool() == Some(true)))
-        .count();
+    let count = |key: &str| {
+        results
+            .iter()
+            .filter(|r| r.as_ref().is_ok_and(|v| !v[key].is_null() && v[key] != false))
+            .count()
+    };
+    let (leaked, weak) = (count("leaked"), count("weak_contrast"));
     let records: Vec<serde_json::Value> = images
         .iter()
         .zip(results)
@@ -588,15 +593,20 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
             Err(e) => serde_json::json!({"image": p.display().to_string(), "error": e}),
         })
         .collect();
-    let fields =
-        vec![("images", images.len().into()), ("failed", failed.into()), ("leaked", leaked.into())];
+    let fields = vec![
+        ("images", images.len().into()),
+        ("failed", failed.into()),
+        ("leaked", leaked.into()),
+        ("weak_contrast", weak.into()),
+    ];
     let (summary, how) = batch::write_summary(&a.output, fields, records, t, threads, start)?;
-    outln!("{} images, {failed} failed, {leaked} leaked, {how}", images.len());
+    let weak_note = if weak > 0 { format!(", {weak} with weak contrast") } else { String::new() };
+    outln!("{} images, {failed} failed, {leaked} leaked{weak_note}, {how}", images.len());
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
     }
     if failed > 0 {
         return Err(format!("{failed} of {} images failed (see above)", images.len()));
     }
-    Ok(leaked > 0)
+    Ok(leaked + weak > 0)
 }
