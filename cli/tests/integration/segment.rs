@@ -117,7 +117,7 @@ fn batch_mode_segments_a_folder_and_skips_a_broken_file() {
 
 /// A bright shell with a hole around a dark cavity, as `.npy` (0–1 intensities): GAC
 /// seeded in the cavity leaves through the hole.
-fn write_shell(path: &std::path::Path) {
+fn write_shell(path: &std::path::Path, hole: bool) {
     use sparse_levelset::io::image::{save_f32, Image, LoadedImage, IDENTITY};
     let n = 40usize;
     let c = 20.0f64;
@@ -125,7 +125,7 @@ fn write_shell(path: &std::path::Path) {
         .map(|i| {
             let p = [(i % n) as f64, ((i / n) % n) as f64, (i / (n * n)) as f64];
             let r = p.iter().map(|v| (v - c).powi(2)).sum::<f64>().sqrt();
-            let hole = p[0] > c && (p[1] - c).powi(2) + (p[2] - c).powi(2) < 20.0;
+            let hole = hole && p[0] > c && (p[1] - c).powi(2) + (p[2] - c).powi(2) < 20.0;
             let noise = ((i as u64).wrapping_mul(2654435761) % 1000) as f32 / 1000.0 - 0.5;
             ((12.0..=15.0).contains(&r) && !hole) as u8 as f32 + 0.2 * noise
         })
@@ -140,14 +140,15 @@ fn write_shell(path: &std::path::Path) {
 }
 
 /// A run that leaks is stopped, written, warned about and exits with code 3; in a batch it
-/// is marked and counted, and the batch exits with 3 when nothing failed.
+/// is marked and counted, and the batch exits with 3 when nothing failed. So is a Chan–Vese
+/// region that tells nothing apart (`weak_contrast`).
 #[test]
 fn a_leak_is_reported_with_exit_code_3() {
     let dir = std::env::temp_dir().join(format!("levelset-segleak-{}", std::process::id()));
     let (input, output) = (dir.join("in"), dir.join("out"));
     std::fs::create_dir_all(&input).unwrap();
     let shell = input.join("shell.npy");
-    write_shell(&shell);
+    write_shell(&shell, true);
     std::fs::write(
         input.join("shell-seeds.json"),
         r#"{"seeds": [{"center": [20, 20, 20], "radius": 3}]}"#,
@@ -208,6 +209,24 @@ fn a_leak_is_reported_with_exit_code_3() {
     let leaked: Vec<bool> =
         s["records"].as_array().unwrap().iter().map(|r| r["leaked"].as_bool().unwrap()).collect();
     assert_eq!(leaked, vec![false, true], "ball, then shell");
+    // Chan–Vese over a closed shell seeded in its cavity tells nothing apart: a batch warns,
+    // counts it and exits with 3.
+    write_shell(&shell, false);
+    let o = levelset(&[
+        "segment",
+        input.to_str().unwrap(),
+        "--method",
+        "chan-vese",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stdout(&o).contains("0 leaked, 1 with weak contrast"), "{}", stdout(&o));
+    assert!(stderr(&o).contains("not told apart"), "{}", stderr(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(output.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(s["weak_contrast"], 1);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
