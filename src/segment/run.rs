@@ -693,10 +693,10 @@ struct Gate {
 /// twice as far from the seeds' median m, beyond), when at least a quarter of the rays met an edge and three quarters of those
 /// agree on its side (a seed between a darker and a brighter neighbour has no one level).
 fn first_edge(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
-    let n = probe.contrasts.len();
-    if n == 0 || n * 4 < probe.rays {
+    if !probe.crossed() {
         return None;
     }
+    let n = probe.contrasts.len();
     let darker = probe.contrasts.iter().filter(|&&c| c < 0.0).count();
     let side = if darker * 4 >= n * 3 {
         1.0
@@ -766,38 +766,21 @@ fn prepare(
         planar,
     };
     // σ in voxels of each axis (the default), or world units (given).
-    let mut gac: Option<(Image, Image, stats::EdgeProbe, f64)> = None;
-    let mut gate: Option<Gate> = None;
+    // The rays' pilot at one voxel of smoothing, kept when that is the smoothing chosen.
+    let mut pilot: Option<(Image, Image, stats::EdgeProbe, f64)> = None;
     let voxels = match (params.sigma, params.method) {
         (Some(_), _) => None,
         (None, _) if feature.is_some() && !only_gac => Some(0.0),
         (None, Method::Threshold { lower, upper }) => {
-            // The smallest σ that puts the noise left in Ĩ THRESHOLD_MARGIN times below the
-            // distance from the seeds' intensity to the nearer threshold; none when the
-            // image's own noise already is (smoothing would only round thin parts off).
+            // The decision level is the nearer threshold.
             let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
-            let margin = (m_in - lo).min(hi - m_in);
-            Some(if margin > 0.0 && THRESHOLD_MARGIN * noise <= margin {
-                0.0
-            } else if noise == 0.0 {
-                0.5
-            } else if margin > 0.0 {
-                stats::smoothing_voxels(0.5, 2.0, |v| {
-                    THRESHOLD_MARGIN * noise * stats::noise_factor(v, axes) <= margin
-                })
-            } else {
-                1.0
-            })
+            Some(margin_smoothing(noise, (m_in - lo).min(hi - m_in), axes))
         }
         (None, Method::Gac) => {
             let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
-            let contrast = stats::quantile(
-                &probe.2.contrasts.iter().map(|c| c.abs()).collect::<Vec<_>>(),
-                0.5,
-            );
-            let found = probe.2.peaks.len() * 4 >= probe.2.rays && !probe.2.peaks.is_empty();
+            let contrast = probe.2.contrast();
             let v = match contrast {
-                Some(c) if found && noise > 0.0 => {
+                Some(c) if noise > 0.0 => {
                     // Edge gradient over the noise's gradient ≥ 10, for an edge of contrast
                     // c blurred over a voxel: c / (√(2π) √(v² + 1)) against
                     // σ_n (∫G²)^½ / (√2 v).
@@ -810,36 +793,25 @@ fn prepare(
                 }
                 _ => 1.0,
             };
-            resolved.edge_contrast = contrast.filter(|_| found).map(|c| c * norm.scale);
+            resolved.edge_contrast = contrast.map(|c| c * norm.scale);
             if v == 1.0 {
-                gac = Some(probe);
+                pilot = Some(probe);
             }
             Some(v)
         }
         (None, Method::ChanVese { .. }) => {
             // As for the threshold method, with the decision level midway between the
-            // seeds' intensity and the first edge's far side: none when the image's own
-            // noise is THRESHOLD_MARGIN times below half the edge's contrast, otherwise the
-            // smallest σ that puts it there; one voxel when the rays found no edge.
+            // seeds' intensity and the first edge's far side; one voxel when the rays
+            // found no edge.
             let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
-            let found = probe.2.peaks.len() * 4 >= probe.2.rays && !probe.2.peaks.is_empty();
-            let contrast = stats::quantile(
-                &probe.2.contrasts.iter().map(|c| c.abs()).collect::<Vec<_>>(),
-                0.5,
-            );
-            Some(match contrast {
-                Some(c) if found && c > 0.0 => {
-                    let margin = 0.5 * c;
-                    if THRESHOLD_MARGIN * noise <= margin {
-                        0.0
-                    } else {
-                        stats::smoothing_voxels(0.5, 2.0, |v| {
-                            THRESHOLD_MARGIN * noise * stats::noise_factor(v, axes) <= margin
-                        })
-                    }
-                }
+            let v = match probe.2.contrast() {
+                Some(c) if c > 0.0 => margin_smoothing(noise, 0.5 * c, axes),
                 _ => 1.0,
-            })
+            };
+            if v == 1.0 {
+                pilot = Some(probe);
+            }
+            Some(v)
         }
     };
     let sigmas = match (params.sigma, voxels) {
@@ -853,16 +825,24 @@ fn prepare(
         if sigma_max > 0.0 { features::gaussian(&normed, resolved.sigma)? } else { normed.clone() };
     // The noise left after smoothing.
     resolved.noise_smoothed = noise * resolved_factor(&resolved, image, axes) * norm.scale;
-    if gate.is_none()
-        && params.first_edge
-        && params.propagation.unwrap_or(1.0) > 0.0
-        && methods.iter().any(|m| matches!(m, Method::ChanVese { .. }))
-    {
-        let factor = resolved_factor(&resolved, image, axes);
-        let (_, probe, m) = probe_of(image, init, field, &smoothed, noise * factor)?;
-        gate = first_edge(&probe, m);
-        resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
-    }
+    // The rays' edges through Ĩ as smoothed (the pilot's when it ran at this smoothing),
+    // for GAC's sigmoid and the first edge.
+    let use_first_edge = params.first_edge && params.propagation.unwrap_or(1.0) > 0.0;
+    let gac_edges = has_gac && !(feature.is_some() && only_gac) && params.edge_scale.is_none();
+    let has_cv = methods.iter().any(|m| matches!(m, Method::ChanVese { .. }));
+    let mut edges = if gac_edges || (use_first_edge && has_cv) {
+        Some(match pilot.take() {
+            Some((_, grad, probe, m)) => (grad, probe, m),
+            None => {
+                let factor = resolved_factor(&resolved, image, axes);
+                probe_of(image, init, field, &smoothed, noise * factor)?
+            }
+        })
+    } else {
+        None
+    };
+    let gate = edges.as_ref().filter(|_| use_first_edge).and_then(|(_, p, m)| first_edge(p, *m));
+    resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
     let g = if has_gac {
         Some(match (feature, params.edge_scale, params.sigmoid) {
             (Some(f), _, _) if only_gac => f.clone(),
@@ -872,19 +852,9 @@ fn prepare(
                 features::edge_potential(&grad, k / norm.scale)?
             }
             (_, None, given) => {
-                let (grad, probe, m) = match gac.take() {
-                    Some((_, grad, probe, m)) => (grad, Some(probe), m),
-                    None => {
-                        let factor = resolved_factor(&resolved, image, axes);
-                        let (grad, probe, m) =
-                            probe_of(image, init, field, &smoothed, noise * factor)?;
-                        (grad, Some(probe), m)
-                    }
-                };
-                if params.first_edge && params.propagation.unwrap_or(1.0) > 0.0 {
-                    gate = probe.as_ref().and_then(|p| first_edge(p, m));
-                    resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
-                }
+                let (grad, probe, _) = edges.take().ok_or_else(|| {
+                    SegmentError::InvalidParameter("GAC without the rays' edges".into())
+                })?;
                 let (alpha, beta) = match given {
                     Some((a, b)) => (a / norm.scale, b / norm.scale),
                     None => {
@@ -892,7 +862,7 @@ fn prepare(
                         let v = smoothing_voxels_of(&resolved, image).unwrap_or(0.5);
                         let s = noise * f / (std::f64::consts::SQRT_2 * v);
                         let chi999 = if axes >= 3 { 4.03 } else { 3.72 };
-                        sigmoid_from_edges(&grad, field, probe.as_ref(), chi999 * s)?
+                        sigmoid_from_edges(&grad, field, Some(&probe), chi999 * s)?
                     }
                 };
                 resolved.sigmoid = Some((alpha * norm.scale, beta * norm.scale));
@@ -904,6 +874,23 @@ fn prepare(
         None
     };
     Ok(Prepared { smoothed, norm, g, gate, resolved })
+}
+
+/// The smallest σ (voxels) that puts the noise left in Ĩ [`THRESHOLD_MARGIN`] times below
+/// `margin`, the distance from the seeds' intensity to the decision level; none when the
+/// image's own noise already is (smoothing would only round thin parts off).
+fn margin_smoothing(noise: f64, margin: f64, axes: usize) -> f64 {
+    if margin > 0.0 && THRESHOLD_MARGIN * noise <= margin {
+        0.0
+    } else if noise == 0.0 {
+        0.5
+    } else if margin > 0.0 {
+        stats::smoothing_voxels(0.5, 2.0, |v| {
+            THRESHOLD_MARGIN * noise * stats::noise_factor(v, axes) <= margin
+        })
+    } else {
+        1.0
+    }
 }
 
 /// The smoothing `resolved` holds, in voxels of the axis it smooths least (axes of one
@@ -1020,9 +1007,7 @@ fn sigmoid_from_edges(
     noise_gradient: f64,
 ) -> Result<(f64, f64), GridError> {
     let texture = inside_quantile(grad, initial, 0.9)?;
-    let edge = probe
-        .filter(|p| !p.peaks.is_empty() && p.peaks.len() * 4 >= p.rays)
-        .and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
+    let edge = probe.filter(|p| p.crossed()).and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
     if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * texture) {
         return Ok(((k2 - texture) / 6.0, 0.5 * (texture + k2)));
     }

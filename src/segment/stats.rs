@@ -167,6 +167,20 @@ pub(crate) struct EdgeProbe {
     pub peaks: Vec<f64>,
 }
 
+impl EdgeProbe {
+    /// At least a quarter of the rays crossed an edge (and one did).
+    pub fn crossed(&self) -> bool {
+        !self.peaks.is_empty() && self.peaks.len() * 4 >= self.rays
+    }
+
+    /// The edge's contrast, the median of |contrast| over the rays that crossed it, when
+    /// enough did ([`Self::crossed`]).
+    pub fn contrast(&self) -> Option<f64> {
+        let abs: Vec<f64> = self.contrasts.iter().map(|c| c.abs()).collect();
+        quantile(&abs, 0.5).filter(|_| self.crossed())
+    }
+}
+
 /// Directions on the unit sphere (Fibonacci lattice), or in the xy plane for 2D.
 fn directions(planar: bool) -> Vec<[f64; 3]> {
     if planar {

@@ -155,35 +155,32 @@ fn a_leak_is_reported_with_exit_code_3() {
     )
     .unwrap();
     let mask = dir.join("mask.npy");
-    let one = |extra: &[&str]| {
+    let one = |method: &str, extra: &[&str]| {
         let mut a =
-            vec!["segment", shell.to_str().unwrap(), "--method", "gac", "--seed", "20,20,20:3"];
+            vec!["segment", shell.to_str().unwrap(), "--method", method, "--seed", "20,20,20:3"];
         a.extend(["-o", mask.to_str().unwrap(), "--json", "--threads", "2"]);
         a.extend(extra);
         levelset(&a)
     };
-    let o = one(&[]);
+    // A batch over the folder: its output and summary.
+    let batch = |method: &str| {
+        let (i, o) = (input.to_str().unwrap(), output.to_str().unwrap());
+        let run = levelset(&["segment", i, "--method", method, "-o", o]);
+        let summary = std::fs::read_to_string(output.join("summary.json")).unwrap();
+        (run, serde_json::from_str::<serde_json::Value>(&summary).unwrap())
+    };
+    let o = one("gac", &[]);
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(stderr(&o).contains("warning:") && stderr(&o).contains("leaked"), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["stop"], "leaked");
     assert_eq!(v["leaked"], true);
     assert!(mask.is_file(), "the mask of a leaked run is written");
-    let o = one(&["--no-leak-guard", "--max-iterations", "60"]);
+    let o = one("gac", &["--no-leak-guard", "--max-iterations", "60"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Chan–Vese in the cavity: the region has the background's intensity; it leaks out
     // through the hole or ends without telling anything apart, and says so either way.
-    let o = levelset(&[
-        "segment",
-        shell.to_str().unwrap(),
-        "--method",
-        "chan-vese",
-        "--seed",
-        "20,20,20:3",
-        "-o",
-        mask.to_str().unwrap(),
-        "--json",
-    ]);
+    let o = one("chan-vese", &[]);
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(stderr(&o).contains("warning:"), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
@@ -192,19 +189,9 @@ fn a_leak_is_reported_with_exit_code_3() {
     let o =
         levelset(&["phantom", "ball", "--size", "24", "--snr", "4", "-o", input.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = levelset(&[
-        "segment",
-        input.to_str().unwrap(),
-        "--method",
-        "gac",
-        "-o",
-        output.to_str().unwrap(),
-    ]);
+    let (o, s) = batch("gac");
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(stdout(&o).contains("2 images, 0 failed, 1 leaked"), "{}", stdout(&o));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(output.join("summary.json")).unwrap())
-            .unwrap();
     assert_eq!(s["leaked"], 1);
     let leaked: Vec<bool> =
         s["records"].as_array().unwrap().iter().map(|r| r["leaked"].as_bool().unwrap()).collect();
@@ -212,20 +199,10 @@ fn a_leak_is_reported_with_exit_code_3() {
     // Chan–Vese over a closed shell seeded in its cavity tells nothing apart: a batch warns,
     // counts it and exits with 3.
     write_shell(&shell, false);
-    let o = levelset(&[
-        "segment",
-        input.to_str().unwrap(),
-        "--method",
-        "chan-vese",
-        "-o",
-        output.to_str().unwrap(),
-    ]);
+    let (o, s) = batch("chan-vese");
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
     assert!(stdout(&o).contains("0 leaked, 1 with weak contrast"), "{}", stdout(&o));
     assert!(stderr(&o).contains("not told apart"), "{}", stderr(&o));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(output.join("summary.json")).unwrap())
-            .unwrap();
     assert_eq!(s["weak_contrast"], 1);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -478,7 +478,7 @@ fn summary_line(v: &serde_json::Value) -> String {
 pub const EXIT_LEAKED: u8 = 3;
 
 /// The warning for a record whose mask is not the seeded object, if it is not.
-fn leak_warning(v: &serde_json::Value) -> Option<String> {
+fn warning_of(v: &serde_json::Value) -> Option<String> {
     let image = v["image"].as_str().unwrap_or("?");
     if v["leaked"].as_bool() == Some(true) {
         return Some(format!(
@@ -491,7 +491,8 @@ fn leak_warning(v: &serde_json::Value) -> Option<String> {
     v["weak_contrast"].as_str().map(|why| format!("warning: {image}: {why}"))
 }
 
-/// Runs `levelset segment`; `Ok(true)` when a segmentation leaked.
+/// Runs `levelset segment`; `Ok(true)` when a mask is not the seeded object (a leak or
+/// weak contrast: [`EXIT_LEAKED`]).
 pub fn run(a: &SegmentArgs) -> Result<bool, String> {
     let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
     if a.image.is_dir() {
@@ -509,7 +510,7 @@ pub fn run(a: &SegmentArgs) -> Result<bool, String> {
     } else {
         outln!("{}", summary_line(&v));
     }
-    let warning = leak_warning(&v);
+    let warning = warning_of(&v);
     if let Some(w) = &warning {
         eprintln!("{w}");
     }
@@ -568,7 +569,7 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
         match &r {
             Ok(v) => {
                 outln!("{prefix}{}", summary_line(v));
-                if let Some(w) = leak_warning(v) {
+                if let Some(w) = warning_of(v) {
                     eprintln!("{prefix}{w}");
                 }
             }
@@ -578,13 +579,11 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
     })?;
     let Some(results) = results else { return Ok(false) };
     let failed = results.iter().filter(|r| r.is_err()).count();
-    let count = |key: &str| {
-        results
-            .iter()
-            .filter(|r| r.as_ref().is_ok_and(|v| !v[key].is_null() && v[key] != false))
-            .count()
+    let count = |flagged: fn(&serde_json::Value) -> bool| {
+        results.iter().filter(|r| r.as_ref().is_ok_and(flagged)).count()
     };
-    let (leaked, weak) = (count("leaked"), count("weak_contrast"));
+    let leaked = count(|v| v["leaked"].as_bool() == Some(true));
+    let weak = count(|v| v["weak_contrast"].is_string());
     let records: Vec<serde_json::Value> = images
         .iter()
         .zip(results)
