@@ -205,4 +205,5 @@ def segment(
     feature: Optional[_F32] = ...,
     leak_guard: bool = ...,
     first_edge: bool = ...,
+    fast_start: bool = ...,
 ) -> Segmentation: ...

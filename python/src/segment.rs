@@ -202,7 +202,7 @@ fn method_of(
     sigma, propagation_scaling, curvature_scaling, advection_scaling, edge_scale, sigmoid,
     lambda1, lambda2, nu, maximum_rms_error, volume_change, window, number_of_iterations,
     terms, threads, progress=None, feature=None, leak_guard=true,
-    first_edge=true
+    first_edge=true, fast_start=true
 ))]
 #[allow(clippy::too_many_arguments)]
 fn segment(
@@ -234,6 +234,7 @@ fn segment(
     feature: Option<PyReadonlyArray3<'_, f32>>,
     leak_guard: bool,
     first_edge: bool,
+    fast_start: bool,
 ) -> PyResult<Segmentation> {
     let loaded = Arc::clone(&image.loaded);
     let dims = loaded.image.dims;
@@ -308,6 +309,7 @@ fn segment(
         feature,
         leak_guard,
         first_edge,
+        fast_start,
         ..Params::new(method)
     };
     let seg = watch::run(py, progress.as_ref(), "segment", |w| {

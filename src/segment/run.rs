@@ -368,6 +368,15 @@ fn segment_in_pool(
         }
         flow = sum_of_flows(flows);
     }
+    // The leak guard's reference is the seeds' region, whatever the start.
+    let (seed_voxels, seed_faces) = region_faces(&field, image.dims);
+    let field = match start_region(image, init, params, &inputs, &field, &norm) {
+        Some(start) => {
+            resolved.start_voxels = Some(start.iter().map(|&v| v as u64).sum());
+            initial_field(image, &Init::Mask(start), &lattice, spec.gamma())?
+        }
+        None => field,
+    };
     let seconds_features = start.elapsed().as_secs_f64();
 
     // The initial level set on the lattice.
@@ -395,8 +404,8 @@ fn segment_in_pool(
     let mut updates = 0f64;
     let mut rms = f64::NAN;
     let mut means = None;
-    let (mut voxels, mut inside_sum, first_faces) = inside(&sim, image.dims, sums.as_ref());
-    let initial_voxels = voxels;
+    let (mut voxels, mut inside_sum, _) = inside(&sim, image.dims, sums.as_ref());
+    let (initial_voxels, first_faces) = (seed_voxels, seed_faces);
     let image_voxels = image.len() as u64;
     let mut leak = None;
     volumes.push(voxels);
@@ -756,6 +765,7 @@ fn prepare(
         sigmoid: None,
         edge_contrast: None,
         edge_level: None,
+        start_voxels: None,
         threshold_scale: None,
         noise: noise * norm.scale,
         noise_smoothed: 0.0,
@@ -1182,6 +1192,89 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
     (count, sum, faces)
 }
 
+/// The image voxels of a dense initial field's region (φ ≤ 0) and how many lie on each
+/// face of the image, as [`inside`] counts them.
+fn region_faces(field: &DenseField, dims: [usize; 3]) -> (u64, [u64; 6]) {
+    let [nx, ny, nz] = dims;
+    let phi = &field.data()[..nx * ny * nz];
+    let mut faces = [0u64; 6];
+    let mut count = 0u64;
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                if phi[x + nx * (y + ny * z)] > 0.0 {
+                    continue;
+                }
+                count += 1;
+                let on = [x == 0, x + 1 == nx, y == 0, y + 1 == ny, z == 0, z + 1 == nz];
+                let axis_has_faces = [nx > 1, nx > 1, ny > 1, ny > 1, nz > 1, nz > 1];
+                for f in 0..6 {
+                    faces[f] += (on[f] && axis_has_faces[f]) as u64;
+                }
+            }
+        }
+    }
+    (count, faces)
+}
+
+/// The fast start's region ([`Params::fast_start`], [`super::start`]), when it applies:
+/// seeds, an outward flow of one method, and a rule for the voxels where that method's
+/// speed is clearly outward:
+/// * threshold: Ĩ at least half a threshold scale inside the window (speed ≥ ½);
+/// * GAC and Chan–Vese, with the seeds' first edge: Ĩ at least a threshold scale on the
+///   seeds' side of the edge's level (GAC's balloon at its full strength), and for GAC
+///   off the edges (g ≥ ½).
+fn start_region(
+    image: &Image,
+    init: &Init,
+    params: &Params,
+    inputs: &MethodInputs<'_>,
+    field: &DenseField,
+    norm: &Normalization,
+) -> Option<Vec<u8>> {
+    if !params.fast_start
+        || !matches!(init, Init::Seeds { .. })
+        || params.propagation.unwrap_or(1.0) <= 0.0
+        || !params.terms.is_empty()
+    {
+        return None;
+    }
+    let smoothed = &inputs.smoothed.data;
+    let confident: Vec<u8> = match (params.method, inputs.gate) {
+        (Method::Threshold { lower, upper }, _) => {
+            let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
+            let half = 0.5 * threshold_scale(lo as f32, hi as f32, inputs.noise_smoothed);
+            smoothed.par_iter().map(|&v| ((v as f64 - lo).min(hi - v as f64) >= half) as u8).collect()
+        }
+        (Method::Gac | Method::ChanVese { .. }, Some(Gate { level, side, .. })) => {
+            let w = threshold_scale(level, f32::INFINITY, inputs.noise_smoothed) as f32;
+            let g = matches!(params.method, Method::Gac).then_some(inputs.g).flatten();
+            smoothed
+                .par_iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    (side * (v - level) >= w && g.is_none_or(|g| g.data[i] >= 0.5)) as u8
+                })
+                .collect()
+        }
+        _ => return None,
+    };
+    let n = smoothed.len();
+    let seeds: Vec<u8> = field.data()[..n].par_iter().map(|&p| (p <= 0.0) as u8).collect();
+    // The opening passes channels (of radius r + ½ voxels) whose curvature 1/r holds back
+    // at most half of the confident voxels' speed: ε/r ≤ ½ β s, with s = ½ for the
+    // threshold speed and 1 for GAC's balloon and Chan–Vese (where g scales both terms).
+    let (eps, s) = match params.method {
+        Method::Gac => (GAC_CURVATURE, 1.0),
+        Method::Threshold { .. } => (0.2, 0.5),
+        Method::ChanVese { .. } => (0.2, 1.0),
+    };
+    let eps = params.curvature.map_or(eps, |c| c / inputs.h_min as f32);
+    let beta = params.propagation.unwrap_or(1.0);
+    let r = ((2.0 * eps / (beta * s)).ceil() as usize).max(super::start::OPENING);
+    Some(super::start::fill(&confident, &seeds, image.dims, r))
+}
+
 /// The mask φ ≤ 0 at the image's voxels.
 fn mask_of(sim: &Simulation, dims: [usize; 3]) -> Result<Vec<u8>, SegmentError> {
     let phi = sim.to_dense(Coord::new(0, 0, 0), dims)?;
@@ -1284,53 +1377,72 @@ fn distance_from_labels(
             (gamma as f64 / s[a]).ceil() as i64 + 1
         }
     });
-    // Face midpoints between differently labelled neighbours, in lattice positions.
-    let mut mids: Vec<[f64; 3]> = Vec::new();
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                let a = inside(idx(x, y, z));
-                let mut check = |x2: usize, y2: usize, z2: usize| {
-                    if inside(idx(x2, y2, z2)) != a {
-                        mids.push([
-                            (x + x2) as f64 * 0.5 * s[0],
-                            (y + y2) as f64 * 0.5 * s[1],
-                            (z + z2) as f64 * 0.5 * s[2],
-                        ]);
+    // Face midpoints between differently labelled neighbours, in lattice positions, by
+    // the slice of their lower voxel.
+    let mids: Vec<Vec<[f64; 3]>> = (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let mut out = Vec::new();
+            for y in 0..ny {
+                for x in 0..nx {
+                    let a = inside(idx(x, y, z));
+                    let mut check = |x2: usize, y2: usize, z2: usize| {
+                        if inside(idx(x2, y2, z2)) != a {
+                            out.push([
+                                (x + x2) as f64 * 0.5 * s[0],
+                                (y + y2) as f64 * 0.5 * s[1],
+                                (z + z2) as f64 * 0.5 * s[2],
+                            ]);
+                        }
+                    };
+                    if x + 1 < nx {
+                        check(x + 1, y, z);
                     }
-                };
-                if x + 1 < nx {
-                    check(x + 1, y, z);
-                }
-                if y + 1 < ny {
-                    check(x, y + 1, z);
-                }
-                if z + 1 < nz {
-                    check(x, y, z + 1);
+                    if y + 1 < ny {
+                        check(x, y + 1, z);
+                    }
+                    if z + 1 < nz {
+                        check(x, y, z + 1);
+                    }
                 }
             }
-        }
-    }
-    let mut dist = vec![gamma; nx * ny * nz];
-    for m in &mids {
-        let c: [i64; 3] = std::array::from_fn(|a| (m[a] / s[a]).round() as i64);
-        let lo: [i64; 3] = std::array::from_fn(|a| (c[a] - reach[a]).max(0));
-        let hi: [i64; 3] = std::array::from_fn(|a| (c[a] + reach[a]).min(image.dims[a] as i64 - 1));
-        for z in lo[2]..=hi[2] {
+            out
+        })
+        .collect();
+    // Each slice takes the nearest midpoint within reach (a midpoint of slice z rounds to
+    // slice z or z + 1).
+    phi[..nx * ny * nz].par_chunks_mut(nx * ny).enumerate().for_each(|(z, out)| {
+        // Squared distances: the root of the least is the least root, to the bit.
+        let g2 = gamma as f64 * gamma as f64;
+        let mut dist = vec![f64::INFINITY; nx * ny];
+        let first = (z as i64 - reach[2] - 1).max(0) as usize;
+        let last = (z as i64 + reach[2]).min(nz as i64 - 1).max(0) as usize;
+        for m in mids[first..=last].iter().flatten() {
+            let c: [i64; 3] = std::array::from_fn(|a| (m[a] / s[a]).round() as i64);
+            if (c[2] - z as i64).abs() > reach[2] {
+                continue;
+            }
+            let lo: [i64; 2] = std::array::from_fn(|a| (c[a] - reach[a]).max(0));
+            let hi: [i64; 2] =
+                std::array::from_fn(|a| (c[a] + reach[a]).min(image.dims[a] as i64 - 1));
+            let dz = z as f64 * s[2] - m[2];
             for y in lo[1]..=hi[1] {
+                let dy = y as f64 * s[1] - m[1];
+                if dy * dy + dz * dz >= g2 {
+                    continue;
+                }
                 for x in lo[0]..=hi[0] {
-                    let p = [x as f64 * s[0], y as f64 * s[1], z as f64 * s[2]];
-                    let d = ((p[0] - m[0]).powi(2) + (p[1] - m[1]).powi(2) + (p[2] - m[2]).powi(2))
-                        .sqrt() as f32;
-                    let k = idx(x as usize, y as usize, z as usize);
-                    dist[k] = dist[k].min(d);
+                    let dx = x as f64 * s[0] - m[0];
+                    let k = x as usize + nx * y as usize;
+                    dist[k] = dist[k].min(dx * dx + dy * dy + dz * dz);
                 }
             }
         }
-    }
-    for (i, d) in dist.iter().enumerate() {
-        phi[i] = if inside(i) { -d } else { *d };
-    }
+        for (k, (p, d2)) in out.iter_mut().zip(dist).enumerate() {
+            let d = (d2.sqrt() as f32).min(gamma);
+            *p = if inside(k + nx * ny * z) { -d } else { d };
+        }
+    });
 }
 
 /// GAC's default curvature weight ε, in units of the smallest spacing, and advection
