@@ -54,6 +54,22 @@
 //! back beyond its intensity level, and Chan–Vese competes with the tissue beyond it.
 //! [`Report::params`] holds every value chosen.
 //!
+//! # The fast start
+//! From seeds, the level set does not start in the seeds' balls but in the part of the
+//! image the front from them is sure to cover ([`Params::fast_start`], on by default):
+//! a flood fill from the seeds through the voxels where the method's speed is clearly
+//! outward (for the threshold method Ĩ half a threshold scale inside the window; for GAC
+//! and Chan–Vese Ĩ a threshold scale on the seeds' side of their first edge's level),
+//! through openings wide enough that curvature cannot close them (a morphological opening
+//! by reconstruction of radius r ≥ 1 voxel with ε/(r + ½) at most half the speed there),
+//! stopping a voxel short of where those voxels end. The flows obey the comparison
+//! principle (Evans & Spruck, J. Differential Geom. 33 (1991); Chen, Giga & Goto, ibid.):
+//! a start between the seeds and the steady state they reach evolves to that same steady
+//! state, so the answer is the same and only the steps across the object's bulk are
+//! saved. [`Report::params`] gives the start's voxels (`start_voxels`); the leak guard
+//! compares with the seeds' region, so a fill that runs out of the object is reported
+//! after one step.
+//!
 //! # Stopping
 //! After every step: the RMS over the voxels next to the interface (|φ| < the smallest
 //! spacing) of the change of φ *per unit time* (the adaptive Δt cannot hide motion), and
@@ -190,9 +206,10 @@ pub struct Params {
     pub first_edge: bool,
     /// Start the level set from the part of the image the front from the seeds is sure to
     /// cover (a flood fill through the voxels where the method's speed is clearly outward,
-    /// by openings wider than curvature can close; module [`start`](self#the-fast-start))
+    /// by openings wider than curvature can close; [module docs](crate::segment#the-fast-start))
     /// instead of the seeds' balls: the same answer in fewer steps, by the flows'
-    /// comparison principle. Seeds and a positive propagation only; on by default.
+    /// comparison principle. Seeds, a positive propagation and one method (no weighted
+    /// terms) only; on by default.
     pub fast_start: bool,
 }
 

@@ -1218,12 +1218,12 @@ fn region_faces(field: &DenseField, dims: [usize; 3]) -> (u64, [u64; 6]) {
 }
 
 /// The fast start's region ([`Params::fast_start`], [`super::start`]), when it applies:
-/// seeds, an outward flow of one method, and a rule for the voxels where that method's
+/// seeds, an outward flow of one method (no weighted terms), and a rule for the voxels where that method's
 /// speed is clearly outward:
 /// * threshold: Ĩ at least half a threshold scale inside the window (speed ≥ ½);
 /// * GAC and Chan–Vese, with the seeds' first edge: Ĩ at least a threshold scale on the
-///   seeds' side of the edge's level (GAC's balloon at its full strength), and for GAC
-///   off the edges (g ≥ ½).
+///   seeds' side of the edge's level (GAC's balloon at its full strength; Chan–Vese's
+///   force outward while the outside's mean is the tissue beyond the edge).
 fn start_region(
     image: &Image,
     init: &Init,
@@ -1235,7 +1235,7 @@ fn start_region(
     if !params.fast_start
         || !matches!(init, Init::Seeds { .. })
         || params.propagation.unwrap_or(1.0) <= 0.0
-        || !params.terms.is_empty()
+        || params.terms.iter().any(|t| t.1 != 0.0)
     {
         return None;
     }
@@ -1248,14 +1248,7 @@ fn start_region(
         }
         (Method::Gac | Method::ChanVese { .. }, Some(Gate { level, side, .. })) => {
             let w = threshold_scale(level, f32::INFINITY, inputs.noise_smoothed) as f32;
-            let g = matches!(params.method, Method::Gac).then_some(inputs.g).flatten();
-            smoothed
-                .par_iter()
-                .enumerate()
-                .map(|(i, &v)| {
-                    (side * (v - level) >= w && g.is_none_or(|g| g.data[i] >= 0.5)) as u8
-                })
-                .collect()
+            smoothed.par_iter().map(|&v| (side * (v - level) >= w) as u8).collect()
         }
         _ => return None,
     };

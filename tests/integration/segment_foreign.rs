@@ -369,3 +369,60 @@ fn an_anisotropic_level_set_measures_the_world_volume() {
         m.volume
     );
 }
+
+/// The fast start (on by default) gives the region that the seeds' balls give, in fewer
+/// steps: a blurred, noisy torus seeded at one point of its ring, and a ball joined to a
+/// second one by a channel of three voxels, narrower than GAC's fill passes. Threshold
+/// and GAC obey the comparison principle; Chan–Vese (whose means move) is held to the
+/// same tolerance.
+#[test]
+fn the_fast_start_gives_the_seeds_region_in_fewer_steps() {
+    let torus = |p: [f64; 3]| {
+        let rho = ((p[0] - 24.0).powi(2) + (p[1] - 24.0).powi(2)).sqrt() - 14.0;
+        rho * rho + (p[2] - 24.0).powi(2) <= 49.0
+    };
+    let (ring, ring_truth) = image([48, 48, 48], [1.0; 3], 0.25, 21, torus);
+    let dumbbell = |p: [f64; 3]| {
+        let channel = (p[1] - 24.0).abs() <= 1.0 && (p[2] - 24.0).abs() <= 1.0;
+        ball([14.0, 24.0, 24.0], 8.0)(p)
+            || ball([34.0, 24.0, 24.0], 8.0)(p)
+            || (channel && (14.0..=34.0).contains(&p[0]))
+    };
+    let (pair, pair_truth) = image([48, 48, 48], [1.0; 3], 0.1, 22, dumbbell);
+    let cases = [
+        (&ring, &ring_truth, seeds(&[([38.0, 24.0, 24.0], 3.0)])),
+        (&pair, &pair_truth, seeds(&[([14.0, 24.0, 24.0], 3.0)])),
+    ];
+    let threshold = Method::Threshold { lower: 0.5, upper: f32::INFINITY };
+    for (case, (im, truth, init)) in cases.iter().enumerate() {
+        for method in [threshold, Method::Gac, Method::chan_vese()] {
+            let fast = run(im, init, &Params::new(method));
+            let balls = run(im, init, &Params { fast_start: false, ..Params::new(method) });
+            let what = format!("case {case}, {}", method.name());
+            let start = fast.report.params.start_voxels.unwrap_or(0);
+            assert!(balls.report.params.start_voxels.is_none(), "{what}");
+            // More than the seed's ball (113 voxels), less than the answer.
+            assert!(start > 500 && start < fast.report.voxels, "{what}: start {start}");
+            let differ = fast.mask.iter().zip(&balls.mask).filter(|(a, b)| a != b).count();
+            let object = truth.iter().filter(|&&t| t != 0).count();
+            assert!(differ * 200 <= object, "{what}: {differ} voxels differ of {object}");
+            let (d_fast, d_balls) =
+                (dice(&fast.mask, truth).unwrap(), dice(&balls.mask, truth).unwrap());
+            assert!((d_fast - d_balls).abs() <= 0.003, "{what}: Dice {d_fast} against {d_balls}");
+            let far_ball = fast.mask[34 + 48 * (24 + 48 * 24)];
+            match (case, method) {
+                // Around the ring from one point against a few voxels out from its core.
+                (0, _) => assert!(
+                    d_fast > 0.98 && 3 * fast.report.iterations <= balls.report.iterations,
+                    "{what}: Dice {d_fast}, {} steps against {}",
+                    fast.report.iterations,
+                    balls.report.iterations
+                ),
+                // GAC's curvature closes the channel, from either start.
+                (_, Method::Gac) => assert_eq!(far_ball, 0, "{what}"),
+                // The others cross it, from either start.
+                _ => assert!(far_ball == 1 && d_fast > 0.98, "{what}: Dice {d_fast}"),
+            }
+        }
+    }
+}
