@@ -1244,7 +1244,10 @@ fn start_region(
         (Method::Threshold { lower, upper }, _) => {
             let (lo, hi) = (norm.threshold(lower) as f64, norm.threshold(upper) as f64);
             let half = 0.5 * threshold_scale(lo as f32, hi as f32, inputs.noise_smoothed);
-            smoothed.par_iter().map(|&v| ((v as f64 - lo).min(hi - v as f64) >= half) as u8).collect()
+            smoothed
+                .par_iter()
+                .map(|&v| ((v as f64 - lo).min(hi - v as f64) >= half) as u8)
+                .collect()
         }
         (Method::Gac | Method::ChanVese { .. }, Some(Gate { level, side, .. })) => {
             let w = threshold_scale(level, f32::INFINITY, inputs.noise_smoothed) as f32;

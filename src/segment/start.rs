@@ -3,15 +3,20 @@
 //! there instead of in the seeds' balls and evolves only across the last voxels.
 //!
 //! Threshold propagation and geodesic active contours are geometric flows that obey the
-//! comparison principle (Evans & Spruck, J. Differential Geom. 33 (1991), Thm. 7.1; Chen,
-//! Giga & Goto, J. Differential Geom. 33 (1991), Thm. 4.2): a region that starts inside
-//! another stays inside it. A start C between the seeds S and the flow's steady state S∞
-//! from them (S ⊂ C ⊂ S∞) therefore evolves to S∞ itself, squeezed between the runs from
-//! S and from S∞. The fill keeps C inside S∞ by three margins: it only enters voxels
-//! where the method's own speed is clearly outward (`confident`); it only passes through
-//! openings at least 2r + 1 voxels wide (a morphological opening by reconstruction,
-//! Vincent, IEEE Trans. Image Process. 2 (1993), Sec. III), where curvature cannot hold
-//! the front; and it stops one voxel short of where the confident voxels end.
+//! comparison principle (Evans & Spruck, "Motion of level sets by mean curvature I",
+//! J. Differential Geom. 33 (1991); Chen, Giga & Goto, "Uniqueness and existence of
+//! viscosity solutions of generalized mean curvature flow equations", ibid.): a region
+//! that starts inside another stays inside it. A start C between the seeds S and the
+//! flow's steady state S∞ from them (S ⊂ C ⊂ S∞) therefore evolves to S∞ itself, squeezed
+//! between the runs from S and from S∞. The fill keeps C inside S∞ by three margins: it
+//! only enters voxels where the method's own speed is clearly outward (`confident`); it
+//! only passes through openings at least 2r + 1 voxels wide (a morphological opening by
+//! reconstruction: Vincent, "Morphological grayscale reconstruction in image analysis",
+//! IEEE Trans. Image Process. 2 (1993)), where curvature cannot hold the front; and it
+//! stops one voxel short of where the confident voxels end. The stopping tests then end
+//! the run as they would from the seeds: a front that still creeps into a thin branch the
+//! fill did not enter can meet the volume test sooner than from the seeds (a smaller
+//! `volume_change` waits for it).
 
 use rayon::prelude::*;
 use std::collections::VecDeque;
