@@ -47,6 +47,22 @@ def test_methods_find_the_ball(method, kw):
     assert mesh.volume == pytest.approx(truth.sum(), rel=0.05)
 
 
+@pytest.mark.parametrize("method,kw", [
+    ("threshold", dict(lower_threshold=150.0)),
+    ("gac", {}),
+    ("chan-vese", {}),
+])
+def test_the_fast_start_gives_the_seed_balls_mask_in_fewer_steps(method, kw):
+    image, truth = ball_phantom()
+    fast = sl.segment(image, method, seeds=[(24, 24, 24, 4)], **kw)
+    balls = sl.segment(image, method, seeds=[(24, 24, 24, 4)], fast_start=False, **kw)
+    assert balls.report["params"]["start_voxels"] is None
+    assert 268 < fast.report["params"]["start_voxels"] < fast.report["voxels"]
+    assert fast.report["iterations"] < balls.report["iterations"]
+    differ = int((fast.mask != balls.mask).sum())
+    assert differ * 200 <= truth.sum(), differ
+
+
 def test_array_axes_and_spacing():
     # A C-ordered array indexed [z, y, x] with thick slices along axis 0: seeds and spacing
     # follow the array's axes, the mask has its shape.

@@ -101,7 +101,6 @@ fn along(src: &[u8], dims: [usize; 3], r: usize, axis: usize, op: Op) -> Vec<u8>
 
 /// The voxels of `set` 6-connected within it to a voxel of `seeds`.
 fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3]) -> Vec<u8> {
-    let [nx, ny, nz] = dims;
     let mut out = vec![0u8; set.len()];
     let mut queue: VecDeque<usize> = VecDeque::new();
     for (i, (&s, &m)) in seeds.iter().zip(set).enumerate() {
@@ -111,33 +110,30 @@ fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3]) -> Vec<u8> {
         }
     }
     while let Some(i) = queue.pop_front() {
-        let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-        let mut visit = |j: usize| {
+        for j in face_neighbours(i, dims) {
             if set[j] != 0 && out[j] == 0 {
                 out[j] = 1;
                 queue.push_back(j);
             }
-        };
-        if x > 0 {
-            visit(i - 1);
-        }
-        if x + 1 < nx {
-            visit(i + 1);
-        }
-        if y > 0 {
-            visit(i - nx);
-        }
-        if y + 1 < ny {
-            visit(i + nx);
-        }
-        if z > 0 {
-            visit(i - nx * ny);
-        }
-        if z + 1 < nz {
-            visit(i + nx * ny);
         }
     }
     out
+}
+
+/// The voxels that share a face with voxel `i` (x fastest) inside `dims`.
+fn face_neighbours(i: usize, dims: [usize; 3]) -> impl Iterator<Item = usize> {
+    let [nx, ny, nz] = dims;
+    let (x, y, z, plane) = (i % nx, (i / nx) % ny, i / (nx * ny), nx * ny);
+    [
+        (x > 0, i.wrapping_sub(1)),
+        (x + 1 < nx, i + 1),
+        (y > 0, i.wrapping_sub(nx)),
+        (y + 1 < ny, i + nx),
+        (z > 0, i.wrapping_sub(plane)),
+        (z + 1 < nz, i + plane),
+    ]
+    .into_iter()
+    .filter_map(|(inside, j)| inside.then_some(j))
 }
 
 #[cfg(test)]
