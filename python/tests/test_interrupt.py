@@ -12,6 +12,15 @@ import sparse_levelset as sl
 from conftest import torus_fields
 
 
+@pytest.fixture(autouse=True)
+def python_handles_ctrl_c():
+    # A process started with SIGINT ignored (a shell's background job, some CI runners)
+    # gets no KeyboardInterrupt from Python: these tests install Python's own handler.
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
 def interrupt_after(seconds):
     timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
     timer.start()
