@@ -1218,8 +1218,8 @@ fn region_faces(field: &DenseField, dims: [usize; 3]) -> (u64, [u64; 6]) {
 }
 
 /// The fast start's region ([`Params::fast_start`], [`super::start`]), when it applies:
-/// seeds, an outward flow of one method (no weighted terms), and a rule for the voxels where that method's
-/// speed is clearly outward:
+/// seeds, an outward flow of one method (no weighted terms), and a rule for the voxels
+/// where that method's speed is clearly outward:
 /// * threshold: Ĩ at least half a threshold scale inside the window (speed ≥ ½);
 /// * GAC and Chan–Vese, with the seeds' first edge: Ĩ at least a threshold scale on the
 ///   seeds' side of the edge's level (GAC's balloon at its full strength; Chan–Vese's
