@@ -369,8 +369,10 @@ fn segment_in_pool(
         flow = sum_of_flows(flows);
     }
     // The leak guard's reference is the seeds' region, whatever the start.
-    let (seed_voxels, seed_faces) = region_faces(&field, image.dims);
-    let field = match start_region(image, init, params, &inputs, &field, &norm) {
+    let seeds: Vec<u8> =
+        field.data()[..image.len()].par_iter().map(|&p| (p <= 0.0) as u8).collect();
+    let (seed_voxels, seed_faces) = mask_faces(&seeds, image.dims);
+    let field = match start_region(image, init, params, &inputs, &seeds, &resolved, &norm) {
         Some(start) => {
             resolved.start_voxels = Some(start.iter().map(|&v| v as u64).sum());
             initial_field(image, &Init::Mask(start), &lattice, spec.gamma())?
@@ -1171,19 +1173,7 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
             return;
         }
         count += (x1 - x0) as u64;
-        let run = (x1 - x0) as u64;
-        if nx > 1 {
-            faces[0] += (x0 == 0) as u64;
-            faces[1] += (x1 == nx as i64) as u64;
-        }
-        if ny > 1 {
-            faces[2] += run * (c.y == 0) as u64;
-            faces[3] += run * (c.y as usize == ny - 1) as u64;
-        }
-        if nz > 1 {
-            faces[4] += run * (c.z == 0) as u64;
-            faces[5] += run * (c.z as usize == nz - 1) as u64;
-        }
+        add_run_faces(&mut faces, x0 as usize, x1 as usize, c.y as usize, c.z as usize, dims);
         if let Some(fp) = sums {
             let first = lookup.index(Coord::new(x0 as i32, c.y, c.z)).expect("inside the image");
             sum += fp.q[first..first + (x1 - x0) as usize].iter().map(|&v| v as i64).sum::<i64>();
@@ -1192,26 +1182,45 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
     (count, sum, faces)
 }
 
-/// The image voxels of a dense initial field's region (φ ≤ 0) and how many lie on each
-/// face of the image, as [`inside`] counts them.
-fn region_faces(field: &DenseField, dims: [usize; 3]) -> (u64, [u64; 6]) {
+/// Adds to `faces` (x = 0, x = max, y = 0, y = max, z = 0, z = max) the voxels of the run
+/// x0..x1 of row (y, z) that lie on each face of an image of `dims` (an axis of one voxel
+/// has no faces).
+fn add_run_faces(faces: &mut [u64; 6], x0: usize, x1: usize, y: usize, z: usize, dims: [usize; 3]) {
     let [nx, ny, nz] = dims;
-    let phi = &field.data()[..nx * ny * nz];
-    let mut faces = [0u64; 6];
-    let mut count = 0u64;
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                if phi[x + nx * (y + ny * z)] > 0.0 {
-                    continue;
-                }
-                count += 1;
-                let on = [x == 0, x + 1 == nx, y == 0, y + 1 == ny, z == 0, z + 1 == nz];
-                let axis_has_faces = [nx > 1, nx > 1, ny > 1, ny > 1, nz > 1, nz > 1];
-                for f in 0..6 {
-                    faces[f] += (on[f] && axis_has_faces[f]) as u64;
-                }
+    let run = (x1 - x0) as u64;
+    if nx > 1 {
+        faces[0] += (x0 == 0) as u64;
+        faces[1] += (x1 == nx) as u64;
+    }
+    if ny > 1 {
+        faces[2] += run * (y == 0) as u64;
+        faces[3] += run * (y == ny - 1) as u64;
+    }
+    if nz > 1 {
+        faces[4] += run * (z == 0) as u64;
+        faces[5] += run * (z == nz - 1) as u64;
+    }
+}
+
+/// The voxels of a mask of the image (x fastest) and how many lie on each face of the
+/// image, as [`inside`] counts a simulation's.
+fn mask_faces(mask: &[u8], dims: [usize; 3]) -> (u64, [u64; 6]) {
+    let nx = dims[0];
+    let (mut count, mut faces) = (0u64, [0u64; 6]);
+    for (row, line) in mask.chunks(nx).enumerate() {
+        let (y, z) = (row % dims[1], row / dims[1]);
+        let mut x = 0;
+        while x < nx {
+            if line[x] == 0 {
+                x += 1;
+                continue;
             }
+            let x0 = x;
+            while x < nx && line[x] != 0 {
+                x += 1;
+            }
+            count += (x - x0) as u64;
+            add_run_faces(&mut faces, x0, x, y, z, dims);
         }
     }
     (count, faces)
@@ -1229,7 +1238,8 @@ fn start_region(
     init: &Init,
     params: &Params,
     inputs: &MethodInputs<'_>,
-    field: &DenseField,
+    seeds: &[u8],
+    resolved: &Resolved,
     norm: &Normalization,
 ) -> Option<Vec<u8>> {
     if !params.fast_start
@@ -1255,20 +1265,14 @@ fn start_region(
         }
         _ => return None,
     };
-    let n = smoothed.len();
-    let seeds: Vec<u8> = field.data()[..n].par_iter().map(|&p| (p <= 0.0) as u8).collect();
-    // The opening passes channels (of radius r + ½ voxels) whose curvature 1/r holds back
-    // at most half of the confident voxels' speed: ε/r ≤ ½ β s, with s = ½ for the
-    // threshold speed and 1 for GAC's balloon and Chan–Vese (where g scales both terms).
-    let (eps, s) = match params.method {
-        Method::Gac => (GAC_CURVATURE, 1.0),
-        Method::Threshold { .. } => (0.2, 0.5),
-        Method::ChanVese { .. } => (0.2, 1.0),
-    };
-    let eps = params.curvature.map_or(eps, |c| c / inputs.h_min as f32);
-    let beta = params.propagation.unwrap_or(1.0);
-    let r = ((2.0 * eps / (beta * s)).ceil() as usize).max(super::start::OPENING);
-    Some(super::start::fill(&confident, &seeds, image.dims, r))
+    // The opening passes channels of radius r + ½ voxels, whose curvature (below 1/r)
+    // holds back at most half of the confident voxels' speed: ε/r ≤ ½ β s, with ε the
+    // flow's curvature weight in voxels and s = ½ for the threshold speed, 1 for GAC's
+    // balloon (g scales both terms) and Chan–Vese.
+    let s = if matches!(params.method, Method::Threshold { .. }) { 0.5 } else { 1.0 };
+    let eps = resolved.curvature / inputs.h_min as f32;
+    let r = ((2.0 * eps / (resolved.propagation * s)).ceil() as usize).max(super::start::OPENING);
+    Some(super::start::fill(&confident, seeds, image.dims, r))
 }
 
 /// The mask φ ≤ 0 at the image's voxels.
