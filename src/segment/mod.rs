@@ -61,7 +61,7 @@
 //! outward (for the threshold method Ĩ half a threshold scale inside the window; for GAC
 //! and Chan–Vese Ĩ a threshold scale on the seeds' side of their first edge's level),
 //! through openings wide enough that curvature cannot close them (a morphological opening
-//! by reconstruction of radius r ≥ 1 voxel with ε/(r + ½) at most half the speed there),
+//! by reconstruction of radius r ≥ 1 voxel with ε/r at most half the speed there),
 //! stopping a voxel short of where those voxels end. The flows obey the comparison
 //! principle (Evans & Spruck, J. Differential Geom. 33 (1991); Chen, Giga & Goto, ibid.):
 //! a start between the seeds and the steady state they reach evolves to that same steady
