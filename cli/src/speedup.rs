@@ -95,6 +95,8 @@ pub struct ScenarioBench {
 pub struct SpeedupReport {
     pub cpu: String,
     pub target_features: Vec<&'static str>,
+    /// The instruction-set level the kernels ran at ([`levelset_kernels::Level::active`]).
+    pub level: &'static str,
     pub profile: &'static str,
     pub threads: usize,
     pub pinned: bool,
@@ -117,6 +119,7 @@ impl SpeedupReport {
         SpeedupReport {
             cpu: crate::storage::cpu_name(),
             target_features: levelset_kernels::target_features(),
+            level: levelset_kernels::Level::active().name(),
             profile: crate::storage::build_profile(),
             threads: cfg.threads,
             pinned: cfg.pin,
@@ -280,7 +283,7 @@ pub fn run_speedup(
     mut progress: impl FnMut(&str),
 ) -> Result<SpeedupReport, String> {
     // The lane type the tile engine's SIMD runs use.
-    let engine_lanes = levelset_kernels::LaneKind::DEFAULT.name();
+    let engine_lanes = Lanes::Simd.kind().name();
     let mut scenarios = Vec::new();
     for (kind, size, steps) in plan(cfg) {
         let runs_plan: [(GridKind, usize); 4] = [
@@ -377,9 +380,10 @@ impl SpeedupReport {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "CPU: {}; target features: {}; {} build; up to {} thread(s){}; stepping seconds: \
-             the fastest of {} run(s) of each configuration",
+            "CPU: {}; level: {}; target features compiled in: {}; {} build; up to {} \
+             thread(s){}; stepping seconds: the fastest of {} run(s) of each configuration",
             self.cpu,
+            levelset_kernels::Level::from_name(self.level).map_or(self.level.to_string(), |l| l.describe()),
             self.target_features.join(","),
             self.profile,
             self.threads,

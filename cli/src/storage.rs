@@ -52,6 +52,8 @@ pub struct ScenarioResult {
 pub struct StorageBench {
     pub cpu: String,
     pub target_features: Vec<&'static str>,
+    /// The instruction-set level the kernels ran at.
+    pub level: &'static str,
     pub profile: &'static str,
     pub threads: usize,
     pub repetitions: usize,

@@ -69,12 +69,14 @@ pub struct KernelResult {
 
 /// The kernel section of the speed-up report (`levelset-speedup`; alone with
 /// `levelset-speedup --kernels`, whose `--json FILE` writes this). JSON:
-/// `{"kernels": [KernelResult, ..], "target_features": ["avx2", ..]}`.
+/// `{"kernels": [KernelResult, ..], "target_features": ["sse2", ..], "level": "avx512"}`.
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct KernelBenchReport {
     pub kernels: Vec<KernelResult>,
     pub target_features: Vec<&'static str>,
+    /// The instruction-set level the kernels ran at ([`crate::Level::active`]).
+    pub level: &'static str,
 }
 
 impl KernelBenchReport {
@@ -91,7 +93,12 @@ impl KernelBenchReport {
             })
             .collect();
         let feats: Vec<String> = self.target_features.iter().map(|f| format!("\"{f}\"")).collect();
-        format!("{{\"kernels\":[{}],\"target_features\":[{}]}}", rows.join(","), feats.join(","))
+        format!(
+            "{{\"kernels\":[{}],\"target_features\":[{}],\"level\":\"{}\"}}",
+            rows.join(","),
+            feats.join(","),
+            self.level
+        )
     }
 
     /// Throughput of `(kernel, lanes)`, if measured.
@@ -178,6 +185,7 @@ impl Fixture {
     }
 
     /// Kernel (a): one Euler step of eq. (3), first-order upwind + curvature + rescaling.
+    #[inline(always)]
     pub fn upwind_curvature<L: Lane>(&self, out: &mut [f32]) -> Result<(), KernelError> {
         let block = DenseBlock::<1>::new(&self.halo1, self.dims)?;
         let step =
@@ -186,6 +194,7 @@ impl Fixture {
     }
 
     /// Kernel (b): TVD-RK3 stage 2 of eq. (3) with HJ-WENO5 + curvature + rescaling.
+    #[inline(always)]
     pub fn weno5_rk3<L: Lane>(&self, out: &mut [f32]) -> Result<(), KernelError> {
         let block = DenseBlock::<3>::new(&self.halo3, self.dims)?;
         let stage = Rk3::<_, 2> {
@@ -203,12 +212,37 @@ impl Fixture {
         let Some(kind) = LaneKind::from_name(lanes) else {
             return Ok(false);
         };
-        crate::with_lane!(kind, |L| match kernel {
-            "upwind_curvature" => self.upwind_curvature::<L>(out)?,
-            "weno5_rk3" => self.weno5_rk3::<L>(out)?,
+        let which = match kernel {
+            "upwind_curvature" => Which::UpwindCurvature,
+            "weno5_rk3" => Which::Weno5Rk3,
             _ => return Ok(false),
-        });
+        };
+        crate::dispatch(kind, Run { fx: self, which, out })?;
         Ok(true)
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Which {
+    UpwindCurvature,
+    Weno5Rk3,
+}
+
+/// One run of a kernel over the fixture, at the CPU's level ([`crate::dispatch`]).
+struct Run<'a> {
+    fx: &'a Fixture,
+    which: Which,
+    out: &'a mut [f32],
+}
+
+impl crate::LaneFn for Run<'_> {
+    type Output = Result<(), KernelError>;
+    #[inline(always)]
+    fn call<L: Lane>(self) -> Self::Output {
+        match self.which {
+            Which::UpwindCurvature => self.fx.upwind_curvature::<L>(self.out),
+            Which::Weno5Rk3 => self.fx.weno5_rk3::<L>(self.out),
+        }
     }
 }
 
@@ -245,5 +279,9 @@ pub fn run_kernel_bench(cfg: &KernelBenchConfig) -> Result<KernelBenchReport, Ke
             });
         }
     }
-    Ok(KernelBenchReport { kernels, target_features: crate::target_features() })
+    Ok(KernelBenchReport {
+        kernels,
+        target_features: crate::target_features(),
+        level: crate::Level::active().name(),
+    })
 }

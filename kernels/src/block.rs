@@ -10,7 +10,8 @@
 
 use crate::error::KernelError;
 use crate::kernel::VoxelKernel;
-use crate::lane::Lane;
+use crate::lane::{Lane, LaneKind};
+use crate::level::LaneFn;
 use crate::window::{DenseWindow, TileWindow};
 
 /// The identity, but opaque to the optimiser when `L` is `f32`.
@@ -98,24 +99,37 @@ impl<'a, const R: usize> TileBlock<'a, R> {
         ((x + 4) + sx * (y + r) + sx * w * (z + r)) as usize
     }
 
+    /// The window of lane group `g` of `L` (`g < 64 / L::LANES`, in tile order) and the
+    /// tile index of its first voxel. Loops that must inline into the caller (the
+    /// instruction-set levels' functions, see [`crate::level`]) call this instead of
+    /// [`TileBlock::for_each`], whose closure the compiler may keep out of line.
+    ///
+    /// # Panics
+    /// If `g` is not a lane group of the tile.
+    #[inline(always)]
+    pub fn group<L: Lane>(&self, g: usize) -> (usize, TileWindow<'a, L, R>) {
+        assert!(g < 64 / L::LANES, "a tile has {} lane groups of {}", 64 / L::LANES, L::NAME);
+        let (sx, w) = (Self::SX, Self::W);
+        let first = g * L::LANES;
+        let (x, y, z) = (first % 4, (first / 4) % 4, first / 16);
+        let centre = scalar_barrier::<L>((x + 4) + sx * (y + R) + sx * w * (z + R));
+        // SAFETY: `data.len() == LEN` (checked in `new`), and `first` starts a lane group
+        // of `L` (a voxel, a row, two rows or a slice of the tile).
+        (first, unsafe { TileWindow::new_unchecked(self.data, centre) })
+    }
+
     /// Calls `f(first, window)` for every lane group of `L`, in tile order; `first` is the
     /// tile index of the group's first voxel.
     #[inline(always)]
     pub fn for_each<L: Lane>(&self, mut f: impl FnMut(usize, &TileWindow<'a, L, R>)) {
-        let (sx, w) = (Self::SX, Self::W);
         for g in 0..64 / L::LANES {
-            let first = g * L::LANES;
-            let (x, y, z) = (first % 4, (first / 4) % 4, first / 16);
-            let centre = scalar_barrier::<L>((x + 4) + sx * (y + R) + sx * w * (z + R));
-            // SAFETY: `data.len() == LEN` (checked in `new`), and `first` starts a lane
-            // group of `L` (a voxel, a row, two rows or a slice of the tile).
-            let win = unsafe { TileWindow::new_unchecked(self.data, centre) };
+            let (first, win) = self.group::<L>(g);
             f(first, &win);
         }
     }
 
     /// Evaluates `kernel` for all 64 voxels into `out` (tile order), with lane type `L`.
-    #[inline]
+    #[inline(always)]
     pub fn apply<L: Lane, K: VoxelKernel>(
         &self,
         kernel: &K,
@@ -124,7 +138,11 @@ impl<'a, const R: usize> TileBlock<'a, R> {
         #[allow(clippy::let_unit_value)]
         let () = Fits::<K, R>::TILE_OK;
         kernel.check(64)?;
-        self.for_each::<L>(|first, w| kernel.eval(w, first).store(&mut out[first..]));
+        // A plain loop, not `for_each`: see `group`.
+        for g in 0..64 / L::LANES {
+            let (first, w) = self.group::<L>(g);
+            kernel.eval(&w, first).store(&mut out[first..]);
+        }
         Ok(())
     }
 }
@@ -204,7 +222,7 @@ impl<'a, const R: usize> DenseBlock<'a, R> {
     pub fn for_each<L: Lane>(
         &self,
         mut full: impl FnMut(usize, &DenseWindow<'a, L, R>),
-        mut rest: impl FnMut(usize, &DenseWindow<'a, f32, R>),
+        mut rest: impl FnMut(usize, &DenseWindow<'a, L::Scalar, R>),
     ) {
         let nx = self.dims[0];
         let data = self.data;
@@ -227,8 +245,9 @@ impl<'a, const R: usize> DenseBlock<'a, R> {
     }
 
     /// Evaluates `kernel` for every interior voxel into `out` (interior order), with lane
-    /// type `L` (and `f32` for the ends of rows that do not fill a group).
-    #[inline]
+    /// type `L` (and its one-voxel type [`Lane::Scalar`] for the ends of rows that do not
+    /// fill a group).
+    #[inline(always)]
     pub fn apply<L: Lane, K: VoxelKernel>(
         &self,
         kernel: &K,
@@ -241,26 +260,63 @@ impl<'a, const R: usize> DenseBlock<'a, R> {
             return Err(KernelError::OutputLength { expected: n, got: out.len() });
         }
         kernel.check(n)?;
-        let nx = self.dims[0];
+        // Plain loops, not `rows` with a closure: they must inline into the caller (the
+        // instruction-set levels' functions, see `crate::level`).
+        let [nx, ny, nz] = self.dims;
         let data = self.data;
-        self.rows(|row_first, row_centre, sy, sz| {
-            let out = &mut out[row_first..row_first + nx];
-            let mut x = 0;
-            while x + L::LANES <= nx {
-                let c = scalar_barrier::<L>(row_centre + x);
-                // SAFETY: as in `for_each`.
-                let w = unsafe { DenseWindow::<L, R>::new_unchecked(data, c, sy, sz) };
-                kernel.eval(&w, row_first + x).store(&mut out[x..]);
-                x += L::LANES;
+        let sy = nx + 2 * R;
+        let sz = sy * (ny + 2 * R);
+        for z in 0..nz {
+            for y in 0..ny {
+                let row_first = nx * (y + ny * z);
+                let row_centre = R + sy * (y + R) + sz * (z + R);
+                let out = &mut out[row_first..row_first + nx];
+                let mut x = 0;
+                while x + L::LANES <= nx {
+                    let c = scalar_barrier::<L>(row_centre + x);
+                    // SAFETY: `data.len()` is the padded length (checked in `new`) and
+                    // voxels x .. x + LANES of this row are interior.
+                    let w = unsafe { DenseWindow::<L, R>::new_unchecked(data, c, sy, sz) };
+                    kernel.eval(&w, row_first + x).store(&mut out[x..]);
+                    x += L::LANES;
+                }
+                while x < nx {
+                    let c = scalar_barrier::<L::Scalar>(row_centre + x);
+                    // SAFETY: as above, for the single interior voxel x.
+                    let w = unsafe { DenseWindow::<L::Scalar, R>::new_unchecked(data, c, sy, sz) };
+                    kernel.eval(&w, row_first + x).store(&mut out[x..]);
+                    x += 1;
+                }
             }
-            while x < nx {
-                let c = scalar_barrier::<f32>(row_centre + x);
-                // SAFETY: as in `for_each`.
-                let w = unsafe { DenseWindow::<f32, R>::new_unchecked(data, c, sy, sz) };
-                out[x] = kernel.eval(&w, row_first + x);
-                x += 1;
-            }
-        });
+        }
         Ok(())
+    }
+}
+
+/// [`DenseBlock::apply`] as a [`LaneFn`]: what [`DenseBlock::apply_kind`] dispatches.
+struct DenseApply<'a, 'k, K, const R: usize> {
+    block: DenseBlock<'a, R>,
+    kernel: &'k K,
+    out: &'k mut [f32],
+}
+
+impl<K: VoxelKernel, const R: usize> LaneFn for DenseApply<'_, '_, K, R> {
+    type Output = Result<(), KernelError>;
+    #[inline(always)]
+    fn call<L: Lane>(self) -> Self::Output {
+        self.block.apply::<L, K>(self.kernel, self.out)
+    }
+}
+
+impl<const R: usize> DenseBlock<'_, R> {
+    /// [`DenseBlock::apply`] with the lane type of `kind` at the CPU's instruction-set
+    /// level ([`crate::dispatch`]): what a caller that does not pick a lane type uses.
+    pub fn apply_kind<K: VoxelKernel>(
+        &self,
+        kind: LaneKind,
+        kernel: &K,
+        out: &mut [f32],
+    ) -> Result<(), KernelError> {
+        crate::dispatch(kind, DenseApply { block: *self, kernel, out })
     }
 }

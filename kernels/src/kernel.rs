@@ -156,7 +156,9 @@ impl VectorField for [f32; 3] {
     }
     #[inline(always)]
     fn lanes<L: Lane>(&self, _first: usize) -> [L; 3] {
-        self.map(L::splat)
+        // Spelled out, not `map`: array maps take a closure the compiler may keep out of
+        // line, outside the instruction-set level's function (see `crate::level`).
+        [L::splat(self[0]), L::splat(self[1]), L::splat(self[2])]
     }
 }
 
@@ -186,7 +188,8 @@ impl VectorField for ScaledVelocity<'_> {
     #[inline(always)]
     fn lanes<L: Lane>(&self, first: usize) -> [L; 3] {
         let s = L::splat(self.scale);
-        self.components.lanes::<L>(first).map(|c| c * s)
+        let [x, y, z] = self.components.lanes::<L>(first);
+        [x * s, y * s, z * s]
     }
 }
 
@@ -346,7 +349,8 @@ impl<S: Scheme, F: ScalarField, E: ScalarField, V: VectorField> VoxelKernel
 
     #[inline(always)]
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
-        let inv = self.inv_spacing.map(L::splat);
+        let [ix, iy, iz] = self.inv_spacing;
+        let inv = [L::splat(ix), L::splat(iy), L::splat(iz)];
         let (xm, xp) = S::one_sided::<L, W, X>(w, inv[0]);
         let (ym, yp) = S::one_sided::<L, W, Y>(w, inv[1]);
         let (zm, zp) = S::one_sided::<L, W, Z>(w, inv[2]);

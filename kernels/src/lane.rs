@@ -93,6 +93,10 @@ pub trait Lane:
     const LANES: usize;
     /// Name used in benchmark output: `"f32"`, `"f32x4"`, `"f32x8"`, `"f32x16"`.
     const NAME: &'static str;
+    /// The one-voxel lane type with the same arithmetic (`f32` for `f32` and `wide`'s
+    /// types; the fused scalar type for the x86 levels' types): what a sweep runs for the
+    /// voxels left over at the end of a row.
+    type Scalar: Lane;
 
     /// Every lane set to `x`.
     fn splat(x: f32) -> Self;
@@ -148,6 +152,7 @@ impl sealed::Sealed for f32 {
 impl Lane for f32 {
     const LANES: usize = 1;
     const NAME: &'static str = "f32";
+    type Scalar = f32;
 
     #[inline(always)]
     fn splat(x: f32) -> Self {
@@ -307,6 +312,7 @@ macro_rules! impl_wide_lane {
         impl Lane for $t {
             const LANES: usize = $n;
             const NAME: &'static str = $name;
+            type Scalar = f32;
 
             #[inline(always)]
             fn splat(x: f32) -> Self {

@@ -119,11 +119,14 @@ pub mod diff;
 pub mod error;
 pub mod kernel;
 pub mod lane;
+pub mod level;
 pub mod renorm;
 pub mod rk;
 pub mod speed;
 pub mod weno;
 pub mod window;
+#[cfg(target_arch = "x86_64")]
+mod x86;
 
 pub use block::{DenseBlock, TileBlock};
 pub use diff::{Axis, X, Y, Z};
@@ -133,6 +136,7 @@ pub use kernel::{
     ScaledVelocity, Scheme, Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
+pub use level::{check_env, dispatch, dispatch_at, dispatch_one, LaneFn, Level};
 pub use renorm::{AnchoredRenormRate, InterfaceAnchor, RenormRate};
 pub use window::{
     box27_index, box_far39_index, star19_index, BoxFarWindow, BoxStarWindow, BoxWindow,

@@ -167,16 +167,17 @@ macro_rules! point_window {
             }
         }
 
-        impl Window<f32> for $name<'_> {
+        impl<L: Lane> Window<L> for $name<'_> {
             const AXIS_REACH: i32 = $ar;
             const BOX_REACH: i32 = $br;
             #[inline(always)]
-            fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
+            fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> L {
                 let i = const {
+                    assert!(L::LANES == 1, "a point window serves one voxel");
                     assert!(serves($ar, $br, DX, DY, DZ), $what);
                     $index(DX, DY, DZ)
                 };
-                self.v[i]
+                L::splat(self.v[i])
             }
         }
     };
@@ -223,12 +224,13 @@ impl<'a> BoxStarWindow<'a> {
     }
 }
 
-impl Window<f32> for BoxStarWindow<'_> {
+impl<L: Lane> Window<L> for BoxStarWindow<'_> {
     const AXIS_REACH: i32 = 3;
     const BOX_REACH: i32 = 1;
     #[inline(always)]
-    fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> f32 {
+    fn at<const DX: i32, const DY: i32, const DZ: i32>(&self) -> L {
         let (in_box, i) = const {
+            assert!(L::LANES == 1, "a point window serves one voxel");
             assert!(serves(3, 1, DX, DY, DZ), "offset outside box27 + WENO5 star");
             if max_abs(DX, DY, DZ) <= 1 {
                 (true, box27_index(DX, DY, DZ))
@@ -236,11 +238,7 @@ impl Window<f32> for BoxStarWindow<'_> {
                 (false, star19_index(DX, DY, DZ))
             }
         };
-        if in_box {
-            self.b[i]
-        } else {
-            self.s[i]
-        }
+        L::splat(if in_box { self.b[i] } else { self.s[i] })
     }
 }
 

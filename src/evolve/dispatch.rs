@@ -16,6 +16,7 @@
 
 use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
+    Lane,
     AdvectionRate, AnchoredRenormRate, BoxFarWindow, BoxWindow, Eq3Rate, Euler, ImageRate,
     InterfaceAnchor, RenormRate, Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1,
     VoxelKernel, Weno5,
@@ -82,24 +83,35 @@ pub(crate) enum PointWindow {
 pub(crate) trait Reach {
     /// The window of the gathered values.
     const WINDOW: PointWindow;
-    /// The kernel's value at voxel `i` from its window's `values`.
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32;
+    /// The kernel's value at voxel `i` from its window's `values`, with the one-voxel lane
+    /// type `L` (`f32`, or the fused scalar of the CPU's level).
+    fn eval<L: Lane, K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32;
 }
 
 impl Reach for Halo<1> {
     const WINDOW: PointWindow = PointWindow::Box27;
     #[inline(always)]
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
-        k.eval::<f32, _>(&BoxWindow::new(values.try_into().expect("27 values")), i)
+    fn eval<L: Lane, K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        let w = BoxWindow::new(values.try_into().expect("27 values"));
+        one_value(k.eval::<L, _>(&w, i))
     }
 }
 
 impl Reach for Halo<3> {
     const WINDOW: PointWindow = PointWindow::BoxFar39;
     #[inline(always)]
-    fn eval<K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
-        k.eval::<f32, _>(&BoxFarWindow::new(values.try_into().expect("39 values")), i)
+    fn eval<L: Lane, K: VoxelKernel>(k: &K, values: &[f32], i: usize) -> f32 {
+        let w = BoxFarWindow::new(values.try_into().expect("39 values"));
+        one_value(k.eval::<L, _>(&w, i))
     }
+}
+
+/// The value of a one-voxel lane group.
+#[inline(always)]
+pub(crate) fn one_value<L: Lane>(v: L) -> f32 {
+    let mut out = [0.0f32; 1];
+    v.store(&mut out);
+    out[0]
 }
 
 /// Level 1: the scheme, with its reach.

@@ -131,8 +131,19 @@ pub enum Integrator {
 pub enum Lanes {
     /// One voxel at a time (`f32`): the same code path as the DT-Grid's arithmetic.
     Scalar,
-    /// The widest vector the build supports ([`levelset_kernels::DefaultLane`]).
+    /// The widest vector of the CPU's instruction-set level
+    /// ([`levelset_kernels::Level::default_lanes`]: `f32x16` with AVX-512, `f32x8` below).
     Simd,
+}
+
+impl Lanes {
+    /// The lane kind the kernels run with, at [`levelset_kernels::Level::active`].
+    pub fn kind(self) -> levelset_kernels::LaneKind {
+        match self {
+            Lanes::Scalar => levelset_kernels::LaneKind::F32,
+            Lanes::Simd => levelset_kernels::Level::active().default_lanes(),
+        }
+    }
 }
 
 /// Which representation a simulation runs on.

@@ -32,7 +32,7 @@ use crate::exact::ExactSum;
 use crate::progress::{Cancelled, Progress};
 use crate::storage::levelset::{Accessor, LevelSet};
 use levelset_kernels::speed::kappa_bar_integrands;
-use levelset_kernels::{BoxWindow, BOX27_OFFSETS};
+use levelset_kernels::{BoxWindow, Lane, LaneFn, BOX27_OFFSETS};
 use serde::Serialize;
 
 /// Options of [`measure`].
@@ -143,7 +143,7 @@ pub fn measure<G: LevelSet + ?Sized>(
                     None => spec.gamma(),
                 };
             }
-            let (_, den) = kappa_bar_integrands::<f32, _>(&BoxWindow::new(&box27), inv_h, width);
+            let den = levelset_kernels::dispatch_one(AreaTerm { box27: &box27, inv_h, width });
             area_terms.add(den * (1.0 / inv_h));
         }
     });
@@ -159,4 +159,24 @@ pub fn measure<G: LevelSet + ?Sized>(
         // The terms hold δ|∇φ|·h: area = h³ Σ δ|∇φ| = h² Σ terms.
         area: h * h * area_terms.value(),
     })
+}
+
+/// The area integrand δ|∇φ| of one voxel's 3×3×3 box, at the CPU's level (so that it has
+/// the bits of the engine's κ̄ terms).
+struct AreaTerm<'a> {
+    box27: &'a [f32; 27],
+    inv_h: f32,
+    width: f32,
+}
+
+impl LaneFn for AreaTerm<'_> {
+    type Output = f32;
+    #[inline(always)]
+    fn call<L: Lane>(self) -> f32 {
+        let w = BoxWindow::new(self.box27);
+        let (_, den) = kappa_bar_integrands::<L, _>(&w, L::splat(self.inv_h), L::splat(self.width));
+        let mut out = [0.0f32; 1];
+        den.store(&mut out);
+        out[0]
+    }
 }

@@ -117,6 +117,8 @@ fn kernel_bench(quick: bool) -> Result<Vec<levelset_kernels::bench::KernelResult
 }
 
 fn run(a: &BenchArgs) -> Result<(), String> {
+    // A level forced by LEVELSET_SIMD that this CPU cannot run is refused, not replaced.
+    levelset_kernels::check_env()?;
     if let Some(path) = &a.json {
         check_output(path)?;
     }
@@ -124,8 +126,13 @@ fn run(a: &BenchArgs) -> Result<(), String> {
         let report = levelset_kernels::bench::KernelBenchReport {
             kernels: kernel_bench(a.quick)?,
             target_features: levelset_kernels::target_features(),
+            level: levelset_kernels::Level::active().name(),
         };
-        outln!("target features: {}", report.target_features.join(","));
+        outln!(
+            "level: {}; target features compiled in: {}",
+            levelset_kernels::Level::active().describe(),
+            report.target_features.join(",")
+        );
         out!("{}", kernels_text(&report.kernels));
         if let Some(path) = &a.json {
             write_json(path, &report)?;
@@ -197,6 +204,7 @@ fn storage(a: &BenchArgs) -> Result<(), String> {
     let report = StorageBench {
         cpu: cpu_name(),
         target_features: levelset_kernels::target_features(),
+        level: levelset_kernels::Level::active().name(),
         profile: levelset_cli::storage::build_profile(),
         threads: 1,
         repetitions: reps,

@@ -7,4 +7,5 @@ mod common;
 mod analytic;
 mod api;
 mod lanes;
+mod levels;
 mod renorm;

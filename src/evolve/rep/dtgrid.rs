@@ -7,15 +7,17 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::evolve::dispatch::{
-    dispatch, dispatch_anchor, dispatch_renorm, Halo, PointWindow, Reach, RenormParams,
-    StageParams, Sweep,
+    dispatch, dispatch_anchor, dispatch_renorm, one_value, Halo, PointWindow, Reach,
+    RenormParams, StageParams, Sweep,
 };
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
 use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
-use levelset_kernels::{BoxWindow, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS};
+use levelset_kernels::{
+    BoxWindow, Lane, LaneFn, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS,
+};
 use std::ops::Range;
 
 /// The DT-Grid engine.
@@ -92,12 +94,56 @@ impl Sweep for DtSweep<'_> {
             PointWindow::Box27 => &self.rep.box27,
             PointWindow::BoxFar39 => &self.rep.box_far39,
         };
-        let mut it = StencilIter::new(&self.rep.grid, stencil);
+        let sweep = DtLoop::<K, R> { grid: &self.rep.grid, stencil, kernel: &k, out };
+        levelset_kernels::dispatch_one(sweep);
+        Ok(())
+    }
+}
+
+/// The DT-Grid's voxel loop, run at the CPU's level with its one-voxel lane type.
+struct DtLoop<'a, K, const R: usize> {
+    grid: &'a DtGrid,
+    stencil: &'a Stencil,
+    kernel: &'a K,
+    out: &'a mut [f32],
+}
+
+impl<K: VoxelKernel, const R: usize> LaneFn for DtLoop<'_, K, R>
+where
+    Halo<R>: Reach,
+{
+    type Output = ();
+    #[inline(always)]
+    fn call<L: Lane>(self) {
+        let mut it = StencilIter::new(self.grid, self.stencil);
         while it.advance() {
             let i = it.center_index();
-            out[i] = <Halo<R> as Reach>::eval(&k, it.values(), i);
+            self.out[i] = <Halo<R> as Reach>::eval::<L, K>(self.kernel, it.values(), i);
         }
-        Ok(())
+    }
+}
+
+/// The DT-Grid's κ̄ integrands, summed, at the CPU's level.
+struct DtKappa<'a> {
+    grid: &'a DtGrid,
+    box27: &'a Stencil,
+    inv_h: f32,
+    width: f32,
+}
+
+impl LaneFn for DtKappa<'_> {
+    type Output = (ExactSum, ExactSum);
+    #[inline(always)]
+    fn call<L: Lane>(self) -> (ExactSum, ExactSum) {
+        let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+        let mut it = StencilIter::new(self.grid, self.box27);
+        while it.advance() {
+            let v: &[f32; 27] = it.values().try_into().expect("27 values");
+            let (a, b) = kappa_terms::<L, _>(&BoxWindow::new(v), self.inv_h, self.width);
+            num.add(one_value(a));
+            den.add(one_value(b));
+        }
+        (num, den)
     }
 }
 
@@ -249,15 +295,8 @@ impl Representation for DtRep {
 
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
-        let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
-        let mut it = StencilIter::new(&self.grid, &self.box27);
-        while it.advance() {
-            let v: &[f32; 27] = it.values().try_into().expect("27 values");
-            let (a, b) = kappa_terms::<f32, _>(&BoxWindow::new(v), inv_h, width);
-            num.add(a);
-            den.add(b);
-        }
-        Ok((num, den))
+        let sums = DtKappa { grid: &self.grid, box27: &self.box27, inv_h, width };
+        Ok(levelset_kernels::dispatch_one(sums))
     }
 
     fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {

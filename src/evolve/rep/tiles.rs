@@ -18,7 +18,7 @@ use crate::memory::grown_capacity;
 use crate::storage::tiles::{
     compute_activity, voxel_of, NeighbourTable, PaddedBlock, Tile, TileGrid, ACTIVE_MASK,
 };
-use levelset_kernels::{BandMasked, DefaultLane, Lane, TileBlock, VoxelKernel};
+use levelset_kernels::{BandMasked, Lane, LaneFn, TileBlock, VoxelKernel};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -278,65 +278,120 @@ impl Sweep for TileSweep<'_> {
         M: Fn(Range<usize>) -> K + Sync,
         Halo<R>: crate::evolve::dispatch::Reach,
     {
-        match self.lanes {
-            Lanes::Scalar => self.run_lanes::<f32, K, M, R>(make),
-            Lanes::Simd => self.run_lanes::<DefaultLane, K, M, R>(make),
-        }
-    }
-}
-
-impl TileSweep<'_> {
-    fn run_lanes<L: Lane, K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-    {
+        let kind = self.lanes.kind();
         let TileSweep { grid, table, out, box_min, compute_mask, activity, owned, .. } = self;
-        let gamma = grid.gamma();
+        let shared = Shared { grid, table, compute_mask, owned: &owned, make: &make };
         out.par_chunks_mut(TILE_CHUNK)
             .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
             .zip(activity.par_chunks_mut(TILE_CHUNK))
             .enumerate()
             .try_for_each(|(c, ((out, mask), act))| {
-                let start = c * TILE_CHUNK;
-                let mut block = PaddedBlock::<R>::new();
-                for i in 0..out.len() {
-                    let pos = start + i;
-                    let ahead = pos + PaddedBlock::<R>::PREFETCH_AHEAD;
-                    if ahead < table.len() {
-                        PaddedBlock::<R>::prefetch(grid, table.row(ahead));
-                    }
-                    let m: &mut [f32; 64] = (&mut mask[64 * i..64 * i + 64])
-                        .try_into()
-                        .expect("64 mask values per tile");
-                    let computes = if !owned.contains(&pos) {
-                        false
-                    } else if compute_mask {
-                        block.gather_star_row(grid, pos, table.row(pos));
-                        block.box_min_abs(gamma, m)
-                    } else {
-                        let computes = m.iter().any(|&v| v < gamma);
-                        if computes {
-                            block.gather_star_row(grid, pos, table.row(pos));
-                        }
-                        computes
-                    };
-                    if !computes {
-                        // No voxel of the tile is in the computational band: every one
-                        // keeps its value (what `BandMasked` selects), and so do the
-                        // tile's activity flags.
-                        out[i] = *grid.tile(pos);
-                        act[i] = grid.activity_flags(pos);
-                        continue;
-                    }
-                    let tb = TileBlock::<R>::new(block.data())?;
-                    let k =
-                        BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
-                    tb.apply::<L, _>(&k, &mut out[i].0)?;
-                    act[i] = compute_activity(&out[i], gamma);
-                }
-                Ok::<(), EvolveError>(())
+                let chunk = Chunk::<M, R> { shared: &shared, start: c * TILE_CHUNK, out, mask, act };
+                levelset_kernels::dispatch(kind, chunk)
             })
+    }
+}
+
+/// What every chunk of a tile sweep reads.
+struct Shared<'a, M> {
+    grid: &'a TileGrid,
+    table: &'a NeighbourTable,
+    compute_mask: bool,
+    owned: &'a Range<usize>,
+    make: &'a M,
+}
+
+/// One chunk of a tile sweep (the tiles from list position `start`), run by
+/// [`levelset_kernels::dispatch`] at the CPU's level.
+struct Chunk<'a, 'c, M, const R: usize> {
+    shared: &'a Shared<'a, M>,
+    start: usize,
+    out: &'c mut [Tile],
+    mask: &'c mut [f32],
+    act: &'c mut [u32],
+}
+
+impl<K, M, const R: usize> LaneFn for Chunk<'_, '_, M, R>
+where
+    K: VoxelKernel,
+    M: Fn(Range<usize>) -> K + Sync,
+{
+    type Output = Result<(), EvolveError>;
+
+    #[inline(always)]
+    fn call<L: Lane>(self) -> Result<(), EvolveError> {
+        let Chunk { shared, start, out, mask, act } = self;
+        let Shared { grid, table, compute_mask, owned, make } = *shared;
+        let gamma = grid.gamma();
+        let mut block = PaddedBlock::<R>::new();
+        for i in 0..out.len() {
+            let pos = start + i;
+            let ahead = pos + PaddedBlock::<R>::PREFETCH_AHEAD;
+            if ahead < table.len() {
+                PaddedBlock::<R>::prefetch(grid, table.row(ahead));
+            }
+            let m: &mut [f32; 64] =
+                (&mut mask[64 * i..64 * i + 64]).try_into().expect("64 mask values per tile");
+            let computes = if !owned.contains(&pos) {
+                false
+            } else if compute_mask {
+                block.gather_star_row(grid, pos, table.row(pos));
+                block.box_min_abs(gamma, m)
+            } else {
+                let computes = m.iter().any(|&v| v < gamma);
+                if computes {
+                    block.gather_star_row(grid, pos, table.row(pos));
+                }
+                computes
+            };
+            if !computes {
+                // No voxel of the tile is in the computational band: every one keeps its
+                // value (what `BandMasked` selects), and so do the tile's activity flags.
+                out[i] = *grid.tile(pos);
+                act[i] = grid.activity_flags(pos);
+                continue;
+            }
+            let tb = TileBlock::<R>::new(block.data())?;
+            let k = BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
+            tb.apply::<L, _>(&k, &mut out[i].0)?;
+            act[i] = compute_activity(&out[i], gamma);
+        }
+        Ok(())
+    }
+}
+
+/// The κ̄ integrands of the tiles of one chunk, run at the CPU's level.
+struct KappaChunk<'a> {
+    grid: &'a TileGrid,
+    table: &'a NeighbourTable,
+    tiles: Range<usize>,
+    inv_h: f32,
+    width: f32,
+}
+
+impl LaneFn for KappaChunk<'_> {
+    type Output = Result<(ExactSum, ExactSum), EvolveError>;
+
+    #[inline(always)]
+    fn call<L: Lane>(self) -> Self::Output {
+        let KappaChunk { grid, table, tiles, inv_h, width } = self;
+        // A tile without band voxels holds only ±γ, where δ vanishes when its width does
+        // not exceed γ: its terms are exactly zero.
+        let skip_inactive = width <= grid.gamma();
+        let mut block = PaddedBlock::<1>::new();
+        let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
+        let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
+        for pos in tiles {
+            if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
+                continue;
+            }
+            block.gather_star_row(grid, pos, table.row(pos));
+            let tb = TileBlock::<1>::new(block.data())?;
+            kappa_tile::<L>(&tb, inv_h, width, &mut a, &mut b);
+            num.add_all(&a);
+            den.add_all(&b);
+        }
+        Ok((num, den))
     }
 }
 
@@ -349,11 +404,13 @@ fn kappa_tile<L: Lane>(
     num: &mut [f32; 64],
     den: &mut [f32; 64],
 ) {
-    tb.for_each::<L>(|first, w| {
-        let (a, b) = kappa_terms(w, inv_h, width);
+    // A plain loop, not `for_each`: it must inline into the level's function.
+    for g in 0..64 / L::LANES {
+        let (first, w) = tb.group::<L>(g);
+        let (a, b) = kappa_terms(&w, inv_h, width);
         a.store(&mut num[first..]);
         b.store(&mut den[first..]);
-    });
+    }
 }
 
 /// See [`TilesRep::exchange_ghosts`] (a function of the two fields it touches, for
@@ -609,33 +666,15 @@ impl Representation for TilesRep {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
         let table = self.table();
         let owned = self.owned();
-        let lanes = self.lanes;
+        let kind = self.lanes.kind();
         let grid = &self.grid;
-        let skip_inactive = width <= grid.gamma();
         let sums = (0..owned.len().div_ceil(TILE_CHUNK))
             .into_par_iter()
             .map(|c| {
                 let start = owned.start + c * TILE_CHUNK;
                 let end = (start + TILE_CHUNK).min(owned.end);
-                let mut block = PaddedBlock::<1>::new();
-                let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
-                let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
-                for pos in start..end {
-                    // A tile without band voxels holds only ±γ, where δ vanishes when
-                    // its width does not exceed γ: its terms are exactly zero.
-                    if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
-                        continue;
-                    }
-                    block.gather_star_row(grid, pos, table.row(pos));
-                    let tb = TileBlock::<1>::new(block.data())?;
-                    match lanes {
-                        Lanes::Scalar => kappa_tile::<f32>(&tb, inv_h, width, &mut a, &mut b),
-                        Lanes::Simd => kappa_tile::<DefaultLane>(&tb, inv_h, width, &mut a, &mut b),
-                    }
-                    num.add_all(&a);
-                    den.add_all(&b);
-                }
-                Ok::<_, EvolveError>((num, den))
+                let chunk = KappaChunk { grid, table, tiles: start..end, inv_h, width };
+                levelset_kernels::dispatch(kind, chunk)
             })
             .collect::<Result<Vec<_>, _>>();
         let sums = match (sums, &self.part) {

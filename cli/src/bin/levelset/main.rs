@@ -94,6 +94,11 @@ fn main() -> ExitCode {
             return if e.use_stderr() { ExitCode::FAILURE } else { ExitCode::SUCCESS };
         }
     };
+    // A level forced by LEVELSET_SIMD that this CPU cannot run is refused, not replaced.
+    if let Err(e) = levelset_kernels::check_env() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     // Under an MPI launcher, only the commands that spread their work over the ranks run;
     // any other would run whole on every rank and write the same files.
     let spreads = matches!(
