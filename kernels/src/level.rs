@@ -229,6 +229,25 @@ pub fn dispatch_one<F: LaneFn>(f: F) -> F::Output {
     }
 }
 
+/// Runs `f` inside the function compiled for the CPU's level, so that the loops of a small
+/// closure that the compiler inlines there are vectorised with the level's instructions
+/// (a count or a minimum over a whole band, say). No lane type is involved.
+#[inline]
+pub fn at_level<R>(f: impl FnOnce() -> R) -> R {
+    dispatch_one(Plain(f))
+}
+
+/// A closure as a [`LaneFn`] that ignores its lane type.
+struct Plain<F>(F);
+
+impl<R, F: FnOnce() -> R> LaneFn for Plain<F> {
+    type Output = R;
+    #[inline(always)]
+    fn call<L: Lane>(self) -> R {
+        (self.0)()
+    }
+}
+
 /// [`dispatch`] at a given level, or `None` if this CPU cannot run it: for tests and
 /// benchmarks that compare levels within one process.
 pub fn dispatch_at<F: LaneFn>(level: Level, kind: LaneKind, f: F) -> Option<F::Output> {

@@ -83,7 +83,9 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`levelset_kernels::TileBlock`]) for the tile at list position `pos`, whose
     /// neighbours are `row`. For `R = 1` that is the whole block; for `R = 3` 140 of the
     /// 300 row copies of [`PaddedBlock::gather_row`]. Other entries keep what they held.
-    #[inline]
+    /// Always inlined: into the tile sweeps' functions compiled for the CPU's
+    /// instruction-set level (wider copies there).
+    #[inline(always)]
     pub fn gather_star_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
         self.gather_parts::<true>(grid, pos, |d| row.get(d));
     }
@@ -118,7 +120,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// every zero +0), computed separably (along x, then y, then z; 9 instead of 27
     /// loads per voxel) from the box rows, which every gather fills. Returns whether any
     /// voxel's box holds a band voxel (a minimum below `gamma`).
-    #[inline]
+    #[inline(always)]
     pub fn box_min_abs(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
         use levelset_kernels::{wide::f32x4, Lane};
         let (sx, w, r) = (Self::SX, Self::W, R);

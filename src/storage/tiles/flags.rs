@@ -77,7 +77,7 @@ pub const NEIGHBOUR_TRIGGER: [u32; 27] = {
 
 /// Activity flags of a tile's values (Sec. 4.7): region bits of band voxels, or
 /// [`INSIDE`] when there are none and the tile is inside.
-#[inline]
+#[inline(always)]
 pub fn compute_activity(tile: &Tile, gamma: f32) -> u32 {
     let mut bits = 0u32;
     for (i, &v) in tile.0.iter().enumerate() {
