@@ -383,7 +383,8 @@ impl SpeedupReport {
             "CPU: {}; level: {}; target features compiled in: {}; {} build; up to {} \
              thread(s){}; stepping seconds: the fastest of {} run(s) of each configuration",
             self.cpu,
-            levelset_kernels::Level::from_name(self.level).map_or(self.level.to_string(), |l| l.describe()),
+            levelset_kernels::Level::from_name(self.level)
+                .map_or(self.level.to_string(), |l| l.describe()),
             self.target_features.join(","),
             self.profile,
             self.threads,

@@ -155,10 +155,7 @@ fn resolved() -> &'static (Level, Option<String>) {
                     "{ENV_VAR}={v}: this CPU cannot run {l} (the highest level it has is {best})"
                 )),
             ),
-            None => (
-                best,
-                Some(format!("{ENV_VAR}={v}: not a level (baseline, avx2 or avx512)")),
-            ),
+            None => (best, Some(format!("{ENV_VAR}={v}: not a level (baseline, avx2 or avx512)"))),
         }
     })
 }

@@ -22,7 +22,8 @@
 //! let mut v = [0.0f32; 27];
 //! v[box27_index(1, -1, 0)] = 2.5;
 //! let w = BoxWindow::new(&v);
-//! assert_eq!(w.at::<1, -1, 0>(), 2.5);
+//! let v: f32 = w.at::<1, -1, 0>();
+//! assert_eq!(v, 2.5);
 //! ```
 //!
 //! A WENO5 kernel on a DT-Grid box stencil does not compile (the box has no ±3 offsets):

@@ -16,9 +16,8 @@
 
 use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
-    Lane,
     AdvectionRate, AnchoredRenormRate, BoxFarWindow, BoxWindow, Eq3Rate, Euler, ImageRate,
-    InterfaceAnchor, RenormRate, Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1,
+    InterfaceAnchor, Lane, RenormRate, Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1,
     VoxelKernel, Weno5,
 };
 use std::ops::Range;

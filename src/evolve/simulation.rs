@@ -424,7 +424,8 @@ impl Simulation {
         let g = self.spec().gamma();
         let rep = self.rep.get();
         // At the CPU's instruction-set level: a vectorised count of the whole band.
-        let n = levelset_kernels::at_level(|| rep.owned_flat().iter().filter(|v| v.abs() < g).count());
+        let n =
+            levelset_kernels::at_level(|| rep.owned_flat().iter().filter(|v| v.abs() < g).count());
         self.sum_counts([n as u64])[0] as usize
     }
 

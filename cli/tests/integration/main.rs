@@ -7,6 +7,7 @@ mod common;
 
 mod batch;
 mod cli;
+mod levels;
 mod limits;
 mod outputs;
 mod segment;

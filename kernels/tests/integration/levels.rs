@@ -173,8 +173,14 @@ fn every_operation_follows_the_lane_rules_at_every_level() {
                 }
             }
             // `any_gt` is per group, not per lane.
-            let ops_but_any =
-                |v: &[f32]| -> Vec<u32> { canonical(v).chunks(n).enumerate().filter(|(i, _)| i % 12 != 11).flat_map(|(_, c)| c.to_vec()).collect() };
+            let ops_but_any = |v: &[f32]| -> Vec<u32> {
+                canonical(v)
+                    .chunks(n)
+                    .enumerate()
+                    .filter(|(i, _)| i % 12 != 11)
+                    .flat_map(|(_, c)| c.to_vec())
+                    .collect()
+            };
             assert_eq!(ops_but_any(&v), ops_but_any(&expect), "{level}, {}", kind.name());
         }
         // The documented NaN rule of min and max: the second operand.

@@ -107,8 +107,11 @@ impl Sweep for DenseSweep<'_> {
         if self.compute_mask {
             pad_into::<1>(&rep.field, &mut rep.padded);
             rep.box_min.resize(n, 0.0);
-            DenseBlock::<1>::new(&rep.padded, dims)?
-                .apply_kind(LaneKind::F32, &BoxMinAbs, &mut rep.box_min)?;
+            DenseBlock::<1>::new(&rep.padded, dims)?.apply_kind(
+                LaneKind::F32,
+                &BoxMinAbs,
+                &mut rep.box_min,
+            )?;
         }
         pad_into::<R>(&rep.field, &mut rep.padded);
         let k = BandMasked { step: make(0..n), box_min: &rep.box_min, gamma: rep.spec.gamma() };

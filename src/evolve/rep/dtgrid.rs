@@ -7,17 +7,15 @@ use super::{
 };
 use crate::coord::Coord;
 use crate::evolve::dispatch::{
-    dispatch, dispatch_anchor, dispatch_renorm, one_value, Halo, PointWindow, Reach,
-    RenormParams, StageParams, Sweep,
+    dispatch, dispatch_anchor, dispatch_renorm, one_value, Halo, PointWindow, Reach, RenormParams,
+    StageParams, Sweep,
 };
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, SpatialScheme};
 use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
-use levelset_kernels::{
-    BoxWindow, Lane, LaneFn, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS,
-};
+use levelset_kernels::{BoxWindow, Lane, LaneFn, VoxelKernel, BOX27_OFFSETS, BOX_FAR39_OFFSETS};
 use std::ops::Range;
 
 /// The DT-Grid engine.

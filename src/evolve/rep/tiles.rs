@@ -286,7 +286,8 @@ impl Sweep for TileSweep<'_> {
             .zip(activity.par_chunks_mut(TILE_CHUNK))
             .enumerate()
             .try_for_each(|(c, ((out, mask), act))| {
-                let chunk = Chunk::<M, R> { shared: &shared, start: c * TILE_CHUNK, out, mask, act };
+                let chunk =
+                    Chunk::<M, R> { shared: &shared, start: c * TILE_CHUNK, out, mask, act };
                 levelset_kernels::dispatch(kind, chunk)
             })
     }
