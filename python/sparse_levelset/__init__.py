@@ -56,9 +56,15 @@ __all__ = [
     "save_mesh",
     "load_mesh",
     "__version__",
+    "SIMD_LEVEL",
 ]
 
 __version__ = _native.__version__
+
+#: The instruction-set level the kernels run at, detected when the module is imported:
+#: ``"avx512"`` (x86-64-v4), ``"avx2"`` (AVX2 and FMA) or ``"baseline"``. The environment
+#: variable ``LEVELSET_SIMD`` forces one; a level the CPU cannot run is refused at import.
+SIMD_LEVEL: str = _native.SIMD_LEVEL
 
 Progress = Optional[Callable[[dict], object]]
 

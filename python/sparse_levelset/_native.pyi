@@ -7,6 +7,7 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+SIMD_LEVEL: str
 
 _Progress = Optional[Callable[[dict], object]]
 _F32 = npt.NDArray[np.float32]

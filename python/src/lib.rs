@@ -64,6 +64,9 @@ pub(crate) fn panic_error(what: &str) -> PyErr {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("SIMD_LANES", if cfg!(feature = "simd") { "simd" } else { "scalar" })?;
+    // A level forced by LEVELSET_SIMD that this CPU cannot run is refused, not replaced.
+    sparse_levelset::level::check_env().map_err(pyo3::exceptions::PyImportError::new_err)?;
+    m.add("SIMD_LEVEL", sparse_levelset::level::Level::active().name())?;
     functions::register(m)?;
     levelset::register(m)?;
     simulation::register(m)?;
