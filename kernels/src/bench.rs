@@ -12,13 +12,15 @@
 //! The block holds a sphere's signed distance (no clamped flat regions, though the
 //! arithmetic is branch-free and does not depend on the values). One thread.
 //!
-//! Measured on the project machine (2-core AMD EPYC, AVX-512, `target-cpu=native`), 32³
-//! block, best of 5 samples, Mvoxel-updates/s (speed-up over `f32`):
+//! Measured on the project machine (2-core AMD EPYC, AVX-512) on 2026-11-27 with
+//! `levelset-speedup --kernels` from a build for the x86-64 baseline, running at the
+//! detected AVX-512 level; 32³ block, best of 5 samples, Mvoxel-updates/s (speed-up over
+//! `f32`):
 //!
-//! | kernel             | f32  | f32x4       | f32x8       | f32x16      |
-//! |--------------------|------|-------------|-------------|-------------|
-//! | `upwind_curvature` | 90   | 345 (3.8×)  | 665 (7.3×)  | 855 (9.5×)  |
-//! | `weno5_rk3`        | 18.1 | 57.5 (3.2×) | 116 (6.4×)  | 157 (8.7×)  |
+//! | kernel             | f32  | f32x4       | f32x8        | f32x16        |
+//! |--------------------|------|-------------|--------------|---------------|
+//! | `upwind_curvature` | 143  | 556 (3.9×)  | 1155 (8.1×)  | 1805 (12.6×)  |
+//! | `weno5_rk3`        | 26.1 | 86.5 (3.3×) | 172 (6.6×)   | 348 (13.3×)   |
 //!
 //! `cargo run --release -p levelset-kernels --example kernel_bench -- 32 32 32 1.0`
 //! prints this table and the JSON; `cargo bench -p levelset-kernels --bench kernels`

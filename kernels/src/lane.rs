@@ -1,24 +1,25 @@
 //! The sealed [`Lane`] trait: the one arithmetic interface every kernel is written against.
 //!
-//! Implemented for scalar `f32` and `wide::{f32x4, f32x8, f32x16}`, nothing else (the trait
-//! is sealed by a private supertrait). A kernel is written once, generic over `L: Lane`;
+//! Implemented for scalar `f32` and `wide::{f32x4, f32x8, f32x16}` (the baseline level),
+//! and for the x86 levels' lane types, which no code outside the crate can name
+//! ([`crate::level`]); nothing else (the trait is sealed by a private supertrait). A kernel is written once, generic over `L: Lane`;
 //! its `f32` instantiation is the reference the vector instantiations are tested against,
 //! lane by lane.
 //!
 //! # Semantics shared by every implementation
 //!
-//! Each operation below gives the same bits in every lane type on a given build, so a
+//! Each operation below gives the same bits in every lane type at a given level, so a
 //! kernel's SIMD result equals its scalar result bit for bit (the tests check exactly
 //! this):
 //!
 //! * `+ - * /` and [`Lane::sqrt`]: IEEE 754 single precision, round to nearest (`addss`,
 //!   `addps`, `sqrtps`, ... on x86).
-//! * [`Lane::mul_add`]: `self * a + b`, **fused** (one rounding) if and only if
-//!   [`FUSED_MUL_ADD`] is true, i.e. the build enables `fma` on x86 (it does with the
-//!   workspace's `target-cpu=native`) or targets aarch64 with NEON; otherwise two
-//!   roundings. The scalar implementation follows the same rule (it does *not* call
-//!   `f32::mul_add` in builds without FMA, which would be fused in software), so fusing
-//!   never differs between lane types.
+//! * [`Lane::mul_add`]: `self * a + b`, **fused** (one rounding) at the AVX2 and AVX-512
+//!   levels, and at the baseline level if and only if [`FUSED_MUL_ADD`] is true, i.e. the
+//!   build enables `fma` on x86 or targets aarch64 with NEON; otherwise two roundings.
+//!   The baseline's scalar `f32` follows the same rule (it does *not* call `f32::mul_add`
+//!   in builds without FMA, which would be fused in software), so fusing never differs
+//!   between lane types at a level.
 //! * [`Lane::min`] / [`Lane::max`]: `if self < rhs { self } else { rhs }` and
 //!   `if self > rhs { self } else { rhs }`, lane-wise. That is the x86 `minps` / `maxps`
 //!   rule: **if either operand is NaN, `rhs` is returned**, and for `+0.0` vs `-0.0`
@@ -41,7 +42,8 @@ use wide::{f32x16, f32x4, f32x8};
 #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
 use wide::Select;
 
-/// Whether [`Lane::mul_add`] is fused (one rounding) in this build, for every lane type.
+/// Whether [`Lane::mul_add`] is fused (one rounding) for the baseline level's lane types
+/// (`f32` and `wide`'s) in this build. The x86 levels always fuse ([`crate::Level::fused`]).
 pub const FUSED_MUL_ADD: bool =
     cfg!(any(target_feature = "fma", all(target_arch = "aarch64", target_feature = "neon")));
 
@@ -67,9 +69,10 @@ pub(crate) mod sealed {
 
 /// A group of `LANES` `f32` values processed together: `f32` (one voxel) or a wide vector.
 ///
-/// Sealed: implemented for `f32`, [`f32x4`], [`f32x8`] and [`f32x16`] only. See the
-/// [module documentation](self) for the exact semantics of every operation (NaN, signed
-/// zero, fused multiply-add); they are identical for all four types.
+/// Sealed: implemented for `f32`, [`f32x4`], [`f32x8`] and [`f32x16`], and for the x86
+/// levels' own types (reached only through [`crate::dispatch`]). See the [module
+/// documentation](self) for the exact semantics of every operation (NaN, signed zero,
+/// fused multiply-add); they are identical for all types at a level.
 ///
 /// Constants inside kernels are written `L::splat(x)`.
 ///
@@ -395,7 +398,8 @@ impl LaneKind {
     pub const ALL: [LaneKind; 4] =
         [LaneKind::F32, LaneKind::F32x4, LaneKind::F32x8, LaneKind::F32x16];
 
-    /// The kind of [`DefaultLane`](crate::DefaultLane).
+    /// The kind of [`DefaultLane`](crate::DefaultLane) (the baseline level's; the library
+    /// runs [`Level::default_lanes`](crate::Level::default_lanes)).
     pub const DEFAULT: LaneKind = match <crate::DefaultLane as Lane>::LANES {
         1 => LaneKind::F32,
         4 => LaneKind::F32x4,

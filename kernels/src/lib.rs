@@ -3,7 +3,7 @@
 //! The stencil arithmetic of sparse-levelset: upwind differences, curvature, HJ-WENO5,
 //! the speed of eq. (3) of van der Laan et al. 2011, advection, TVD-RK3 and CFL limits. Every
 //! kernel is written once over the sealed [`Lane`] trait and instantiated for scalar `f32` and
-//! `wide`'s `f32x4`, `f32x8`, `f32x16`; it reads φ through a [`Window`] and knows no grid
+//! `wide`'s `f32x4`, `f32x8`, `f32x16` (and for the lane types of the x86 [`level`]s); it reads φ through a [`Window`] and knows no grid
 //! type, so the Sorted Tile List ([`TileBlock`]) and the DT-Grid (point windows
 //! [`BoxWindow`], [`StarWindow`], [`BoxStarWindow`], [`BoxFarWindow`]) run literally the
 //! same arithmetic — bit for bit, which the tests check.
@@ -74,26 +74,28 @@
 //!   `levelset-speedup --kernels` (and the kernel section of the speed-up report,
 //!   `cargo run --release`).
 //!
-//! # Vector units and the `simd` feature
+//! # Instruction-set levels and the `simd` feature
 //!
-//! `wide` selects instructions at compile time from the enabled target features. The
-//! workspace's `.cargo/config.toml` builds with `-C target-cpu=native`, which on the
-//! project's AVX-512 machine makes `f32x16` one AVX-512 register, `f32x8` one AVX register
-//! and `mul_add` a fused FMA. Without it (plain `x86_64`, SSE2 only) everything still
-//! builds and every lane type still gives the same bits as `f32` (then without fusing), but
-//! `f32x8`/`f32x16` run as two/four SSE vectors and the speed-ups shrink.
-//! [`target_features()`] lists what a binary was built with.
+//! A build for the x86-64 baseline runs at the CPU's best [`Level`], chosen once per
+//! process ([`level`]): AVX-512 (`f32x16` one register), AVX2 + FMA, or the baseline the
+//! build was compiled for (`wide`'s types, which fix their instructions at compile time).
+//! [`dispatch`] turns a [`LaneKind`] into the level's lane type and runs a [`LaneFn`]
+//! inside a function compiled for the level, so no `RUSTFLAGS` are needed for full speed.
+//! Every level with FMA gives the same bits; the environment variable `LEVELSET_SIMD`
+//! forces a level. [`target_features()`] lists what a binary was compiled with,
+//! [`Level::active`] what it runs.
 //!
-//! All four instantiations are always compiled. The cargo feature `simd` (default on) only
-//! selects [`DefaultLane`], the lane type the library uses unless told otherwise: `f32x16`
-//! when AVX-512F is compiled in, `f32x8` otherwise; without `simd`, `f32`.
+//! The cargo feature `simd` (default on) only selects the lane kind the library uses
+//! unless told otherwise ([`Level::default_lanes`]: `f32x16` at AVX-512, `f32x8` below;
+//! `f32` without `simd`) and, for code that names a type at compile time, [`DefaultLane`].
+//! Every lane type is compiled and tested either way.
 //!
 //! # Decisions
 //!
 //! * **Bitwise agreement, not a tolerance.** Every [`Lane`] operation is the same IEEE
-//!   operation in every lane type, `mul_add` is fused in all of them or in none
-//!   ([`FUSED_MUL_ADD`]), `min`/`max` follow the x86 `minps`/`maxps` rule (NaN → second
-//!   operand) everywhere, and the delta function uses a polynomial cosine instead of
+//!   operation in every lane type, `mul_add` is fused in all of them or in none at a
+//!   level ([`Level::fused`]), `min`/`max` follow the x86 `minps`/`maxps` rule (NaN →
+//!   second operand) everywhere, and the delta function uses a polynomial cosine instead of
 //!   libm/wide `cos` (which differ). So SIMD equals scalar bit for bit.
 //! * **Offsets are const generics.** An offset a window cannot serve does not compile;
 //!   block bounds are checked once per block, then windows load unchecked.
@@ -146,15 +148,17 @@ pub use window::{
 /// The `wide` crate the lane types come from (re-exported so users name the same types).
 pub use wide;
 
-/// The lane type the library uses by default: `f32x16` with AVX-512F, else `f32x8`
-/// (feature `simd`, on by default).
+/// The lane type of the baseline level's default, for code that names a type at compile
+/// time: `f32x16` when AVX-512F is compiled in, else `f32x8` (feature `simd`, on by
+/// default). The library itself runs [`Level::default_lanes`] at [`Level::active`].
 #[cfg(all(feature = "simd", target_feature = "avx512f"))]
 pub type DefaultLane = wide::f32x16;
-/// The lane type the library uses by default: `f32x16` with AVX-512F, else `f32x8`
-/// (feature `simd`, on by default).
+/// The lane type of the baseline level's default, for code that names a type at compile
+/// time: `f32x16` when AVX-512F is compiled in, else `f32x8` (feature `simd`, on by
+/// default). The library itself runs [`Level::default_lanes`] at [`Level::active`].
 #[cfg(all(feature = "simd", not(target_feature = "avx512f")))]
 pub type DefaultLane = wide::f32x8;
-/// The lane type the library uses by default: scalar `f32` (feature `simd` is off).
+/// The lane type of the baseline level's default: scalar `f32` (feature `simd` is off).
 #[cfg(not(feature = "simd"))]
 pub type DefaultLane = f32;
 
