@@ -98,6 +98,7 @@ def collect():
         "date": datetime.date.today().isoformat(),
         "cpu": first["cpu"],
         "target_features": first["target_features"],
+        "level": first.get("level", "baseline"),
         "threads": first["threads"],
         "commands": {name: shown(cmd) for name, cmd in RUNS},
     }
@@ -108,10 +109,14 @@ def load(name):
     return json.loads((DATA / name).read_text())
 
 
-def vector_width(features):
-    if "avx512f" in features:
+def vector_width(meta):
+    """The vector unit the kernels ran on: the run-time level (older data: the features
+    the build was compiled with)."""
+    level = meta.get("level")
+    features = meta["target_features"]
+    if level == "avx512" or (level is None and "avx512f" in features):
         return "AVX-512 (f32x16 in one register)"
-    if "avx2" in features:
+    if level == "avx2" or (level is None and "avx2" in features):
         return "AVX2 (f32x16 as two registers)"
     return "SSE (f32x16 as four registers)"
 
@@ -534,8 +539,11 @@ def write():
         "Written by `python3 docs/benchmarks.py write` from the JSON files in `docs/data/`,"
         " which `python3 docs/benchmarks.py collect` made by running the commands named in"
         f" each section on {meta['date']}: CPU {meta['cpu']}, {meta['threads']} cores,"
-        f" vector width {vector_width(meta['target_features'])}, release build with"
-        " `-C target-cpu=native`. The machine is shared: ratios within one run are what"
+        f" vector width {vector_width(meta)}. A JSON file that records a `level` comes from"
+        " a release build for the x86-64 baseline that ran at that instruction-set level,"
+        " chosen at run time; one without comes from a release build with"
+        " `-C target-cpu=native` (the same kernels, at the same width)."
+        " The machine is shared: ratios within one run are what"
         " to compare, and the speed-up report is quoted from two runs.",
         "",
     ]

@@ -42,10 +42,10 @@ pub mod tools;
 mod readme {}
 
 pub use coord::Coord;
+pub use error::{Error, ErrorKind};
+pub use grid::{GridError, GridSpec, MemoryReport};
 /// The instruction-set level the kernels run at: detected once per process (AVX-512,
 /// AVX2 + FMA or the build's baseline), forced by the environment variable
 /// `LEVELSET_SIMD` (`baseline`, `avx2`, `avx512`). `level::Level::active()` tells which.
 pub use levelset_kernels::level;
-pub use error::{Error, ErrorKind};
-pub use grid::{GridError, GridSpec, MemoryReport};
 pub use storage::levelset::{Accessor, LevelSet};

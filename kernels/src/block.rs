@@ -152,7 +152,8 @@ impl<'a, const R: usize> TileBlock<'a, R> {
 /// `-R..nx+R` etc. Any dimensions (not only multiples of the lane width).
 ///
 /// Lane groups are `L::LANES` consecutive voxels along x; the rest of a row that does not
-/// fill a group runs with `f32` lanes (the same kernel, the same arithmetic). Voxel order
+/// fill a group runs with its one-voxel type [`Lane::Scalar`] (the same kernel, the same
+/// arithmetic). Voxel order
 /// for per-voxel inputs and outputs: interior x fastest, `x + nx (y + ny z)`.
 #[derive(Clone, Copy, Debug)]
 pub struct DenseBlock<'a, const R: usize> {

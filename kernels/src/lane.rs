@@ -67,7 +67,7 @@ pub(crate) mod sealed {
     }
 }
 
-/// A group of `LANES` `f32` values processed together: `f32` (one voxel) or a wide vector.
+/// A group of `LANES` `f32` values processed together: one voxel or a vector.
 ///
 /// Sealed: implemented for `f32`, [`f32x4`], [`f32x8`] and [`f32x16`], and for the x86
 /// levels' own types (reached only through [`crate::dispatch`]). See the [module
@@ -116,7 +116,7 @@ pub trait Lane:
     /// If `dst.len() < LANES`.
     fn store(self, dst: &mut [f32]);
 
-    /// `self * a + b`; fused iff [`FUSED_MUL_ADD`].
+    /// `self * a + b`; fused at the x86 levels, and at the baseline iff [`FUSED_MUL_ADD`].
     fn mul_add(self, a: Self, b: Self) -> Self;
 
     /// `if self < rhs { self } else { rhs }` per lane (NaN in either: `rhs`).

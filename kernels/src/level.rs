@@ -6,7 +6,7 @@
 //!
 //! | level | instructions | `f32x16` | `mul_add` |
 //! |---|---|---|---|
-//! | [`Level::Avx512`] (x86-64-v4) | AVX-512 F, BW, DQ, VL | one 512-bit register | fused |
+//! | [`Level::Avx512`] (x86-64-v4 without CD) | AVX-512 F, BW, DQ, VL | one 512-bit register | fused |
 //! | [`Level::Avx2`] (x86-64-v3) | AVX2 and FMA | two 256-bit registers | fused |
 //! | [`Level::Baseline`] | what the build was compiled for (SSE2 on x86-64) | `wide` | fused iff [`FUSED_MUL_ADD`](crate::FUSED_MUL_ADD) |
 //!
@@ -16,7 +16,9 @@
 //! this crate written on `core::arch` intrinsics; `wide` cannot serve there, because it
 //! fixes its instructions (and whether `mul_add` is fused) when it is compiled. The
 //! generic code under [`LaneFn::call`] is inlined into that function and so compiled for
-//! the level too; mark what it calls `#[inline]`.
+//! the level too: mark `call` and what it calls `#[inline(always)]`, and keep closures out
+//! of its loops (the compiler may keep a closure out of line, where every intrinsic becomes
+//! a call).
 //!
 //! **The same bits at every level with FMA.** Every operation of [`Lane`] is one IEEE 754
 //! operation at every level, and `mul_add` is fused at both x86 levels, so AVX2 and AVX-512
@@ -33,7 +35,8 @@
 use crate::lane::{Lane, LaneKind};
 use std::sync::OnceLock;
 
-/// The environment variable that forces a [`Level`]: `baseline`, `avx2` or `avx512`.
+/// The environment variable that forces a [`Level`]: `baseline`, `avx2` or `avx512` (any
+/// case; empty is unset).
 pub const ENV_VAR: &str = "LEVELSET_SIMD";
 
 /// An instruction-set level the kernels can run at.
@@ -44,7 +47,8 @@ pub enum Level {
     Baseline,
     /// x86-64-v3: AVX2 and FMA.
     Avx2,
-    /// x86-64-v4: AVX-512 F, BW, DQ and VL (and AVX2, FMA).
+    /// AVX-512 F, BW, DQ and VL (and AVX2, FMA): x86-64-v4 without AVX-512 CD, which the
+    /// kernels do not use.
     Avx512,
 }
 
@@ -67,13 +71,13 @@ impl Level {
     }
 
     /// A line for reports: the level and its instructions, e.g.
-    /// `"avx512 (x86-64-v4: AVX-512 F/BW/DQ/VL, FMA)"`.
+    /// `"avx512 (AVX-512 F/BW/DQ/VL, FMA)"`.
     pub fn describe(self) -> String {
         let what = match self {
             Level::Baseline if FUSED_BASELINE => "the build's own target features, FMA",
             Level::Baseline => "the build's own target features, no FMA",
             Level::Avx2 => "x86-64-v3: AVX2, FMA",
-            Level::Avx512 => "x86-64-v4: AVX-512 F/BW/DQ/VL, FMA",
+            Level::Avx512 => "AVX-512 F/BW/DQ/VL, FMA",
         };
         format!("{} ({what})", self.name())
     }
@@ -105,8 +109,9 @@ impl Level {
         resolved().0
     }
 
-    /// The lane kind the library uses unless told otherwise at this level: the widest that
-    /// is one register (`f32x16` at AVX-512, `f32x8` below), or `f32` without the `simd`
+    /// The lane kind the library uses unless told otherwise at this level: `f32x16` at
+    /// AVX-512 (one register) and in baseline builds with AVX-512F, `f32x8` otherwise (one
+    /// AVX register, two SSE registers at an SSE2 baseline), or `f32` without the `simd`
     /// feature.
     pub const fn default_lanes(self) -> LaneKind {
         if !cfg!(feature = "simd") {
@@ -146,8 +151,12 @@ fn resolved() -> &'static (Level, Option<String>) {
     ACTIVE.get_or_init(|| {
         let best = detected();
         let Some(v) = std::env::var_os(ENV_VAR) else { return (best, None) };
-        let v = v.to_string_lossy();
-        match Level::from_name(v.trim()) {
+        let v = v.to_string_lossy().trim().to_ascii_lowercase();
+        if v.is_empty() {
+            // Set but empty: as if unset (`LEVELSET_SIMD= command`).
+            return (best, None);
+        }
+        match Level::from_name(&v) {
             Some(l) if l.available() => (l, None),
             Some(l) => (
                 best,
@@ -182,8 +191,8 @@ fn detected() -> Level {
 }
 
 /// Code generic over the lane type, handed to [`dispatch`]: the generic closure Rust does
-/// not have. Implement `call` with `#[inline]` (or `#[inline(always)]`) so that it, and the
-/// kernels it runs, are compiled for the level [`dispatch`] chose.
+/// not have. Implement `call` with `#[inline(always)]` so that it, and the kernels it runs,
+/// are compiled for the level [`dispatch`] chose.
 pub trait LaneFn {
     /// What the call returns.
     type Output;
@@ -223,25 +232,6 @@ pub fn dispatch_one<F: LaneFn>(f: F) -> F::Output {
         // SAFETY: as above.
         Level::Avx2 => unsafe { x86::avx2_one(f) },
         _ => f.call::<f32>(),
-    }
-}
-
-/// Runs `f` inside the function compiled for the CPU's level, so that the loops of a small
-/// closure that the compiler inlines there are vectorised with the level's instructions
-/// (a count or a minimum over a whole band, say). No lane type is involved.
-#[inline]
-pub fn at_level<R>(f: impl FnOnce() -> R) -> R {
-    dispatch_one(Plain(f))
-}
-
-/// A closure as a [`LaneFn`] that ignores its lane type.
-struct Plain<F>(F);
-
-impl<R, F: FnOnce() -> R> LaneFn for Plain<F> {
-    type Output = R;
-    #[inline(always)]
-    fn call<L: Lane>(self) -> R {
-        (self.0)()
     }
 }
 

@@ -9,7 +9,8 @@
 //!   and dummy tiles);
 //! * the DT-Grid through the point windows [`BoxWindow`], [`StarWindow`],
 //!   [`BoxStarWindow`] and [`BoxFarWindow`] over the stencil values its stencil iterator
-//!   collects for one voxel (Nielsen & Museth 2006, Sec. 3.3); their lane type is `f32`;
+//!   collects for one voxel (Nielsen & Museth 2006, Sec. 3.3); their lane type is a
+//!   one-voxel type (`f32`, or the scalar of an x86 level);
 //! * dense arrays through [`DenseWindow`] (see [`crate::DenseBlock`]), used by the
 //!   benchmark and the tests.
 //!
@@ -193,14 +194,14 @@ point_window!(
 
 point_window!(
     /// The 19-point WENO5 star around one voxel, in [`star19_index`] order (centre at 0):
-    /// HJ-WENO5 one-sided derivatives (Nielsen & Museth 2006, Sec. 4.1). Lane type `f32`.
+    /// HJ-WENO5 one-sided derivatives (Nielsen & Museth 2006, Sec. 4.1). One-voxel lane types.
     StarWindow, 19, axis 3, box 0, star19_index, "offset outside the 19-point WENO5 star"
 );
 
 /// The box and the star of one voxel together: what a kernel with HJ-WENO5 hyperbolic
 /// terms *and* a central curvature term reads (van der Laan et al. 2011, Sec. 5.2, eq. (5);
 /// Nielsen & Museth 2006, Sec. 4.1). Offsets with max-norm ≤ 1 come from the box, the rest from the
-/// star (the choice is made at compile time). Lane type `f32`.
+/// star (the choice is made at compile time). One-voxel lane types.
 #[derive(Clone, Copy, Debug)]
 pub struct BoxStarWindow<'a> {
     b: &'a [f32; 27],
@@ -271,7 +272,7 @@ pub const fn box_far39_index(dx: i32, dy: i32, dz: i32) -> usize {
 point_window!(
     /// The 39-point stencil of one voxel in [`box_far39_index`] order: the 3×3×3 box plus
     /// the ±2, ±3 axis points, i.e. box and WENO5 star in one array (what
-    /// [`BoxStarWindow`] reads from two). Lane type `f32`.
+    /// [`BoxStarWindow`] reads from two). One-voxel lane types.
     BoxFarWindow, 39, axis 3, box 1, box_far39_index, "offset outside box27 + far star"
 );
 

@@ -9,9 +9,12 @@
 //! # Invariant (what makes the `unsafe` blocks sound)
 //! The types are public in this private module: no code outside the crate can name them.
 //! They reach code only as the type parameter of [`crate::LaneFn::call`], which
-//! [`crate::dispatch`] calls only at a level [`crate::Level::available`] says this CPU has:
-//! AVX2 and FMA for every type here, AVX-512 F/DQ for [`X16`]. So whenever one of their
-//! methods runs, the CPU has the instructions it uses. (Inside `dispatch`'s
+//! [`crate::dispatch`], [`crate::dispatch_one`] and [`crate::dispatch_at`] instantiate only
+//! after [`crate::Level::available`] returned true in this process for a level whose
+//! features they use: AVX2 and FMA for every type here, AVX-512 F/DQ for [`X16`]. Code
+//! built with such a type may outlive the call (a function pointer, a boxed closure), but
+//! it runs in the same process on the same CPU. So whenever one of their methods runs, the
+//! CPU has the instructions it uses. (Inside `dispatch`'s
 //! `#[target_feature]` functions the intrinsics inline; a method called outside them still
 //! runs correctly, as a call.)
 
@@ -244,8 +247,8 @@ register_lane!(
     fma _mm_fmadd_ps, min _mm_min_ps, max _mm_max_ps, sqrt _mm_sqrt_ps,
     xor _mm_xor_ps, andnot _mm_andnot_ps, set1 _mm_set1_ps,
     loadu _mm_loadu_ps, storeu _mm_storeu_ps,
-    select |a, b, t, f| { _mm_blendv_ps(f, t, _mm_cmpgt_ps(a, b)) },
-    any |a, b| { _mm_movemask_ps(_mm_cmpgt_ps(a, b)) != 0 },
+    select |a, b, t, f| { _mm_blendv_ps(f, t, _mm_cmp_ps::<_CMP_GT_OQ>(a, b)) },
+    any |a, b| { _mm_movemask_ps(_mm_cmp_ps::<_CMP_GT_OQ>(a, b)) != 0 },
     rows |p, _stride| { _mm_loadu_ps(p) }
 );
 
@@ -291,7 +294,8 @@ impl<T: Lane> sealed::Sealed for Pair<T> {
     }
     #[inline(always)]
     unsafe fn load_rows4(p: *const f32, stride: usize) -> Self {
-        // The low half holds the first `N / 4` rows, the high half the rest (N ≥ 4).
+        // The low half holds the first `N / 4` rows, the high half the rest.
+        const { assert!(T::LANES % 4 == 0, "a pair of lane groups of whole rows") };
         let rows = T::LANES / 4;
         // SAFETY: the caller guarantees all `2N / 4` rows are readable.
         unsafe { Pair(T::load_rows4(p, stride), T::load_rows4(p.add(rows * stride), stride)) }

@@ -424,8 +424,7 @@ impl Simulation {
         let g = self.spec().gamma();
         let rep = self.rep.get();
         // At the CPU's instruction-set level: a vectorised count of the whole band.
-        let n =
-            levelset_kernels::at_level(|| rep.owned_flat().iter().filter(|v| v.abs() < g).count());
+        let n = levelset_kernels::dispatch_one(BandCount { values: rep.owned_flat(), gamma: g });
         self.sum_counts([n as u64])[0] as usize
     }
 
@@ -946,5 +945,24 @@ impl Distribution<'_> {
         let rep = self.sim.rep.get();
         let n = rep.units() as u64;
         rep.comm().map_or_else(|| vec![n], |c| c.counts(n))
+    }
+}
+
+/// The values below γ in magnitude, counted inside the function of the CPU's level
+/// (a plain loop, no closure: see `levelset_kernels::level`).
+struct BandCount<'a> {
+    values: &'a [f32],
+    gamma: f32,
+}
+
+impl levelset_kernels::LaneFn for BandCount<'_> {
+    type Output = usize;
+    #[inline(always)]
+    fn call<L: levelset_kernels::Lane>(self) -> usize {
+        let mut n = 0;
+        for &v in self.values {
+            n += usize::from(v.abs() < self.gamma);
+        }
+        n
     }
 }

@@ -174,6 +174,20 @@ fn lane_kinds_dispatch_once() {
     }
     assert_eq!(LaneKind::from_name("f64"), None);
     assert_eq!(LaneKind::DEFAULT.lanes(), <levelset_kernels::DefaultLane as Lane>::LANES);
+    // Every level's lane types carry the kind's name and width.
+    struct Names;
+    impl levelset_kernels::LaneFn for Names {
+        type Output = (usize, &'static str);
+        fn call<L: Lane>(self) -> Self::Output {
+            (L::LANES, L::NAME)
+        }
+    }
+    for level in levelset_kernels::Level::ALL.into_iter().filter(|l| l.available()) {
+        for k in LaneKind::ALL {
+            let got = levelset_kernels::dispatch_at(level, k, Names).unwrap();
+            assert_eq!(got, (k.lanes(), k.name()), "{level}");
+        }
+    }
     assert_eq!(LANES, LaneKind::ALL.map(LaneKind::name));
 }
 
@@ -189,6 +203,15 @@ fn build_information() {
         assert!(lanes >= 8);
     } else {
         assert_eq!(lanes, 1);
+    }
+    // So does the default kind of every level: the widest register, or `f32`.
+    for level in levelset_kernels::Level::ALL {
+        let kind = level.default_lanes();
+        if cfg!(feature = "simd") {
+            assert!(kind.lanes() >= 8, "{level}: {kind:?}");
+        } else {
+            assert_eq!(kind, levelset_kernels::LaneKind::F32, "{level}");
+        }
     }
     if cfg!(target_arch = "x86_64") {
         assert_eq!(levelset_kernels::FUSED_MUL_ADD, cfg!(target_feature = "fma"));

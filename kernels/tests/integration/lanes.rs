@@ -5,7 +5,8 @@
 //!
 //! Tolerance: **bitwise** (abs 0 + rel 0; any NaN equals any NaN). `Lane` guarantees the
 //! same IEEE operation sequence in every lane type, including whether `mul_add` is fused
-//! (`FUSED_MUL_ADD`), so no rounding can differ; a tolerance would only hide a bug.
+//! at a level (`Level::fused`), so no rounding can differ; a tolerance would only hide a
+//! bug. The tile tests also run every lane kind at every instruction-set level the CPU has.
 
 // Index loops compare several arrays lane by lane; they read better than zipped iterators.
 #![allow(clippy::needless_range_loop)]
@@ -18,9 +19,9 @@ use levelset_kernels::diff::{central_norm, diff_central, diff_minus, diff_plus};
 use levelset_kernels::speed::{kappa_bar_integrands, smoothed_delta, smoothed_sign};
 use levelset_kernels::weno::weno5_one_sided;
 use levelset_kernels::{
-    box27_index, box_far39_index, star19_index, AdvectionRate, Axis, BoxFarWindow, BoxStarWindow,
-    BoxWindow, DenseBlock, Eq3Rate, Euler, Lane, Rk3, Scheme, StarWindow, TileBlock, Upwind1,
-    VoxelKernel, Weno5, Window, X, Y, Z,
+    box27_index, box_far39_index, dispatch_at, star19_index, AdvectionRate, Axis, BoxFarWindow,
+    BoxStarWindow, BoxWindow, DenseBlock, Eq3Rate, Euler, Lane, LaneFn, LaneKind, Level, Rk3,
+    Scheme, StarWindow, TileBlock, Upwind1, VoxelKernel, Weno5, Window, X, Y, Z,
 };
 use std::marker::PhantomData;
 
@@ -125,7 +126,63 @@ fn tile_all_lanes<K: VoxelKernel>(name: &str, k: &K, tile: &[f32]) -> [f32; 64] 
     for i in 0..64 {
         assert!(same_bits(d[i], reference[i]), "{name} tile vs dense voxel {i}");
     }
+    // At every instruction-set level this CPU has, every lane kind against the level's
+    // own scalar (the x86 levels' lane types: one register, a pair of AVX registers),
+    // on the tile and on the dense block.
+    for level in Level::ALL.into_iter().filter(|l| l.available()) {
+        let scalar = dispatch_at(level, LaneKind::F32, TileApply { block: &block, k }).unwrap();
+        let dense_scalar =
+            dispatch_at(level, LaneKind::F32, DenseApply { block: &dense, k }).unwrap();
+        for kind in LaneKind::ALL {
+            let out = dispatch_at(level, kind, TileApply { block: &block, k }).unwrap();
+            let d = dispatch_at(level, kind, DenseApply { block: &dense, k }).unwrap();
+            for i in 0..64 {
+                let what = format!("{name} at {level}, {} voxel {i}", kind.name());
+                assert!(same_bits(out[i], scalar[i]), "{what}: tile");
+                assert!(same_bits(d[i], dense_scalar[i]), "{what}: dense");
+                assert!(same_bits(d[i], out[i]), "{what}: tile vs dense");
+            }
+        }
+        if level.fused() == Level::Baseline.fused() {
+            // The same rounding as the baseline: the same bits.
+            for i in 0..64 {
+                assert!(same_bits(scalar[i], reference[i]), "{name} at {level} voxel {i}");
+            }
+        }
+    }
     reference
+}
+
+/// [`TileBlock::apply`] as a [`LaneFn`], for [`dispatch_at`].
+struct TileApply<'a, K> {
+    block: &'a TileBlock<'a, 3>,
+    k: &'a K,
+}
+
+impl<K: VoxelKernel> LaneFn for TileApply<'_, K> {
+    type Output = [f32; 64];
+    #[inline(always)]
+    fn call<L: Lane>(self) -> [f32; 64] {
+        let mut out = [f32::from_bits(0x7fc0_1234); 64];
+        self.block.apply::<L, _>(self.k, &mut out).unwrap();
+        out
+    }
+}
+
+/// [`DenseBlock::apply`] as a [`LaneFn`], for [`dispatch_at`].
+struct DenseApply<'a, K> {
+    block: &'a DenseBlock<'a, 3>,
+    k: &'a K,
+}
+
+impl<K: VoxelKernel> LaneFn for DenseApply<'_, K> {
+    type Output = Vec<f32>;
+    #[inline(always)]
+    fn call<L: Lane>(self) -> Vec<f32> {
+        let mut out = vec![f32::from_bits(0x7fc0_1234); self.block.voxels()];
+        self.block.apply::<L, _>(self.k, &mut out).unwrap();
+        out
+    }
 }
 
 /// Index of local coordinates (each in `-3..7`) in a 4×4×4 dense block with a 3-voxel
