@@ -39,9 +39,6 @@ use core::fmt::Debug;
 use core::ops::{Add, Div, Mul, Neg, Sub};
 use wide::{f32x16, f32x4, f32x8};
 
-#[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
-use wide::Select;
-
 /// Whether [`Lane::mul_add`] is fused (one rounding) for the baseline level's lane types
 /// (`f32` and `wide`'s) in this build. The x86 levels always fuse ([`crate::Level::fused`]).
 pub const FUSED_MUL_ADD: bool =
