@@ -10,7 +10,7 @@
 
 use crate::error::KernelError;
 use crate::kernel::VoxelKernel;
-use crate::lane::{Lane, LaneKind};
+use crate::lane::Lane;
 use crate::level::LaneFn;
 use crate::window::{DenseWindow, TileWindow};
 
@@ -294,7 +294,7 @@ impl<'a, const R: usize> DenseBlock<'a, R> {
     }
 }
 
-/// [`DenseBlock::apply`] as a [`LaneFn`]: what [`DenseBlock::apply_kind`] dispatches.
+/// [`DenseBlock::apply`] as a [`LaneFn`]: what [`DenseBlock::apply_one`] dispatches.
 struct DenseApply<'a, 'k, K, const R: usize> {
     block: DenseBlock<'a, R>,
     kernel: &'k K,
@@ -310,14 +310,14 @@ impl<K: VoxelKernel, const R: usize> LaneFn for DenseApply<'_, '_, K, R> {
 }
 
 impl<const R: usize> DenseBlock<'_, R> {
-    /// [`DenseBlock::apply`] with the lane type of `kind` at the CPU's instruction-set
-    /// level ([`crate::dispatch`]): what a caller that does not pick a lane type uses.
-    pub fn apply_kind<K: VoxelKernel>(
+    /// [`DenseBlock::apply`] one voxel at a time at the CPU's instruction-set level
+    /// ([`crate::dispatch_one`]): the dense reference's arithmetic, with the bits of every
+    /// other sweep at that level.
+    pub fn apply_one<K: VoxelKernel>(
         &self,
-        kind: LaneKind,
         kernel: &K,
         out: &mut [f32],
     ) -> Result<(), KernelError> {
-        crate::dispatch(kind, DenseApply { block: *self, kernel, out })
+        crate::dispatch_one(DenseApply { block: *self, kernel, out })
     }
 }

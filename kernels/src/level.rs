@@ -219,6 +219,28 @@ pub fn dispatch<F: LaneFn>(kind: LaneKind, f: F) -> F::Output {
     }
 }
 
+/// [`dispatch`] with two lane kinds only: the level's default ([`Level::default_lanes`])
+/// if `simd`, else one voxel (`LaneKind::F32`). What an engine that offers just these two
+/// uses: each call site is compiled twice per level instead of four times.
+#[inline]
+pub fn dispatch_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
+    match Level::active() {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Level::active` returns a level only if the CPU has its features.
+        Level::Avx512 => unsafe { x86::avx512_default(simd, f) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above.
+        Level::Avx2 => unsafe { x86::avx2_default(simd, f) },
+        _ => {
+            if simd {
+                f.call::<crate::DefaultLane>()
+            } else {
+                f.call::<f32>()
+            }
+        }
+    }
+}
+
 /// [`dispatch`] with the one-voxel lane type (`LaneKind::F32`) only: for code that
 /// gathers each voxel's values into a point window ([`crate::BoxWindow`] and its kin),
 /// which serves no wider lane type.
@@ -269,6 +291,34 @@ mod x86 {
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn avx2_one<F: LaneFn>(f: F) -> F::Output {
         f.call::<S1>()
+    }
+
+    /// `Level::Avx2.default_lanes()` if `simd` (`f32x8`, or `f32` without the feature),
+    /// else one voxel.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn avx2_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
+        if simd && cfg!(feature = "simd") {
+            f.call::<X8>()
+        } else {
+            f.call::<S1>()
+        }
+    }
+
+    /// `Level::Avx512.default_lanes()` if `simd` (`f32x16`, or `f32` without the
+    /// feature), else one voxel.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 F, BW, DQ, VL, AVX2 and FMA.
+    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
+    pub(super) unsafe fn avx512_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
+        if simd && cfg!(feature = "simd") {
+            f.call::<X16>()
+        } else {
+            f.call::<S1>()
+        }
     }
 
     /// # Safety

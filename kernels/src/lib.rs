@@ -138,7 +138,7 @@ pub use kernel::{
     ScaledVelocity, Scheme, Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
-pub use level::{check_env, dispatch, dispatch_at, dispatch_one, LaneFn, Level};
+pub use level::{check_env, dispatch, dispatch_at, dispatch_default, dispatch_one, LaneFn, Level};
 pub use renorm::{AnchoredRenormRate, InterfaceAnchor, RenormRate};
 pub use window::{
     box27_index, box_far39_index, star19_index, BoxFarWindow, BoxStarWindow, BoxWindow,

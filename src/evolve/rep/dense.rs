@@ -11,7 +11,7 @@ use crate::evolve::{EvolveError, SpatialScheme};
 use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dense::DenseField;
-use levelset_kernels::{BandMasked, BoxMinAbs, DenseBlock, LaneKind, VoxelKernel};
+use levelset_kernels::{BandMasked, BoxMinAbs, DenseBlock, VoxelKernel};
 use std::ops::Range;
 
 /// Band voxels must stay this far from the dense box's faces.
@@ -107,16 +107,12 @@ impl Sweep for DenseSweep<'_> {
         if self.compute_mask {
             pad_into::<1>(&rep.field, &mut rep.padded);
             rep.box_min.resize(n, 0.0);
-            DenseBlock::<1>::new(&rep.padded, dims)?.apply_kind(
-                LaneKind::F32,
-                &BoxMinAbs,
-                &mut rep.box_min,
-            )?;
+            DenseBlock::<1>::new(&rep.padded, dims)?.apply_one(&BoxMinAbs, &mut rep.box_min)?;
         }
         pad_into::<R>(&rep.field, &mut rep.padded);
         let k = BandMasked { step: make(0..n), box_min: &rep.box_min, gamma: rep.spec.gamma() };
         rep.out.resize(n, 0.0);
-        DenseBlock::<R>::new(&rep.padded, dims)?.apply_kind(LaneKind::F32, &k, &mut rep.out)?;
+        DenseBlock::<R>::new(&rep.padded, dims)?.apply_one(&k, &mut rep.out)?;
         Ok(())
     }
 }
@@ -226,8 +222,8 @@ impl Representation for DenseRep {
         let block = DenseBlock::<1>::new(&padded, self.field.dims())?;
         let mut a = vec![0.0; self.field.data().len()];
         let mut b = a.clone();
-        block.apply_kind(LaneKind::F32, &KappaBarTerm::<true> { inv_h, width }, &mut a)?;
-        block.apply_kind(LaneKind::F32, &KappaBarTerm::<false> { inv_h, width }, &mut b)?;
+        block.apply_one(&KappaBarTerm::<true> { inv_h, width }, &mut a)?;
+        block.apply_one(&KappaBarTerm::<false> { inv_h, width }, &mut b)?;
         let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
         num.add_all(&a);
         den.add_all(&b);

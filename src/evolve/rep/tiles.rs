@@ -278,7 +278,7 @@ impl Sweep for TileSweep<'_> {
         M: Fn(Range<usize>) -> K + Sync,
         Halo<R>: crate::evolve::dispatch::Reach,
     {
-        let kind = self.lanes.kind();
+        let simd = self.lanes == Lanes::Simd;
         let TileSweep { grid, table, out, box_min, compute_mask, activity, owned, .. } = self;
         let shared = Shared { grid, table, compute_mask, owned: &owned, make: &make };
         out.par_chunks_mut(TILE_CHUNK)
@@ -288,7 +288,7 @@ impl Sweep for TileSweep<'_> {
             .try_for_each(|(c, ((out, mask), act))| {
                 let chunk =
                     Chunk::<M, R> { shared: &shared, start: c * TILE_CHUNK, out, mask, act };
-                levelset_kernels::dispatch(kind, chunk)
+                levelset_kernels::dispatch_default(simd, chunk)
             })
     }
 }
@@ -667,7 +667,7 @@ impl Representation for TilesRep {
         let inv_h = 1.0 / self.grid.spec().voxel_size;
         let table = self.table();
         let owned = self.owned();
-        let kind = self.lanes.kind();
+        let simd = self.lanes == Lanes::Simd;
         let grid = &self.grid;
         let sums = (0..owned.len().div_ceil(TILE_CHUNK))
             .into_par_iter()
@@ -675,7 +675,7 @@ impl Representation for TilesRep {
                 let start = owned.start + c * TILE_CHUNK;
                 let end = (start + TILE_CHUNK).min(owned.end);
                 let chunk = KappaChunk { grid, table, tiles: start..end, inv_h, width };
-                levelset_kernels::dispatch(kind, chunk)
+                levelset_kernels::dispatch_default(simd, chunk)
             })
             .collect::<Result<Vec<_>, _>>();
         let sums = match (sums, &self.part) {
