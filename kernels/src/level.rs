@@ -352,3 +352,33 @@ mod x86 {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default lane kind follows the `simd` feature at every level (CI runs this
+    /// without the feature too).
+    #[test]
+    fn the_default_lanes_follow_the_simd_feature() {
+        for level in Level::ALL {
+            let kind = level.default_lanes();
+            if cfg!(feature = "simd") {
+                assert!(kind.lanes() >= 8, "{level}: {kind:?}");
+            } else {
+                assert_eq!(kind, LaneKind::F32, "{level}");
+            }
+        }
+        struct Width;
+        impl LaneFn for Width {
+            type Output = usize;
+            fn call<L: Lane>(self) -> usize {
+                L::LANES
+            }
+        }
+        let active = Level::active();
+        assert_eq!(dispatch_default(true, Width), active.default_lanes().lanes());
+        assert_eq!(dispatch_default(false, Width), 1);
+        assert_eq!(dispatch_one(Width), 1);
+    }
+}
