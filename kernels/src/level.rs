@@ -208,12 +208,12 @@ pub fn dispatch<F: LaneFn>(kind: LaneKind, f: F) -> F::Output {
         #[cfg(target_arch = "x86_64")]
         Level::Avx512 => {
             // SAFETY: `Level::active` returns a level only if the CPU has its features.
-            unsafe { x86::avx512(kind, f) }
+            unsafe { x86::avx512::all(kind, f) }
         }
         #[cfg(target_arch = "x86_64")]
         Level::Avx2 => {
             // SAFETY: as above.
-            unsafe { x86::avx2(kind, f) }
+            unsafe { x86::avx2::all(kind, f) }
         }
         _ => baseline(kind, f),
     }
@@ -227,10 +227,10 @@ pub fn dispatch_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
     match Level::active() {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Level::active` returns a level only if the CPU has its features.
-        Level::Avx512 => unsafe { x86::avx512_default(simd, f) },
+        Level::Avx512 => unsafe { x86::avx512::default(simd, f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above.
-        Level::Avx2 => unsafe { x86::avx2_default(simd, f) },
+        Level::Avx2 => unsafe { x86::avx2::default(simd, f) },
         _ => {
             if simd {
                 f.call::<crate::DefaultLane>()
@@ -249,10 +249,10 @@ pub fn dispatch_one<F: LaneFn>(f: F) -> F::Output {
     match Level::active() {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Level::active` returns a level only if the CPU has its features.
-        Level::Avx512 => unsafe { x86::avx512_one(f) },
+        Level::Avx512 => unsafe { x86::avx512::one(f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above.
-        Level::Avx2 => unsafe { x86::avx2_one(f) },
+        Level::Avx2 => unsafe { x86::avx2::one(f) },
         _ => f.call::<f32>(),
     }
 }
@@ -267,10 +267,10 @@ pub fn dispatch_at<F: LaneFn>(level: Level, kind: LaneKind, f: F) -> Option<F::O
         Level::Baseline => baseline(kind, f),
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the CPU has the level's features (checked above).
-        Level::Avx512 => unsafe { x86::avx512(kind, f) },
+        Level::Avx512 => unsafe { x86::avx512::all(kind, f) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above.
-        Level::Avx2 => unsafe { x86::avx2(kind, f) },
+        Level::Avx2 => unsafe { x86::avx2::all(kind, f) },
         #[cfg(not(target_arch = "x86_64"))]
         _ => unreachable!("only the baseline level is available off x86-64"),
     })
@@ -286,71 +286,62 @@ mod x86 {
     use crate::lane::LaneKind;
     use crate::x86::{Pair, S1, X16, X4, X8};
 
-    /// # Safety
-    /// The CPU must have AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn avx2_one<F: LaneFn>(f: F) -> F::Output {
-        f.call::<S1>()
+    /// The three entry points of one level, compiled for its `$features`: every lane kind
+    /// (`$x16` the level's `f32x16`), one voxel, and the engine's two (`$default` the
+    /// level's default SIMD kind).
+    macro_rules! level {
+        ($level:ident, $features:literal, $cpu:literal, x16 $x16:ty, default $default:ty) => {
+            pub(super) mod $level {
+                use super::*;
+
+                /// Every lane kind.
+                ///
+                /// # Safety
+                #[doc = concat!("The CPU must have ", $cpu, ".")]
+                #[target_feature(enable = $features)]
+                pub(in super::super) unsafe fn all<F: LaneFn>(kind: LaneKind, f: F) -> F::Output {
+                    match kind {
+                        LaneKind::F32 => f.call::<S1>(),
+                        LaneKind::F32x4 => f.call::<X4>(),
+                        LaneKind::F32x8 => f.call::<X8>(),
+                        LaneKind::F32x16 => f.call::<$x16>(),
+                    }
+                }
+
+                /// One voxel.
+                ///
+                /// # Safety
+                #[doc = concat!("The CPU must have ", $cpu, ".")]
+                #[target_feature(enable = $features)]
+                pub(in super::super) unsafe fn one<F: LaneFn>(f: F) -> F::Output {
+                    f.call::<S1>()
+                }
+
+                /// The level's default lanes if `simd` (one voxel without the `simd`
+                /// feature), else one voxel.
+                ///
+                /// # Safety
+                #[doc = concat!("The CPU must have ", $cpu, ".")]
+                #[target_feature(enable = $features)]
+                pub(in super::super) unsafe fn default<F: LaneFn>(simd: bool, f: F) -> F::Output {
+                    if simd && cfg!(feature = "simd") {
+                        f.call::<$default>()
+                    } else {
+                        f.call::<S1>()
+                    }
+                }
+            }
+        };
     }
 
-    /// `Level::Avx2.default_lanes()` if `simd` (`f32x8`, or `f32` without the feature),
-    /// else one voxel.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn avx2_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
-        if simd && cfg!(feature = "simd") {
-            f.call::<X8>()
-        } else {
-            f.call::<S1>()
-        }
-    }
-
-    /// `Level::Avx512.default_lanes()` if `simd` (`f32x16`, or `f32` without the
-    /// feature), else one voxel.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512 F, BW, DQ, VL, AVX2 and FMA.
-    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
-    pub(super) unsafe fn avx512_default<F: LaneFn>(simd: bool, f: F) -> F::Output {
-        if simd && cfg!(feature = "simd") {
-            f.call::<X16>()
-        } else {
-            f.call::<S1>()
-        }
-    }
-
-    /// # Safety
-    /// The CPU must have AVX-512 F, BW, DQ, VL, AVX2 and FMA.
-    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
-    pub(super) unsafe fn avx512_one<F: LaneFn>(f: F) -> F::Output {
-        f.call::<S1>()
-    }
-
-    /// # Safety
-    /// The CPU must have AVX2 and FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn avx2<F: LaneFn>(kind: LaneKind, f: F) -> F::Output {
-        match kind {
-            LaneKind::F32 => f.call::<S1>(),
-            LaneKind::F32x4 => f.call::<X4>(),
-            LaneKind::F32x8 => f.call::<X8>(),
-            LaneKind::F32x16 => f.call::<Pair<X8>>(),
-        }
-    }
-
-    /// # Safety
-    /// The CPU must have AVX-512 F, BW, DQ, VL, AVX2 and FMA.
-    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
-    pub(super) unsafe fn avx512<F: LaneFn>(kind: LaneKind, f: F) -> F::Output {
-        match kind {
-            LaneKind::F32 => f.call::<S1>(),
-            LaneKind::F32x4 => f.call::<X4>(),
-            LaneKind::F32x8 => f.call::<X8>(),
-            LaneKind::F32x16 => f.call::<X16>(),
-        }
-    }
+    level!(avx2, "avx2,fma", "AVX2 and FMA", x16 Pair<X8>, default X8);
+    level!(
+        avx512,
+        "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma",
+        "AVX-512 F, BW, DQ, VL, AVX2 and FMA",
+        x16 X16,
+        default X16
+    );
 }
 
 #[cfg(test)]
