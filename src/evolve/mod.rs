@@ -88,6 +88,7 @@
 //! ```
 
 mod dispatch;
+pub(crate) use dispatch::one_value;
 pub mod field;
 mod inputs;
 mod rep;

@@ -175,8 +175,6 @@ impl LaneFn for AreaTerm<'_> {
     fn call<L: Lane>(self) -> f32 {
         let w = BoxWindow::new(self.box27);
         let (_, den) = kappa_bar_integrands::<L, _>(&w, L::splat(self.inv_h), L::splat(self.width));
-        let mut out = [0.0f32; 1];
-        den.store(&mut out);
-        out[0]
+        crate::evolve::one_value(den)
     }
 }
