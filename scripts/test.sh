@@ -5,9 +5,11 @@
 # (target/wheel-venv) with the reference libraries the tests compare against
 # (python/requirements-test.txt) and no Rust toolchain on PATH. The `.vdb` cross-checks run Debian's OpenVDB
 # (python3-openvdb for /usr/bin/python3, vdb_print from libopenvdb-tools), installed with
-# apt-get when missing, as are OpenMPI and libclang for the distributed runs' tests
-# (`cargo test --features mpi`, which start `mpirun -n 2` and `-n 3`). Extra arguments go
-# to `cargo test` (e.g. --no-default-features).
+# apt-get when missing, as are OpenMPI and libclang for the distributed runs' tests: the
+# Rust tests are built once, with the `mpi` feature of the library and the CLI (the tests
+# in cli/tests/distributed start `mpirun -n 2` and `-n 3`; without the feature that binary
+# holds no test, and the only other difference is the refusal of `mpirun` by a build
+# without it). Extra arguments go to `cargo test` (e.g. --no-default-features).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -36,11 +38,8 @@ fi
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q -r python/requirements-test.txt
 
-echo "== [${SECONDS}s] Rust tests"
-cargo test --workspace --locked "$@"
-
-echo "== [${SECONDS}s] under mpirun (feature mpi): distributed runs on 2 and 3 ranks, batches on 2"
-cargo test -p levelset-cli --features mpi --locked --test distributed "$@"
+echo "== [${SECONDS}s] Rust tests, with MPI (distributed runs under mpirun on 2 and 3 ranks)"
+cargo test --workspace --locked --features sparse-levelset/mpi,levelset-cli/mpi "$@"
 
 echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux), tested where no Rust is"
 rm -rf target/wheels
