@@ -18,6 +18,26 @@ const LIMIT: f64 = 16_777_216.0 * SCALE; // 2^24 · 2^32
 /// Terms per i64 block.
 const BLOCK: usize = 64;
 
+/// 2⁵²: every f64 of at least this magnitude is an integer.
+const TWO_52: f64 = 4_503_599_627_370_496.0;
+
+/// `x` rounded to the nearest integer, ties to even: the same value as
+/// [`f64::round_ties_even`] (for NaN, a NaN). Adding and removing 2⁵² (with `x`'s sign)
+/// leaves no fraction bit, and the default rounding mode rounds that sum to even (the sign
+/// is `x`'s, as `round_ties_even` keeps it for a zero result), so this
+/// compiles to packed additions and a blend at every instruction-set level, where
+/// `round_ties_even` is a call to the C library's `rint` per term when the build's
+/// baseline lacks SSE4.1's rounding instructions.
+#[inline(always)]
+fn round_even(x: f64) -> f64 {
+    let c = TWO_52.copysign(x);
+    if x.abs() < TWO_52 {
+        ((x + c) - c).copysign(x)
+    } else {
+        x
+    }
+}
+
 /// A sum of f32 terms that is exact up to the fixed-point rounding of each term, hence
 /// associative and commutative.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -26,7 +46,7 @@ pub struct ExactSum(i128);
 /// The fixed-point value of one term (saturated, NaN → 0).
 #[inline(always)]
 fn fixed(v: f32) -> i64 {
-    let x = (v as f64 * SCALE).round_ties_even();
+    let x = round_even(v as f64 * SCALE);
     // `max`/`min` of f64 return the other operand for NaN: NaN becomes −LIMIT here, so
     // test it first.
     if x.is_nan() {
@@ -85,6 +105,26 @@ impl ExactSum {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn round_even_is_round_ties_even() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        let mut xs: Vec<f64> =
+            vec![0.0, -0.0, 0.5, 1.5, 2.5, -0.5, -1.5, -2.5, 0.49999999999999994];
+        for e in [52, 53, 60] {
+            let t = 2f64.powi(e);
+            xs.extend([t, -t, t - 0.5, t + 1.0, -(t - 0.5), t - 1.5, f64::MAX, f64::INFINITY]);
+        }
+        xs.extend((0..100_000).map(|_| (rng.f64() - 0.5) * 2f64.powi(rng.i32(-4..58))));
+        // Every tie at the 2⁻³² grid of an f32 term.
+        xs.extend((0..1000).map(|k| (k as f64 - 500.0) + 0.5));
+        for x in xs {
+            for x in [x, -x] {
+                assert_eq!(round_even(x).to_bits(), x.round_ties_even().to_bits(), "{x:e}");
+            }
+        }
+        assert!(round_even(f64::NAN).is_nan());
+    }
 
     #[test]
     fn order_does_not_matter() {
