@@ -64,8 +64,10 @@ struct Buffers {
     /// The double buffer and the activity flags the sweep computes with it.
     out: Vec<Tile>,
     activity: Vec<u32>,
-    /// The band mask (min |φⁿ| over each voxel's box), 64 per tile.
-    box_min: Vec<f32>,
+    /// The band mask, one bit per voxel (bit `i` of a tile's word: voxel `i`'s box of φⁿ
+    /// holds a band voxel, min |φⁿ| < γ; see [`band_bits`]): a 32nd of the minima it
+    /// stands for.
+    band: Vec<u64>,
     /// The renormalisation's anchors of φ⁰, 64 per tile.
     anchor: Vec<Tile>,
 }
@@ -74,7 +76,7 @@ impl Buffers {
     /// Bytes they have to allocate to serve `tiles` tiles (φⁿ only with `keeps_phi_n`).
     fn growth(&self, tiles: usize, keeps_phi_n: bool, anchors: bool) -> u64 {
         let mut b = growth_bytes(&self.out, tiles)
-            + growth_bytes(&self.box_min, 64 * tiles)
+            + growth_bytes(&self.band, tiles)
             + growth_bytes(&self.activity, tiles);
         if keeps_phi_n {
             b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
@@ -88,8 +90,17 @@ impl Buffers {
     /// Sizes the sweep buffers for `tiles` tiles.
     fn resize(&mut self, tiles: usize) {
         resize_exact(&mut self.out, tiles, Tile::splat(0.0));
-        resize_exact(&mut self.box_min, 64 * tiles, 0.0);
+        resize_exact(&mut self.band, tiles, 0);
         resize_exact(&mut self.activity, tiles, 0);
+    }
+
+    /// The tile buffer that does not hold φⁿ of the step in progress (`undo`): scratch
+    /// between steps.
+    fn spare(&mut self, undo: Undo) -> &mut Vec<Tile> {
+        match undo {
+            Undo::Out => &mut self.phi_n,
+            Undo::Nothing | Undo::PhiN => &mut self.out,
+        }
     }
 
     /// Frees `out` (and its flags) for further sweeps of the step in progress.
@@ -104,7 +115,7 @@ impl Buffers {
         vec_bytes(&self.phi_n)
             + vec_bytes(&self.phi_n_activity)
             + vec_bytes(&self.out)
-            + vec_bytes(&self.box_min)
+            + vec_bytes(&self.band)
             + vec_bytes(&self.activity)
             + vec_bytes(&self.anchor)
     }
@@ -262,7 +273,7 @@ struct TileSweep<'a> {
     table: &'a NeighbourTable,
     lanes: Lanes,
     out: &'a mut [Tile],
-    box_min: &'a mut [f32],
+    band: &'a mut [u64],
     /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
     compute_mask: bool,
     activity: &'a mut [u32],
@@ -279,10 +290,10 @@ impl Sweep for TileSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let TileSweep { grid, table, out, box_min, compute_mask, activity, owned, .. } = self;
+        let TileSweep { grid, table, out, band, compute_mask, activity, owned, .. } = self;
         let shared = Shared { grid, table, compute_mask, owned: &owned, make: &make };
         out.par_chunks_mut(TILE_CHUNK)
-            .zip(box_min.par_chunks_mut(TILE_CHUNK * 64))
+            .zip(band.par_chunks_mut(TILE_CHUNK))
             .zip(activity.par_chunks_mut(TILE_CHUNK))
             .enumerate()
             .try_for_each(|(c, ((out, mask), act))| {
@@ -308,7 +319,7 @@ struct Chunk<'a, 'c, M, const R: usize> {
     shared: &'a Shared<'a, M>,
     start: usize,
     out: &'c mut [Tile],
-    mask: &'c mut [f32],
+    mask: &'c mut [u64],
     act: &'c mut [u32],
 }
 
@@ -325,23 +336,27 @@ where
         let Shared { grid, table, compute_mask, owned, make } = *shared;
         let gamma = grid.gamma();
         let mut block = PaddedBlock::<R>::new();
+        // The tile's band mask as minima for `BandMasked`: exact in stage 1, stand-ins with
+        // the same comparisons with γ (`band_minima`) in later ones.
+        let mut m = [0.0f32; 64];
         for i in 0..out.len() {
             let pos = start + i;
             let ahead = pos + PaddedBlock::<R>::PREFETCH_AHEAD;
             if ahead < table.len() {
                 PaddedBlock::<R>::prefetch(grid, table.row(ahead));
             }
-            let m: &mut [f32; 64] =
-                (&mut mask[64 * i..64 * i + 64]).try_into().expect("64 mask values per tile");
             let computes = if !owned.contains(&pos) {
                 false
             } else if compute_mask {
                 block.gather_star_row(grid, pos, table.row(pos));
-                block.box_min_abs(gamma, m)
+                block.box_min_abs(gamma, &mut m);
+                mask[i] = band_bits(&m, gamma);
+                mask[i] != 0
             } else {
-                let computes = m.iter().any(|&v| v < gamma);
+                let computes = mask[i] != 0;
                 if computes {
                     block.gather_star_row(grid, pos, table.row(pos));
+                    band_minima(mask[i], gamma, &mut m);
                 }
                 computes
             };
@@ -358,6 +373,25 @@ where
             act[i] = compute_activity(&out[i], gamma);
         }
         Ok(())
+    }
+}
+
+/// The band mask of a tile from its voxels' box minima: bit `i` set iff `m[i] < gamma`.
+#[inline(always)]
+fn band_bits(m: &[f32; 64], gamma: f32) -> u64 {
+    let mut bits = 0u64;
+    for (i, &v) in m.iter().enumerate() {
+        bits |= u64::from(v < gamma) << i;
+    }
+    bits
+}
+
+/// Minima that compare with `gamma` as the ones `bits` came from ([`band_bits`]): 0 for a
+/// set bit (0 < γ), γ for a clear one (not < γ), which is all [`BandMasked`] asks of them.
+#[inline(always)]
+fn band_minima(bits: u64, gamma: f32, m: &mut [f32; 64]) {
+    for (i, v) in m.iter_mut().enumerate() {
+        *v = if (bits >> i) & 1 != 0 { 0.0 } else { gamma };
     }
 }
 
@@ -528,7 +562,7 @@ impl Representation for TilesRep {
             table: &self.table,
             lanes: self.lanes,
             out: &mut self.buf.out,
-            box_min: &mut self.buf.box_min,
+            band: &mut self.buf.band,
             compute_mask: p.stage == 1,
             activity: &mut self.buf.activity,
         };
@@ -559,7 +593,7 @@ impl Representation for TilesRep {
             self.buf.resize(n);
             resize_exact(&mut self.buf.anchor, n, Tile::splat(0.0));
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-            let Buffers { anchor, box_min, activity, .. } = &mut self.buf;
+            let Buffers { anchor, band, activity, .. } = &mut self.buf;
             // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
             let sweep = TileSweep {
                 owned: owned.clone(),
@@ -567,7 +601,7 @@ impl Representation for TilesRep {
                 table: &self.table,
                 lanes: self.lanes,
                 out: anchor,
-                box_min,
+                band,
                 compute_mask: fresh,
                 activity,
             };
@@ -577,14 +611,14 @@ impl Representation for TilesRep {
             self.buf.vacate_out(&mut self.undo);
             self.buf.resize(n);
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-            let Buffers { out, box_min, activity, anchor, .. } = &mut self.buf;
+            let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
             let sweep = TileSweep {
                 owned: owned.clone(),
                 grid: &self.grid,
                 table: &self.table,
                 lanes: self.lanes,
                 out,
-                box_min,
+                band,
                 // At rest, the single sweep computes the band mask of φ⁰ itself.
                 compute_mask: fresh && !anchored && s == 0,
                 activity,
@@ -606,12 +640,20 @@ impl Representation for TilesRep {
         // new list in the next step, which admits them before its first stage.
         let table = &self.table;
         debug_assert_eq!(table.len(), self.grid.len(), "stale neighbour table");
-        let managed = self.grid.manage_tiles_checked(Some(table), |tiles| {
-            let needed = current
-                + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
-                + table.growth_bytes(tiles) as u64;
-            budget.admit(needed, current, "the band's tiles")
-        });
+        // The new list's values go into the memory of the step buffer that does not hold
+        // φⁿ, when it is large enough; the list before the step then keeps no values of
+        // its own (φⁿ is put back into it on undo).
+        let spare = self.buf.spare(self.undo);
+        let managed = self.grid.manage_tiles_checked(
+            Some(table),
+            |tiles| {
+                let needed = current
+                    + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
+                    + table.growth_bytes(tiles) as u64;
+                budget.admit(needed, current, "the band's tiles")
+            },
+            spare,
+        );
         let (_, prev) = match (managed, &self.part) {
             (Ok(m), _) => m,
             (Err(e), None) => return Err(e.into()),

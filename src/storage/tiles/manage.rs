@@ -46,6 +46,14 @@ fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
     out
 }
 
+/// `total` copies of `v`, with the headroom of a growing band's buffers
+/// (`grown_capacity`): the step buffers the arena is swapped with then rarely have to grow.
+fn filled<T: Clone>(total: usize, v: T) -> Vec<T> {
+    let mut out = Vec::with_capacity(grown_capacity(total));
+    out.resize(total, v);
+    out
+}
+
 impl TileGrid {
     /// Tile management (Sec. 4.6, Algorithm 3) in parallel chunks (keep/remove by pull,
     /// creation by push, compaction by a prefix sum; docs/decisions/0004): keeps,
@@ -60,7 +68,7 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
-        self.manage_tiles_checked(None, |_| Ok(())).map(|(stats, _)| stats)
+        self.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new()).map(|(stats, _)| stats)
     }
 
     /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
@@ -68,10 +76,19 @@ impl TileGrid {
     /// returns the previous grid when the list changed (`None` when nothing changed), so
     /// that a caller can put it back. `table`, when given, holds the neighbours of the
     /// current list (a caller that keeps one saves the walk that finds them).
+    ///
+    /// `spare` is a buffer of tiles whose contents do not matter (a step's scratch
+    /// buffer). When its capacity holds the new list, the new values are written into its
+    /// memory instead of a new allocation, and the previous grid returned **lends its
+    /// values** to `spare` in exchange: its value array is then empty (its list, border
+    /// and activity flags are whole), and [`TileGrid::swap_values`] must give it a full
+    /// set (φⁿ, which a caller that undoes a step holds anyway) before it is used. So the
+    /// list changes without a second value array next to the first.
     pub(crate) fn manage_tiles_checked(
         &mut self,
         table: Option<&NeighbourTable>,
         admit: impl FnOnce(usize) -> Result<(), GridError>,
+        spare: &mut Vec<Tile>,
     ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
         if n == 0 {
@@ -94,9 +111,21 @@ impl TileGrid {
         let total = stats.kept + stats.created;
         super::grid::check_list_len(total)?;
         admit(total)?;
+        let recycle = spare.capacity() >= total;
+        let arena = if recycle {
+            let mut a = std::mem::take(spare);
+            a.clear();
+            a.resize(total, Tile::splat(0.0));
+            a
+        } else {
+            filled(total, Tile::splat(0.0))
+        };
         let (coords, arena, border, activity) =
-            self.compact(&keep, &border_new, &created, &created_inside, total);
-        let prev = self.replace_list(coords, arena, border, activity);
+            self.compact(&keep, &border_new, &created, &created_inside, arena);
+        let mut prev = self.replace_list(coords, arena, border, activity);
+        if recycle {
+            std::mem::swap(spare, &mut prev.arena);
+        }
         Ok((stats, Some(prev)))
     }
 
@@ -217,8 +246,8 @@ impl TileGrid {
         created_inside
     }
 
-    /// Phase 3: the new list of `total` tiles in list order (coordinates, values, border
-    /// and activity flags). Each chunk merges its kept tiles with the created tiles of its
+    /// Phase 3: the new list in list order (coordinates, values, border and activity
+    /// flags), its values written into `new_arena` (one tile per entry of the new list). Each chunk merges its kept tiles with the created tiles of its
     /// coordinate range; a prefix sum over the chunks' counts places every chunk's output,
     /// written in parallel.
     #[allow(clippy::type_complexity)] // the four arrays of a list
@@ -228,8 +257,9 @@ impl TileGrid {
         border_new: &[AtomicU32],
         created: &[Coord],
         created_inside: &[bool],
-        total: usize,
+        mut new_arena: Vec<Tile>,
     ) -> (Vec<Coord>, Vec<Tile>, Vec<u32>, Vec<u32>) {
+        let total = new_arena.len();
         let (coords, arena, activity) = (&self.coords[..], &self.arena[..], &self.activity[..]);
         let n = coords.len();
         let chunks = n.div_ceil(CHUNK);
@@ -246,15 +276,7 @@ impl TileGrid {
                 k + cuts[c + 1] - cuts[c]
             })
             .collect();
-        // With the headroom of a growing band's buffers (`grown_capacity`): the step
-        // buffers the arena is swapped with then rarely have to grow.
-        fn filled<T: Clone>(total: usize, v: T) -> Vec<T> {
-            let mut out = Vec::with_capacity(grown_capacity(total));
-            out.resize(total, v);
-            out
-        }
         let mut new_coords = filled(total, Coord::default());
-        let mut new_arena = filled(total, Tile::splat(0.0));
         let mut new_border = filled(total, 0u32);
         let mut new_activity = filled(total, 0u32);
         split_by(&mut new_coords, &lens)

@@ -384,15 +384,19 @@ fn management_admission_and_undo_restore_the_grid() {
         randomize_activity(&mut grid, &mut rng);
         let before = grid.clone();
         let refuse = |_: usize| Err(GridError::InvalidParameter("refused".into()));
-        assert!(grid.manage_tiles_checked(None, refuse).is_err());
+        assert!(grid.manage_tiles_checked(None, refuse, &mut Vec::new()).is_err());
         grid.check_invariants().unwrap();
         assert_same_grid(&grid, &before);
         let mut asked = None;
         let (stats, prev) = grid
-            .manage_tiles_checked(None, |n| {
-                asked = Some(n);
-                Ok(())
-            })
+            .manage_tiles_checked(
+                None,
+                |n| {
+                    asked = Some(n);
+                    Ok(())
+                },
+                &mut Vec::new(),
+            )
             .unwrap();
         grid.check_invariants().unwrap();
         let changed = stats.removed + stats.created > 0;
@@ -436,13 +440,33 @@ fn parallel_management_equals_streamed() {
             let want_stats = want.manage_tiles_streamed().unwrap();
             let mut table = NeighbourTable::default();
             table.rebuild(grid.tile_coords());
-            // Each pool, finding the neighbours itself and reading them from a table.
-            for (pool, with_table) in pools.iter().flat_map(|p| [(p, false), (p, true)]) {
+            // Each pool, finding the neighbours itself and reading them from a table, with
+            // new memory or a spare buffer of garbage.
+            let runs = pools.iter().flat_map(|p| [(p, false), (p, true)]);
+            for ((pool, with_table), recycle) in runs.flat_map(|r| [(r, false), (r, true)]) {
                 let mut got = grid.clone();
-                let stats = pool
-                    .install(|| got.manage_tiles_checked(with_table.then_some(&table), |_| Ok(())))
-                    .unwrap()
-                    .0;
+                let mut spare = if recycle {
+                    vec![Tile::splat(f32::NAN); 2 * grid.len() + 64]
+                } else {
+                    Vec::new()
+                };
+                let (stats, prev) = pool
+                    .install(|| {
+                        got.manage_tiles_checked(
+                            with_table.then_some(&table),
+                            |_| Ok(()),
+                            &mut spare,
+                        )
+                    })
+                    .unwrap();
+                if let Some(prev) = prev {
+                    // Recycled: the new values live in the spare's memory, and the previous
+                    // grid's values (the list's before) were lent to it.
+                    let lent = if recycle { &spare } else { &prev.arena };
+                    assert_eq!(lent, &grid.arena);
+                    assert_eq!(prev.arena.is_empty(), recycle);
+                    assert_eq!(prev.tile_coords(), grid.tile_coords());
+                }
                 assert_eq!(stats, want_stats);
                 assert_eq!(got.tile_coords(), want.tile_coords());
                 for p in 0..got.len() {
