@@ -28,6 +28,13 @@ fn meminfo() -> Option<u64> {
     kib_field(&s, "MemAvailable:")
 }
 
+/// The most memory this process has held resident so far (`VmHWM` of
+/// `/proc/self/status`), `None` where the operating system does not say.
+pub fn peak_resident() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    kib_field(&s, "VmHWM:")
+}
+
 /// A `Name:   1234 kB` field of a `/proc` file, in bytes.
 fn kib_field(s: &str, name: &str) -> Option<u64> {
     let line = s.lines().find(|l| l.starts_with(name))?;

@@ -21,11 +21,13 @@
 use serde::Serialize;
 use sparse_levelset::distributed::{HaloStats, Transport};
 use sparse_levelset::evolve::{
-    EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures, Reinit,
-    Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, TimeStep, Velocity,
+    tile_step_copies, EnrightVelocity, EvolveError, Flow, GridKind, Integrator, Lanes, Measures,
+    Reinit, Renormalization, Settings, Simulation, SpatialScheme, Speed, StaticSdf, TimeStep,
+    Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::io::input::{self, Expect, InputError};
+use sparse_levelset::storage::convert::band_bytes;
 use sparse_levelset::storage::shapes::Shape;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -282,6 +284,25 @@ pub struct Summary {
     /// The ranks of a distributed run.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distributed: Option<DistributedSummary>,
+    /// The memory the run took.
+    pub memory: MemorySummary,
+}
+
+/// The memory of a run: the estimate it was admitted with, what the simulation held and
+/// what the process held resident, at their peaks.
+#[derive(Clone, Debug, Serialize)]
+pub struct MemorySummary {
+    /// The peak the memory check assumed ([`Scenario::estimated_bytes`]).
+    pub estimated_bytes: Option<f64>,
+    /// The most bytes the simulation held at a recorded step (grid, buffers and inputs:
+    /// [`Measures::bytes`] + [`Measures::work_bytes`]), this rank's.
+    pub held_bytes: u64,
+    /// The process's peak resident memory ([`sparse_levelset::memory::peak_resident`]).
+    pub peak_resident_bytes: Option<u64>,
+    /// `peak_resident_bytes` per band voxel at the end.
+    pub peak_resident_per_band_voxel: Option<f64>,
+    /// `peak_resident_bytes` over the grid's own bytes at the end.
+    pub peak_resident_over_grid: Option<f64>,
 }
 
 /// How a distributed run was spread over its ranks.
@@ -306,6 +327,9 @@ pub struct Scenario {
     pub sim: Simulation,
     /// Times to land on exactly and record (Enright's T/2 and T).
     pub milestones: Vec<f64>,
+    /// The peak the memory check assumed before the band was built (a shape on tiles:
+    /// its band's estimated bytes times [`tile_step_copies`]).
+    pub estimated_bytes: Option<f64>,
 }
 
 /// Errors of [`Scenario::resolve`]: a parameter, or the `init` field.
@@ -500,18 +524,22 @@ impl Scenario {
         }
         let spec = spec(voxel, o.half_width)?;
         let dense = matches!(o.grid, GridKind::Dense);
+        let mut estimated_bytes = None;
         let init = match &o.init {
             Some(path) => {
                 let copies = if dense { DENSE_COPIES } else { 1.0 };
                 Some(input::load_npy(path, &Expect { copies, ..Expect::new(spec) })?)
             }
             None => {
-                // The evolution holds about five band-sized arrays.
-                input::check_shape(
-                    kind.name(),
-                    &shape,
-                    &Expect { copies: 5.0, ..Expect::new(spec) },
-                )?;
+                // What the evolution holds while it steps, in tile grids of the band (the
+                // DT-Grid's arrays and buffers are smaller per band voxel; the dense
+                // reference's box is checked below).
+                let integrator = o.integrator.unwrap_or(defaults.integrator);
+                let copies = tile_step_copies(&flow, integrator, renormalization);
+                input::check_shape(kind.name(), &shape, &Expect { copies, ..Expect::new(spec) })?;
+                if matches!(o.grid, GridKind::Tiles(_)) {
+                    estimated_bytes = Some(band_bytes(&shape, &spec) * copies);
+                }
                 if dense {
                     check_dense_box(&shape, &spec)?;
                 }
@@ -592,7 +620,7 @@ impl Scenario {
             (ScenarioKind::Enright, Some(t)) => vec![t / 2.0, t],
             _ => Vec::new(),
         };
-        Ok(Scenario { params, sim, milestones })
+        Ok(Scenario { params, sim, milestones, estimated_bytes })
     }
 
     /// Runs to the requested steps or time (or collapse), recording every
@@ -674,10 +702,27 @@ impl Scenario {
             volume_ratio_half_period: ratios.first().copied(),
             volume_ratio_period: ratios.get(1).copied(),
             volume_ratio: last.volume / m0.volume,
+            memory: memory_summary(&records, self.estimated_bytes),
             records,
             distributed,
         };
         Ok((summary, self.sim))
+    }
+}
+
+fn memory_summary(records: &[Record], estimated_bytes: Option<f64>) -> MemorySummary {
+    let last = records.last().expect("the initial record");
+    let peak = sparse_levelset::memory::peak_resident();
+    MemorySummary {
+        estimated_bytes,
+        held_bytes: records.iter().map(|r| (r.bytes + r.work_bytes) as u64).max().unwrap_or(0),
+        peak_resident_bytes: peak,
+        peak_resident_per_band_voxel: peak
+            .filter(|_| last.band_voxels > 0)
+            .map(|p| p as f64 / last.band_voxels as f64),
+        peak_resident_over_grid: peak
+            .filter(|_| last.bytes > 0)
+            .map(|p| p as f64 / last.bytes as f64),
     }
 }
 

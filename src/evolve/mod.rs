@@ -404,6 +404,37 @@ pub struct Reinit {
     pub every: u64,
 }
 
+pub(crate) use rep::TILE_GRID_BYTES;
+
+/// How many times the bytes of its tile grid (values and the list's other arrays) a
+/// simulation on tiles holds while it steps with this flow, integrator and
+/// renormalisation: the engine's buffers ([`Integrator::Rk3`] and
+/// [`Renormalization::Sweeps`] keep φⁿ; more than one sweep keeps the anchors) and the
+/// flow's per-voxel inputs (a velocity field: its samples and the previous ones, six
+/// values per voxel; a speed field or a morph target: two; a curvature field: one).
+/// The peak a run's memory check assumes, against a band's estimated bytes
+/// ([`crate::storage::convert::band_bytes`]).
+pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormalization) -> f64 {
+    let (keeps_phi_n, anchors) = match renorm {
+        Renormalization::Sweeps(s) => (true, dispatch::anchors_stored(s.sweeps)),
+        _ => (integrator == Integrator::Rk3, false),
+    };
+    let keeps_phi_n = keeps_phi_n || integrator == Integrator::Rk3;
+    let mut fields = 0u64;
+    if matches!(flow.velocity, Some(Velocity::Field(_))) {
+        fields += 6;
+    }
+    if !matches!(flow.speed, Speed::Constant(_)) {
+        fields += 2;
+    }
+    if flow.curvature_field.is_some() {
+        fields += 1;
+    }
+    let tile_values = std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
+    let bytes = rep::step_bytes_per_tile(keeps_phi_n, anchors) + fields * tile_values;
+    bytes as f64 / TILE_GRID_BYTES as f64
+}
+
 /// How φ is kept close to a signed distance (|∇φ| = 1) while the flow moves it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "lowercase", tag = "kind")]

@@ -21,7 +21,7 @@ pub(crate) mod tiles;
 
 pub(crate) use dense::DenseRep;
 pub(crate) use dtgrid::DtRep;
-pub(crate) use tiles::TilesRep;
+pub(crate) use tiles::{step_bytes_per_tile, TilesRep, TILE_GRID_BYTES};
 
 use super::dispatch::{RenormParams, StageParams};
 use super::field::{ScalarFn, VectorFn};

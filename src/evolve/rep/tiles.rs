@@ -28,8 +28,26 @@ const TILE_CHUNK: usize = 64;
 
 /// Bytes per tile of the grid's own arrays (values, coordinate, border and activity; the
 /// row directory is small against them).
-const TILE_GRID_BYTES: u64 =
+pub(crate) const TILE_GRID_BYTES: u64 =
     (std::mem::size_of::<Tile>() + std::mem::size_of::<Coord>() + 2 * 4) as u64;
+
+/// Bytes per tile the engine holds while it steps: the grid's own arrays, the double
+/// buffer with its activity flags, the band mask, the neighbour table's row, and φⁿ (with
+/// its flags) and the renormalisation's anchors when the steps keep them (see
+/// [`Buffers`]). Tile management builds the new list's values in a step buffer, so it adds
+/// only the list's small arrays.
+pub(crate) fn step_bytes_per_tile(keeps_phi_n: bool, anchors: bool) -> u64 {
+    let tile = std::mem::size_of::<Tile>() as u64;
+    let row = std::mem::size_of::<crate::storage::tiles::NeighbourRow>() as u64;
+    let mut b = TILE_GRID_BYTES + (tile + 4) + 8 + row;
+    if keeps_phi_n {
+        b += tile + 4;
+    }
+    if anchors {
+        b += tile;
+    }
+    b
+}
 
 /// The tile engine: the grid holds the current values; `out` is the double buffer the
 /// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.

@@ -380,6 +380,20 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
         last.bytes,
         summary.checksum
     );
+    let m = &summary.memory;
+    if let Some(peak) = m.peak_resident_bytes {
+        let gb = |b: f64| b / 1e9;
+        outln!(
+            "memory: peak resident {:.2} GB ({:.1} bytes per band voxel, {:.2} × the grid's \
+             bytes){}",
+            gb(peak as f64),
+            m.peak_resident_per_band_voxel.unwrap_or(f64::NAN),
+            m.peak_resident_over_grid.unwrap_or(f64::NAN),
+            m.estimated_bytes
+                .map(|e| format!("; estimated before the run {:.2} GB", gb(e)))
+                .unwrap_or_default()
+        );
+    }
     if let (Some(h), Some(p)) = (summary.volume_ratio_half_period, summary.volume_ratio_period) {
         outln!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
     }
