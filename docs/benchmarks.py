@@ -35,6 +35,11 @@ RUNS = [
     # The Stanford bunny is fetched from npm first (docs/data/fetch_bunny.py; not committed).
     ("memory.json", SPEEDUP + ["--memory", "--memory-mesh", "target/bunny.ply",
                                "--json", "docs/data/memory.json"]),
+    # Memory while stepping: a sphere of radius 800 and 1600 voxels, three steps each.
+    ("run-sphere-2048", LEVELSET + ["run", "sphere", "--size", "2048", "--steps", "3",
+                                    "--quiet", "--out", "docs/data/run-sphere-2048"]),
+    ("run-sphere-4096", LEVELSET + ["run", "sphere", "--size", "4096", "--steps", "3",
+                                    "--quiet", "--out", "docs/data/run-sphere-4096"]),
     ("run-spiral", LEVELSET + ["run", "spiral", "--quiet", "--out", "docs/data/run-spiral"]),
     ("run-enright", LEVELSET + ["run", "enright", "--quiet", "--out", "docs/data/run-enright"]),
     ("run-expand", LEVELSET + ["run", "expand", "--quiet", "--out", "docs/data/run-expand"]),
@@ -135,11 +140,14 @@ def speedup_section(meta):
         f" {runs[0].get('reps', 1)} runs of each configuration (every grid alike); every run of a"
         " scenario ends with the same band (checksum below, max |φ_tiles − φ_dtgrid| = 0)."
         " \"Engine / kernel-only\" is tiles SIMD on one thread against the kernels' in-cache"
-        " throughput of the same arithmetic (a dense 32³ block).",
+        " throughput of the same arithmetic (a dense 32³ block). \"Held per band voxel\" is"
+        " what tiles SIMD held while stepping (grid, step buffers, neighbour table, the flow's"
+        " per-voxel inputs) over its band voxels.",
         "",
         "| scenario | DT-Grid s | tiles scalar | tiles SIMD, 1 thread | tiles SIMD, 2 threads"
-        " | 2 threads / 1 | bytes tiles / DT-Grid | engine / kernel-only | checksum |",
-        "|---|---|---|---|---|---|---|---|---|",
+        " | 2 threads / 1 | bytes tiles / DT-Grid | held per band voxel | engine / kernel-only"
+        " | checksum |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for i, sc in enumerate(runs[0]["scenarios"]):
         both = [r["scenarios"][i] for r in runs]
@@ -157,6 +165,9 @@ def speedup_section(meta):
         scal = [run(s, ("tiles", "scalar", 1)) for s in both]
         simd1 = [run(s, ("tiles", "simd", 1)) for s in both]
         top = [max(s["runs"], key=lambda r: r["threads"]) for s in both]
+        held = lambda r: (
+            f"{r['held_bytes_per_band_voxel']:.1f} B" if "held_bytes_per_band_voxel" in r else "—"
+        )
         x = lambda v: f"{v:.2f}×"
         out.append(
             f"| {sc['name']} {sc['size']}³, {sc['kernel']}, {sc['steps']} steps"
@@ -166,6 +177,7 @@ def speedup_section(meta):
             f" | {pair(top[0]['speedup_vs_dtgrid'], top[1]['speedup_vs_dtgrid'], x)}"
             f" | {pair(simd1[0]['seconds'] / top[0]['seconds'], simd1[1]['seconds'] / top[1]['seconds'], lambda v: f'{v:.2f}')}"
             f" | {top[0]['bytes_vs_dtgrid']:.2f}"
+            f" | {held(simd1[0])}"
             f" | {pair(both[0]['engine_fraction_of_kernel'], both[1]['engine_fraction_of_kernel'], lambda v: f'{100 * v:.0f} %')}"
             f" | `{dt[0]['checksum']}` |"
         )
@@ -409,6 +421,34 @@ def evolution_section(meta):
     return out
 
 
+def stepping_memory_section(meta):
+    out = [
+        "## Memory while stepping",
+        "",
+        "Large spheres on tiles (first-order upwind, forward Euler, two renormalisation"
+        " sweeps per step with their anchors: the `sphere` scenario's defaults), both cores;"
+        " from each run's `summary.json`. Peak resident is the process's (`VmHWM`), set-up"
+        " included; the estimate is what the run was admitted with before the band was built"
+        " (the shape's area times the band's stored thickness, times the engine's bytes per"
+        " tile while stepping).",
+        "",
+        "| command | band voxels | grid bytes | seconds per step | peak resident"
+        " | per band voxel | × grid | estimate (error) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name in ["run-sphere-2048", "run-sphere-4096"]:
+        s = load(f"{name}/summary.json")
+        last, m = s["records"][-1], s["memory"]
+        peak, est = m["peak_resident_bytes"], m["estimated_bytes"]
+        out.append(
+            f"| `{meta['commands'][name]}` | {last['band_voxels']:,} | {last['bytes'] / 1e9:.3f} GB"
+            f" | {s['seconds'] / s['steps_taken']:.2f} | {peak / 1e9:.2f} GB"
+            f" | {m['peak_resident_per_band_voxel']:.1f} B | {m['peak_resident_over_grid']:.2f}"
+            f" | {est / 1e9:.2f} GB ({100 * (est - peak) / peak:+.0f} %) |"
+        )
+    return out
+
+
 def segmentation_section(meta):
     runs = [load("speedup-1.json"), load("speedup-2.json")]
     rows = runs[0]["segmentation"]
@@ -549,7 +589,7 @@ def write():
     ]
     sections = [speedup_section, segmentation_section, python_section, distributed_section,
                 solution_section, info_section, memory_table_section, storage_section,
-                evolution_section]
+                stepping_memory_section, evolution_section]
     for section in sections:
         try:
             parts += section(meta) + [""]

@@ -67,6 +67,9 @@ pub struct RunResult {
     pub bytes: usize,
     pub bytes_vs_dtgrid: f64,
     pub speedup_vs_dtgrid: f64,
+    /// The most bytes the simulation held while it stepped (the representation, its step
+    /// buffers and the flow's per-voxel inputs), per band voxel at the end.
+    pub held_bytes_per_band_voxel: f64,
     /// Checksum of the final band (equal for equal bands).
     pub checksum: String,
 }
@@ -333,6 +336,8 @@ pub fn run_speedup(
                 bytes: last.bytes,
                 bytes_vs_dtgrid: 0.0,
                 speedup_vs_dtgrid: 0.0,
+                held_bytes_per_band_voxel: summary.memory.held_bytes as f64
+                    / last.band_voxels.max(1) as f64,
                 checksum: summary.checksum.clone(),
             });
             if reference.is_none() {
@@ -407,7 +412,7 @@ impl SpeedupReport {
             );
             let _ = writeln!(
                 s,
-                "  {:<13} {:>7} {:>9} {:>10} {:>13} {:>9} {:>11} {:>8}  checksum",
+                "  {:<13} {:>7} {:>9} {:>10} {:>13} {:>9} {:>11} {:>8} {:>9}  checksum",
                 "grid",
                 "threads",
                 "seconds",
@@ -415,12 +420,13 @@ impl SpeedupReport {
                 "band Mvox/s",
                 "speed-up",
                 "bytes",
-                "bytes/DT"
+                "bytes/DT",
+                "held B/bv"
             );
             for r in &sc.runs {
                 let _ = writeln!(
                     s,
-                    "  {:<13} {:>7} {:>9.3} {:>10.1} {:>13.1} {:>8.2}x {:>11} {:>8.2}  {}",
+                    "  {:<13} {:>7} {:>9.3} {:>10.1} {:>13.1} {:>8.2}x {:>11} {:>8.2} {:>9.1}  {}",
                     r.label,
                     r.threads,
                     r.seconds,
@@ -429,6 +435,7 @@ impl SpeedupReport {
                     r.speedup_vs_dtgrid,
                     r.bytes,
                     r.bytes_vs_dtgrid,
+                    r.held_bytes_per_band_voxel,
                     r.checksum
                 );
             }

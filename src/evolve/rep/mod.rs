@@ -13,7 +13,9 @@
 //! put the state before the step back: φⁿ (the double buffer the first stage swapped
 //! out, or the φⁿ buffer of TVD-RK3, so no copy is made) and, when the band maintenance of
 //! [`Representation::finish_step`] replaced the tile list or the DT-Grid, the previous one
-//! (which the replacement would otherwise drop).
+//! (which the replacement would otherwise drop; the tile list's without values of its own
+//! when the new list's were built in a step buffer, see
+//! [`crate::storage::tiles::TileGrid::manage_tiles`]: φⁿ is put back into it).
 
 pub(crate) mod dense;
 pub(crate) mod dtgrid;
