@@ -349,7 +349,7 @@ const TILE_PADDING_VOXELS: f64 = 7.5;
 
 /// The bytes of the tile grid of `shape`'s band while it evolves (values and the list's
 /// other arrays): its area ([`Shape::area`]) in voxels times the band's thickness in stored
-/// voxels (2 × half-width + [`TILE_PADDING_VOXELS`]), 4 bytes each and 276 bytes per tile
+/// voxels (2 × half-width + 7.5, see the constant `TILE_PADDING_VOXELS`), 4 bytes each and 276 bytes per tile
 /// of 256 bytes of values.
 pub fn band_bytes(shape: &Shape, spec: &GridSpec) -> f64 {
     let h = spec.voxel_size as f64;
