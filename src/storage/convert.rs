@@ -357,3 +357,37 @@ pub fn band_bytes(shape: &Shape, spec: &GridSpec) -> f64 {
     let voxels = area * (2.0 * spec.half_width as f64 + TILE_PADDING_VOXELS);
     voxels * 4.0 * crate::evolve::TILE_GRID_BYTES as f64 / 256.0
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The areas and the estimate against bands built from the shapes: a band of half
+    /// width w holds about 2w voxels per voxel of area (fewer along a box's edges, where
+    /// the inner band's two faces overlap), and a built tile grid (without the neighbour
+    /// layer an evolution adds) takes 2w + 4.5 of the estimate's 2w + 7.5 (less for a box,
+    /// whose faces lie along the tiles: the estimate errs on the large side there).
+    #[test]
+    fn band_estimate_follows_built_bands() {
+        let c = [0.0; 3];
+        let shapes = [
+            Shape::Sphere { center: c, radius: 40.0 },
+            Shape::Torus { center: c, major_radius: 40.0, minor_radius: 15.0 },
+            Shape::Box { center: c, half_extents: [30.0, 20.0, 25.0] },
+            Shape::Ellipsoid { center: c, radii: [40.0, 25.0, 30.0] },
+            Shape::spiral_default(c, 50.0, 40.0),
+        ];
+        let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+        let g = spec.gamma();
+        for shape in shapes {
+            let grid = tiles_from_shape(&shape, spec).unwrap();
+            let band = grid.values().iter().flat_map(|t| t.0).filter(|v| v.abs() < g).count();
+            let per_area = band as f64 / shape.area();
+            let low = if matches!(shape, Shape::Box { .. }) { 4.8 } else { 5.6 };
+            assert!((low..6.4).contains(&per_area), "{shape:?}: {per_area} band voxels per area");
+            let ratio = band_bytes(&shape, &spec) / grid.memory().used() as f64;
+            let high = if matches!(shape, Shape::Box { .. }) { 1.8 } else { 1.5 };
+            assert!((1.1..high).contains(&ratio), "{shape:?}: estimate / built grid {ratio}");
+        }
+    }
+}
