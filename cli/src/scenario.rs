@@ -514,6 +514,7 @@ impl Scenario {
             steps = Some(100);
         }
         let renormalization = o.renormalization.unwrap_or(defaults.renormalization);
+        let integrator = o.integrator.unwrap_or(defaults.integrator);
         let cfl = o.cfl.unwrap_or(defaults.cfl);
         let voxel = o.voxel_size.filter(|_| o.init.is_some()).unwrap_or(voxel);
         if !(o.half_width > 1.0 && o.half_width <= 64.0) {
@@ -534,7 +535,6 @@ impl Scenario {
                 // What the evolution holds while it steps, in tile grids of the band (the
                 // DT-Grid's arrays and buffers are smaller per band voxel; the dense
                 // reference's box is checked below).
-                let integrator = o.integrator.unwrap_or(defaults.integrator);
                 let copies = tile_step_copies(&flow, integrator, renormalization);
                 input::check_shape(kind.name(), &shape, &Expect { copies, ..Expect::new(spec) })?;
                 if matches!(o.grid, GridKind::Tiles(_)) {
@@ -552,7 +552,7 @@ impl Scenario {
         );
         let settings = Settings {
             scheme: o.scheme.unwrap_or(defaults.scheme),
-            integrator: o.integrator.unwrap_or(defaults.integrator),
+            integrator,
             time_step: TimeStep::Cfl(cfl),
             renormalization,
             pool: Some(pool),

@@ -415,11 +415,7 @@ pub(crate) use rep::TILE_GRID_BYTES;
 /// The peak a run's memory check assumes, against a band's estimated bytes
 /// ([`crate::storage::convert::band_bytes`]).
 pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormalization) -> f64 {
-    let (keeps_phi_n, anchors) = match renorm {
-        Renormalization::Sweeps(s) => (true, dispatch::anchors_stored(s.sweeps)),
-        _ => (integrator == Integrator::Rk3, false),
-    };
-    let keeps_phi_n = keeps_phi_n || integrator == Integrator::Rk3;
+    let (keeps_phi_n, anchors) = step_keeps(integrator, renorm);
     let mut fields = 0u64;
     if matches!(flow.velocity, Some(Velocity::Field(_))) {
         fields += 6;
@@ -433,6 +429,16 @@ pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormaliza
     let tile_values = std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
     let bytes = rep::step_bytes_per_tile(keeps_phi_n, anchors) + fields * tile_values;
     bytes as f64 / TILE_GRID_BYTES as f64
+}
+
+/// What a step keeps besides the double buffer: φⁿ (TVD-RK3, or a renormalisation in the
+/// step) and the renormalisation's anchors (more than one sweep). The one rule of the
+/// memory budget and of [`tile_step_copies`].
+pub(crate) fn step_keeps(integrator: Integrator, renorm: Renormalization) -> (bool, bool) {
+    match renorm {
+        Renormalization::Sweeps(s) => (true, dispatch::anchors_stored(s.sweeps)),
+        _ => (integrator == Integrator::Rk3, false),
+    }
 }
 
 /// How φ is kept close to a signed distance (|∇φ| = 1) while the flow moves it.

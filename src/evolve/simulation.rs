@@ -244,14 +244,12 @@ impl Simulation {
 
     /// The memory budget of [`Settings::memory_limit`].
     fn budget(&self) -> MemoryBudget {
-        let sweeps = match self.settings.renormalization {
-            Renormalization::Sweeps(s) => Some(s.sweeps),
-            _ => None,
-        };
+        let (keeps_phi_n, anchors) =
+            super::step_keeps(self.settings.integrator, self.settings.renormalization);
         MemoryBudget {
             limit: self.settings.memory_limit,
-            keeps_phi_n: self.settings.integrator == Integrator::Rk3 || sweeps.is_some(),
-            anchors: sweeps.is_some_and(anchors_stored),
+            keeps_phi_n,
+            anchors,
             held: self.inputs.bytes() as u64,
         }
     }

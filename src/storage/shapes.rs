@@ -156,7 +156,7 @@ impl Shape {
 
     /// The surface area, in world units squared: exact for the sphere, the torus, the box
     /// and the spiral (its arm's outline times the depth plus both flat caps); Knud
-    /// Thomsen's formula for the ellipsoid (relative error below 1.1 %); the sum of the
+    /// Thomsen's approximation for the ellipsoid; the sum of the
     /// parts' areas for a union (an upper bound where they overlap). What memory estimates
     /// of a band scale with.
     pub fn area(&self) -> f64 {
