@@ -25,14 +25,21 @@ macro_rules! outln {
 /// Writes `value` as pretty JSON to `path` (atomically: temporary file, then rename) and
 /// says so on standard output.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
+    stage_json(path, value)?;
+    outln!("wrote {}", path.display());
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON to `path` (atomically) without a word: for a staged
+/// output ([`sparse_levelset::io::fsutil::Outputs`]), whose temporary name is no name to
+/// tell a user; the command reports the outputs once they are in place.
+pub fn stage_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let text = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
     sparse_levelset::io::fsutil::write_atomic(path, |w| {
         use std::io::Write;
         w.write_all(text.as_bytes())
     })
-    .map_err(|e| format!("{}: {e}", path.display()))?;
-    outln!("wrote {}", path.display());
-    Ok(())
+    .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Checks, before any work, that the file `path` can be written

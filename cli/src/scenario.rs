@@ -305,6 +305,48 @@ pub struct MemorySummary {
     pub peak_resident_over_grid: Option<f64>,
 }
 
+impl MemorySummary {
+    /// The process's peak so far against a run that ends with `band_voxels` voxels in a
+    /// grid of `grid_bytes`, admitted with `estimated_bytes` and holding at most `held_bytes`.
+    pub fn now(
+        estimated_bytes: Option<f64>,
+        held_bytes: u64,
+        band_voxels: usize,
+        grid_bytes: usize,
+    ) -> MemorySummary {
+        let peak = sparse_levelset::memory::peak_resident();
+        MemorySummary {
+            estimated_bytes,
+            held_bytes,
+            peak_resident_bytes: peak,
+            peak_resident_per_band_voxel: peak
+                .filter(|_| band_voxels > 0)
+                .map(|p| p as f64 / band_voxels as f64),
+            peak_resident_over_grid: peak
+                .filter(|_| grid_bytes > 0)
+                .map(|p| p as f64 / grid_bytes as f64),
+        }
+    }
+
+    /// The line the tools print: `memory: peak resident … GB (… bytes per band voxel, … ×
+    /// the grid's bytes); estimated before the run … GB`, or `None` where the peak is
+    /// unknown (no `/proc`).
+    pub fn line(&self) -> Option<String> {
+        let peak = self.peak_resident_bytes?;
+        let gb = |b: f64| b / 1e9;
+        Some(format!(
+            "memory: peak resident {:.2} GB ({:.1} bytes per band voxel, {:.2} × the grid's \
+             bytes){}",
+            gb(peak as f64),
+            self.peak_resident_per_band_voxel.unwrap_or(f64::NAN),
+            self.peak_resident_over_grid.unwrap_or(f64::NAN),
+            self.estimated_bytes
+                .map(|e| format!("; estimated before the run {:.2} GB", gb(e)))
+                .unwrap_or_default()
+        ))
+    }
+}
+
 /// How a distributed run was spread over its ranks.
 #[derive(Clone, Debug, Serialize)]
 pub struct DistributedSummary {
@@ -712,18 +754,8 @@ impl Scenario {
 
 fn memory_summary(records: &[Record], estimated_bytes: Option<f64>) -> MemorySummary {
     let last = records.last().expect("the initial record");
-    let peak = sparse_levelset::memory::peak_resident();
-    MemorySummary {
-        estimated_bytes,
-        held_bytes: records.iter().map(|r| (r.bytes + r.work_bytes) as u64).max().unwrap_or(0),
-        peak_resident_bytes: peak,
-        peak_resident_per_band_voxel: peak
-            .filter(|_| last.band_voxels > 0)
-            .map(|p| p as f64 / last.band_voxels as f64),
-        peak_resident_over_grid: peak
-            .filter(|_| last.bytes > 0)
-            .map(|p| p as f64 / last.bytes as f64),
-    }
+    let held = records.iter().map(|r| (r.bytes + r.work_bytes) as u64).max().unwrap_or(0);
+    MemorySummary::now(estimated_bytes, held, last.band_voxels, last.bytes)
 }
 
 fn record(step: u64, time: f64, dt: f32, m: &Measures, seconds: f64) -> Record {

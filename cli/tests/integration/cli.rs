@@ -845,6 +845,15 @@ fn evolve_equals_the_library_from_every_format() {
             serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
         assert_eq!(s["steps"], 25);
         assert_eq!(s["checksum"], format!("{want:016x}"));
+        // The memory it was admitted with and held (a small ball whose band grows by a
+        // third over the steps: the estimate is the band's at the start, so only the order
+        // of magnitude is checked here; `storage::convert`'s unit tests check the rule);
+        // the staged summary's temporary name is not announced.
+        let m = &s["memory"];
+        let (est, held) =
+            (m["estimated_bytes"].as_f64().unwrap(), m["held_bytes"].as_f64().unwrap());
+        assert!((0.5..2.0).contains(&(est / held)), "{input:?}: estimate {est}, held {held}");
+        assert!(!stdout(&o).contains("/."), "{}", stdout(&o));
     }
     let o = levelset(&["evolve", f.to_str().unwrap(), "-o", tmp("evo-bad.sls").to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));

@@ -7,16 +7,17 @@
 
 use crate::source::{level_set_output, FileGridArgs};
 use clap::Args;
-use levelset_cli::output::{check_output, write_json};
+use levelset_cli::output::{check_output, stage_json};
+use levelset_cli::scenario::MemorySummary;
 use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::Velocity;
 use sparse_levelset::evolve::{
-    Flow, GridKind, Lanes, SampledVelocity, Settings, Simulation, Speed,
+    tile_step_copies, Flow, GridKind, Lanes, SampledVelocity, Settings, Simulation, Speed,
 };
 use sparse_levelset::io::fsutil::Outputs;
 use sparse_levelset::io::input::Expect;
 use sparse_levelset::io::{self, AnyLevelSet};
-use sparse_levelset::storage::convert::tiles_from;
+use sparse_levelset::storage::convert::{evolving_bytes, tiles_from};
 use sparse_levelset::Coord;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -92,10 +93,11 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     let (pool, threads) = a.grid.pool()?;
     let pool = std::sync::Arc::new(pool);
     let name = a.input.display().to_string();
-    // The input, the simulation's grid and its buffers (about five grids).
-    let expect = Expect { copies: 5.0, ..Expect::new(spec) };
-    let loaded =
-        pool.install(|| io::load_level_set(&a.input, &expect)).map_err(|e| e.to_string())?;
+    // The input alone here; the evolution's working copies are checked below, once the
+    // flow is known and before the first step.
+    let loaded = pool
+        .install(|| io::load_level_set(&a.input, &Expect::new(spec)))
+        .map_err(|e| e.to_string())?;
     let tiles = match loaded.level_set {
         AnyLevelSet::Tiles(t) => t,
         AnyLevelSet::Hrle(h) => tiles_from(&h),
@@ -119,6 +121,16 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         ..Flow::rest()
     };
     let settings = Settings { pool: Some(pool.clone()), ..Settings::default() };
+    // What the steps will hold: the evolving band's grid times the working copies (the
+    // rule of `levelset run`'s estimate), checked against the machine's and the process's
+    // limits before any step; the loaded grid is held already.
+    let copies = tile_step_copies(&flow, settings.integrator, settings.renormalization);
+    let estimated = copies * evolving_bytes(&tiles);
+    sparse_levelset::memory::check(
+        estimated - tiles.memory().used() as f64,
+        "the evolution's working copies of the level set",
+    )
+    .map_err(|e| format!("{name}: {e}"))?;
     // Under mpirun (a build with the mpi feature): every rank evolves its z-slabs of the
     // band; rank 0 gathers the band, reports and writes.
     let transport = levelset_cli::ranks::transport()?;
@@ -150,6 +162,13 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     bar.finish_and_clear();
     // One pass each over the band (collective when distributed), and the whole band.
     let (band_voxels, checksum) = (sim.band_voxels(), sim.checksum());
+    let measures = sim.measure().map_err(|e| format!("{name}: {e}"))?;
+    let memory = MemorySummary::now(
+        Some(estimated),
+        (measures.bytes + measures.work_bytes) as u64,
+        measures.band_voxels,
+        measures.bytes,
+    );
     let gathered = match transport {
         Some(_) => sim.gathered_tiles().map_err(|e| format!("{name}: {e}"))?,
         None => None,
@@ -167,6 +186,7 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
         "seconds": seconds,
         "threads": threads,
         "ranks": ranks,
+        "memory": memory,
     });
     // The level set and the summary appear together.
     let mut outputs = Outputs::new();
@@ -179,16 +199,19 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     .map_err(|e| outputs.named(e))?;
     if let Some(s) = &a.summary {
         let staged = outputs.stage(s);
-        write_json(&staged, &summary).map_err(|e| outputs.named(e))?;
+        stage_json(&staged, &summary).map_err(|e| outputs.named(e))?;
     }
     outputs.commit().map_err(|e| format!("{}: {e}", a.output.display()))?;
     outln!(
-        "{name} -> {}: {} steps to t = {:.4}, {} band voxels, checksum {:016x}, {seconds:.3} s",
+        "{name} -> {}: {} steps to t = {:.4e}, {} band voxels, checksum {:016x}, {seconds:.3} s",
         a.output.display(),
         sim.steps(),
         sim.time(),
         band_voxels,
         checksum
     );
+    if let Some(line) = memory.line() {
+        outln!("{line}");
+    }
     Ok(())
 }

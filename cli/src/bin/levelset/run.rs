@@ -2,7 +2,7 @@
 //! optional frames (PNG images, PLY meshes) and the final field.
 
 use clap::{Args, ValueEnum};
-use levelset_cli::output::{check_output, check_output_dir, write_json};
+use levelset_cli::output::{check_output, check_output_dir, stage_json};
 use levelset_cli::scenario::{Defaults, Scenario, ScenarioKind, ScenarioOptions};
 use levelset_cli::{outln, progress};
 use sparse_levelset::evolve::{
@@ -380,19 +380,8 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
         last.bytes,
         summary.checksum
     );
-    let m = &summary.memory;
-    if let Some(peak) = m.peak_resident_bytes {
-        let gb = |b: f64| b / 1e9;
-        outln!(
-            "memory: peak resident {:.2} GB ({:.1} bytes per band voxel, {:.2} × the grid's \
-             bytes){}",
-            gb(peak as f64),
-            m.peak_resident_per_band_voxel.unwrap_or(f64::NAN),
-            m.peak_resident_over_grid.unwrap_or(f64::NAN),
-            m.estimated_bytes
-                .map(|e| format!("; estimated before the run {:.2} GB", gb(e)))
-                .unwrap_or_default()
-        );
+    if let Some(line) = summary.memory.line() {
+        outln!("{line}");
     }
     if let (Some(h), Some(p)) = (summary.volume_ratio_half_period, summary.volume_ratio_period) {
         outln!("enright: V(T/2)/V(0) = {h:.6}, V(T)/V(0) = {p:.6}");
@@ -404,7 +393,7 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
     let mut outputs = sparse_levelset::io::fsutil::Outputs::new();
     let summary_path = a.out.join("summary.json");
     let staged = outputs.stage(&summary_path);
-    write_json(&staged, &summary).map_err(|e| outputs.named(e))?;
+    stage_json(&staged, &summary).map_err(|e| outputs.named(e))?;
     let origin = match a.export_npy {
         true => {
             let path = a.out.join("final.npy");
@@ -414,6 +403,7 @@ pub fn run(a: &RunArgs) -> Result<(), String> {
         false => None,
     };
     outputs.commit().map_err(|e| format!("{}: {e}", summary_path.display()))?;
+    outln!("wrote {}", summary_path.display());
     if let Some(origin) = origin {
         outln!("wrote {} (origin voxel {origin})", a.out.join("final.npy").display());
     }
