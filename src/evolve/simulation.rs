@@ -485,6 +485,31 @@ impl Simulation {
         rep.for_each_unstored_inside_run(&mut f);
     }
 
+    /// The runs of [`Simulation::for_each_inside_run`] folded over the thread pool
+    /// ([`Settings::pool`]) on tiles: every part of the band folds its runs into its own
+    /// `identity()` with `visit`, and `combine` joins the parts. Neither the parts, nor
+    /// the order of the runs, nor the grouping of `combine` is fixed (they follow the
+    /// thread count), so the result is deterministic when `combine` and `visit` commute
+    /// exactly: counts and integer sums, or [`crate::exact::ExactSum`]. Other
+    /// representations fold in one part.
+    pub fn fold_inside_runs<T: Send>(
+        &self,
+        identity: impl Fn() -> T + Sync + Send,
+        visit: impl Fn(&mut T, Coord, u32) + Sync + Send,
+        combine: impl Fn(T, T) -> T + Sync + Send,
+    ) -> T {
+        match &self.rep {
+            Rep::Tiles(t) => super::in_pool(&self.settings.pool, || {
+                t.fold_inside_runs(&identity, &visit, &combine)
+            }),
+            _ => {
+                let mut acc = identity();
+                self.for_each_inside_run(|c, len| visit(&mut acc, c, len));
+                acc
+            }
+        }
+    }
+
     /// FNV-1a over the band voxels' coordinates and value bits in [`Coord`] order: equal
     /// band contents give equal checksums, whatever the representation. Distributed, the
     /// ranks hash their parts in turn (rank order is [`Coord`] order), so the checksum is

@@ -411,14 +411,8 @@ fn segment_in_pool(
     let image_voxels = image.len() as u64;
     let mut leak = None;
     volumes.push(voxels);
-    let gamma = sim.spec().gamma();
     let mut seconds_steps = 0.0;
-    let mut near: Vec<(Coord, f32)> = Vec::new();
-    sim.for_each_band_voxel(|c, phi| {
-        if (phi.abs() as f64) < h_min {
-            near.push((c, phi));
-        }
-    });
+    let mut near = change_since(tiles_of(&sim), &[], 1.0, h_min).2;
     let stop = loop {
         if sim.steps() >= params.max_iterations {
             break Stop::MaxIterations;
@@ -449,33 +443,8 @@ fn segment_in_pool(
             Err(e) => return Err(e.into()),
         };
         seconds_steps += t_step.elapsed().as_secs_f64();
-        // RMS of (φⁿ⁺¹ − φⁿ)/Δt over the voxels with |φⁿ| < h: a merge of the two bands
-        // (both in Coord order); a voxel that left the band reads ±γ.
-        let dt = report.dt as f64;
-        let mut next = Vec::with_capacity(near.len());
-        let (mut sq, mut k) = (0.0f64, 0usize);
-        let mut diff = |old: f32, new: f32| {
-            let d = (new - old) as f64 / dt;
-            sq += d * d;
-        };
-        let mut band_voxels = 0usize;
-        sim.for_each_band_voxel(|c, phi| {
-            band_voxels += 1;
-            while k < near.len() && near[k].0 < c {
-                diff(near[k].1, sim_value_left(near[k].1, gamma));
-                k += 1;
-            }
-            if k < near.len() && near[k].0 == c {
-                diff(near[k].1, phi);
-                k += 1;
-            }
-            if (phi.abs() as f64) < h_min {
-                next.push((c, phi));
-            }
-        });
-        for &(_, old) in &near[k..] {
-            diff(old, sim_value_left(old, gamma));
-        }
+        // RMS of (φⁿ⁺¹ − φⁿ)/Δt over the voxels with |φⁿ| < h.
+        let (sq, band_voxels, next) = change_since(tiles_of(&sim), &near, report.dt as f64, h_min);
         rms = if near.is_empty() { 0.0 } else { (sq / near.len() as f64).sqrt() };
         near = next;
         let faces;
@@ -1108,6 +1077,78 @@ fn sum_of_flows(flows: Vec<Flow>) -> Flow {
     flow
 }
 
+/// A band voxel near the interface before a step: its tile's coordinate, its place in
+/// the tile, and φⁿ.
+type Near = (Coord, u8, f32);
+
+/// Tiles per part of [`change_since`]: fixed, so that the parts' partial sums, added in
+/// list order, do not depend on the thread count.
+const CHANGE_CHUNK: usize = 256;
+
+/// The segmentation's tile grid (it always runs on tiles).
+fn tiles_of(sim: &Simulation) -> &TileGrid {
+    sim.tiles().expect("a segmentation evolves on tiles")
+}
+
+/// The step's change at the voxels `near` held before it (in list order): the sum over
+/// them of ((φⁿ⁺¹ − φⁿ)/Δt)², where a voxel that left the band reads ±γ; the band voxels
+/// after it; and its own band voxels with |φ| < `h`, in list order (the next step's
+/// `near`). The old and new lists are merged tile by tile in parts of the new list, in
+/// parallel; a part takes the old voxels from its first tile up to the next part's
+/// (before the first part: all from the start), so every old voxel is met once.
+fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize, Vec<Near>) {
+    let coords = grid.tile_coords();
+    let values = grid.values();
+    let gamma = grid.gamma();
+    let parts = coords.len().div_ceil(CHANGE_CHUNK).max(1);
+    let start_of = |part: usize| match part {
+        0 => 0,
+        _ if part * CHANGE_CHUNK >= coords.len() => near.len(),
+        _ => near.partition_point(|e| e.0 < coords[part * CHANGE_CHUNK]),
+    };
+    let results: Vec<(f64, usize, Vec<Near>)> = (0..parts)
+        .into_par_iter()
+        .map(|part| {
+            let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
+            let old = &near[start_of(part)..start_of(part + 1)];
+            let (mut sq, mut band, mut next, mut k) = (0.0f64, 0usize, Vec::new(), 0usize);
+            let mut diff = |old: f32, new: f32| {
+                let d = (new - old) as f64 / dt;
+                sq += d * d;
+            };
+            for p in tiles {
+                let tc = coords[p];
+                while k < old.len() && old[k].0 < tc {
+                    diff(old[k].2, sim_value_left(old[k].2, gamma));
+                    k += 1;
+                }
+                for (l, &v) in values[p].0.iter().enumerate() {
+                    let in_band = v.abs() < gamma;
+                    band += in_band as usize;
+                    if k < old.len() && old[k].0 == tc && old[k].1 as usize == l {
+                        diff(old[k].2, if in_band { v } else { sim_value_left(old[k].2, gamma) });
+                        k += 1;
+                    }
+                    if in_band && (v.abs() as f64) < h {
+                        next.push((tc, l as u8, v));
+                    }
+                }
+            }
+            for &(_, _, o) in &old[k..] {
+                diff(o, sim_value_left(o, gamma));
+            }
+            (sq, band, next)
+        })
+        .collect();
+    let mut total = (0.0, 0, Vec::with_capacity(near.len()));
+    for (sq, band, next) in results {
+        total.0 += sq;
+        total.1 += band;
+        total.2.extend(next);
+    }
+    total
+}
+
 /// The value of a voxel that left the band in a step, whose value before was `old`: the
 /// band's ±γ on the side it was on (a voxel within h of the interface cannot cross it and
 /// leave the band in one CFL-limited step).
@@ -1156,8 +1197,8 @@ impl FixedPoint {
 fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64, i64, [u64; 6]) {
     let lookup = Lookup { dims };
     let [nx, ny, nz] = dims;
-    let (mut count, mut sum, mut faces) = (0u64, 0i64, [0u64; 6]);
-    sim.for_each_inside_run(|c, len| {
+    // Integer counts and sums: the same in any split over the threads and any order.
+    let visit = |acc: &mut (u64, i64, [u64; 6]), c: Coord, len: u32| {
         // A 2D image's level set is extruded over z = 0..3: slice 0 is the image.
         if c.y < 0
             || c.y as usize >= ny
@@ -1172,14 +1213,17 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
         if x1 <= x0 {
             return;
         }
-        count += (x1 - x0) as u64;
-        add_run_faces(&mut faces, x0 as usize, x1 as usize, c.y as usize, c.z as usize, dims);
+        acc.0 += (x1 - x0) as u64;
+        add_run_faces(&mut acc.2, x0 as usize, x1 as usize, c.y as usize, c.z as usize, dims);
         if let Some(fp) = sums {
             let first = lookup.index(Coord::new(x0 as i32, c.y, c.z)).expect("inside the image");
-            sum += fp.q[first..first + (x1 - x0) as usize].iter().map(|&v| v as i64).sum::<i64>();
+            acc.1 += fp.q[first..first + (x1 - x0) as usize].iter().map(|&v| v as i64).sum::<i64>();
         }
-    });
-    (count, sum, faces)
+    };
+    let combine = |a: (u64, i64, [u64; 6]), b: (u64, i64, [u64; 6])| {
+        (a.0 + b.0, a.1 + b.1, std::array::from_fn(|i| a.2[i] + b.2[i]))
+    };
+    sim.fold_inside_runs(|| (0, 0, [0; 6]), visit, combine)
 }
 
 /// Adds to `faces` (x = 0, x = max, y = 0, y = max, z = 0, z = max) the voxels of the run

@@ -229,6 +229,55 @@ impl TilesRep {
         true
     }
 
+    /// The inside voxels the list does not store between tile `p − 1` and tile `p` (`p ≥ 1`)
+    /// of one row of tiles, if the tile before the gap is inside towards +x: sixteen x-runs
+    /// of voxels, one per row of voxels of the tiles strictly between them.
+    fn unstored_inside_runs_before(&self, p: usize, f: &mut (impl FnMut(Coord, u32) + ?Sized)) {
+        const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
+        let coords = self.grid.tile_coords();
+        let (a, b) = (coords[p - 1], coords[p]);
+        if a.z == b.z
+            && a.y == b.y
+            && b.x > a.x + 1
+            && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
+        {
+            let first = voxel_of(Coord::new(a.x + 1, a.y, a.z), 0);
+            let len = 4 * (b.x - a.x - 1) as u32;
+            for row in 0..16 {
+                f(Coord::new(first.x, first.y + (row & 3), first.z + (row >> 2)), len);
+            }
+        }
+    }
+
+    /// The inside runs of `for_each_inside_run` (stored voxels with φ ≤ 0 as runs of one,
+    /// then the unstored interior between tiles), this rank's tiles split over the current
+    /// thread pool: each part folds its runs into its own `identity()` with `visit`, and
+    /// `combine` joins the parts in an order and grouping that depend on the thread count.
+    pub(crate) fn fold_inside_runs<T: Send>(
+        &self,
+        identity: &(impl Fn() -> T + Sync),
+        visit: &(impl Fn(&mut T, Coord, u32) + Sync),
+        combine: &(impl Fn(T, T) -> T + Sync),
+    ) -> T {
+        let coords = self.grid.tile_coords();
+        let values = self.grid.values();
+        self.owned()
+            .into_par_iter()
+            .with_min_len(TILE_CHUNK)
+            .fold(identity, |mut acc, p| {
+                for (l, &v) in values[p].0.iter().enumerate() {
+                    if v <= 0.0 {
+                        visit(&mut acc, voxel_of(coords[p], l), 1);
+                    }
+                }
+                if p > 0 {
+                    self.unstored_inside_runs_before(p, &mut |c, len| visit(&mut acc, c, len));
+                }
+                acc
+            })
+            .reduce(identity, combine)
+    }
+
     /// The z-slabs of tiles this rank owns that hold tiles (distributed bands only).
     pub fn owned_slabs(&self) -> Option<usize> {
         let p = self.part.as_ref()?;
@@ -758,23 +807,9 @@ impl Representation for TilesRep {
     }
 
     fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {
-        const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
-        let coords = self.grid.tile_coords();
         let owned = self.owned();
         for p in owned.start.max(1)..owned.end {
-            let (a, b) = (coords[p - 1], coords[p]);
-            if a.z == b.z
-                && a.y == b.y
-                && b.x > a.x + 1
-                && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
-            {
-                // The tiles strictly between a and b, row by row of voxels.
-                let first = voxel_of(Coord::new(a.x + 1, a.y, a.z), 0);
-                let len = 4 * (b.x - a.x - 1) as u32;
-                for row in 0..16 {
-                    f(Coord::new(first.x, first.y + (row & 3), first.z + (row >> 2)), len);
-                }
-            }
+            self.unstored_inside_runs_before(p, &mut *f);
         }
     }
 
