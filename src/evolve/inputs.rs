@@ -8,6 +8,7 @@ use super::rep::{growth_bytes, resize_exact, vec_bytes, Representation};
 use super::{in_pool, EvolveError, Flow, Settings};
 use crate::coord::Coord;
 use crate::grid::GridSpec;
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// F and u of the current stage, and what is kept between stages.
@@ -61,6 +62,9 @@ impl Default for Inputs {
         }
     }
 }
+
+/// Values per parallel task of the scans over per-voxel arrays (64 tiles).
+const FINITE_CHUNK: usize = 4096;
 
 impl Inputs {
     /// Bytes held, used or not.
@@ -120,7 +124,9 @@ impl Inputs {
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
-        let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+        let finite = |v: &[f32]| {
+            in_pool(pool, || v.par_chunks(FINITE_CHUNK).all(|c| c.iter().all(|x| x.is_finite())))
+        };
         let velocity_ok = self.velocity_scale.is_finite()
             && match written {
                 Written::Nothing => true,
@@ -160,9 +166,10 @@ impl Inputs {
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(f.as_ref(), t, base));
                 }
-                for (s, &b) in self.speed.iter_mut().zip(&self.base) {
-                    *s = b + add;
-                }
+                let (speed, base) = (&mut self.speed, &self.base);
+                in_pool(pool, || {
+                    speed.par_iter_mut().zip(base.par_iter()).for_each(|(s, &b)| *s = b + add)
+                });
             }
             Speed::MorphTo(target) => {
                 if first {
@@ -170,11 +177,17 @@ impl Inputs {
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(target.as_ref(), t, base));
                     let g = rep.spec().gamma();
-                    self.base.iter_mut().for_each(|v| *v = v.clamp(-g, g));
+                    let base = &mut self.base;
+                    in_pool(pool, || base.par_iter_mut().for_each(|v| *v = v.clamp(-g, g)));
                 }
-                for ((s, &phi), &psi) in self.speed.iter_mut().zip(rep.flat()).zip(&self.base) {
-                    *s = (phi - psi) + add;
-                }
+                let (speed, base) = (&mut self.speed, &self.base);
+                in_pool(pool, || {
+                    speed
+                        .par_iter_mut()
+                        .zip(rep.flat().par_iter())
+                        .zip(base.par_iter())
+                        .for_each(|((s, &phi), &psi)| *s = (phi - psi) + add)
+                });
             }
         }
     }
@@ -202,12 +215,17 @@ impl Inputs {
         let out = &mut self.curvature;
         in_pool(pool, || rep.fill_scalar(z.as_ref(), t, out));
         let eps = flow.curvature * factor;
-        let mut ok = true;
-        for v in &mut self.curvature {
-            ok &= v.is_finite() && *v >= 0.0;
-            *v *= eps;
-        }
-        ok
+        let curvature = &mut self.curvature;
+        in_pool(pool, || {
+            curvature
+                .par_chunks_mut(FINITE_CHUNK)
+                .map(|c| {
+                    let ok = c.iter().all(|v| v.is_finite() && *v >= 0.0);
+                    c.iter_mut().for_each(|v| *v *= eps);
+                    ok
+                })
+                .reduce(|| true, |a, b| a && b)
+        })
     }
 
     /// Advection velocity u; returns what was written (and how it is to be checked).
@@ -319,15 +337,17 @@ impl Inputs {
         if self.curvature.is_empty() {
             return eps;
         }
-        flat.iter()
-            .zip(&self.curvature)
-            .filter(|(v, _)| v.abs() < g)
-            .fold(0.0f32, |m, (_, &e)| m.max(e))
+        // A maximum of finite values (checked when written): the same in any grouping.
+        flat.par_chunks(FINITE_CHUNK)
+            .zip(self.curvature.par_chunks(FINITE_CHUNK))
+            .map(|(v, e)| {
+                v.iter().zip(e).filter(|(v, _)| v.abs() < g).fold(0.0f32, |m, (_, &e)| m.max(e))
+            })
+            .reduce(|| 0.0, f32::max)
     }
 
     /// max |F|, max (|u|+|v|+|w|) and max of the unscaled u; see [`Inputs::band_maxima`].
     fn band_maxima_fu(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
-        use rayon::prelude::*;
         /// Voxels per parallel task (64 tiles).
         const CHUNK: usize = 4096;
         let max3 =
