@@ -517,12 +517,11 @@ pub fn sigmoid(
 /// the values sorted ascending as `x₀ ≤ … ≤ x_{n−1}` and `h = q (n − 1)`, the result is
 /// `x_⌊h⌋ + (h − ⌊h⌋)(x_⌊h⌋+1 − x_⌊h⌋)`, computed in `f64` and rounded. So `q = 0` is the
 /// minimum, `q = 1` the maximum, `q = 0.5` the median (the mean of the middle two for an
-/// even count). Exact order statistics from `select_nth_unstable` on a copy (linear time,
-/// sequential): the result depends on the multiset of values only.
+/// even count). Exact order statistics from two parallel counting passes (linear time, no
+/// copy): the result depends on the multiset of values only.
 ///
 /// Fails with [`GridError::InvalidParameter`] when `values` is empty or holds a value that
-/// is not finite, or `q` is outside `[0, 1]`; with [`GridError::OutOfMemory`] when the
-/// copy does not fit.
+/// is not finite, or `q` is outside `[0, 1]`.
 pub fn percentile(values: &[f32], q: f64) -> Result<f32, GridError> {
     if !(0.0..=1.0).contains(&q) {
         return Err(GridError::InvalidParameter(format!(
@@ -538,16 +537,13 @@ pub fn percentile(values: &[f32], q: f64) -> Result<f32, GridError> {
             values[i]
         )));
     }
-    check_alloc(values.len() as u128, 4, "a copy of the values for a percentile")?;
-    let mut v = values.to_vec();
-    let h = q * (v.len() - 1) as f64;
-    let k = (h.floor() as usize).min(v.len() - 1);
+    let h = q * (values.len() - 1) as f64;
+    let k = (h.floor() as usize).min(values.len() - 1);
     let frac = h - k as f64;
-    let (_, &mut lo, upper) = v.select_nth_unstable_by(k, f32::total_cmp);
-    if frac == 0.0 || upper.is_empty() {
+    let [lo, hi] = super::stats::order_statistics(values, [k, k + 1]);
+    if frac == 0.0 {
         return Ok(lo);
     }
-    let hi = upper.iter().copied().min_by(f32::total_cmp).unwrap_or(lo);
     Ok((lo as f64 + frac * (hi as f64 - lo as f64)) as f32)
 }
 

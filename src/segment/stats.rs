@@ -24,10 +24,83 @@ pub(crate) struct Normalization {
     pub scale: f64,
 }
 
-/// The `k`-th smallest value (0-based) of `v`, reordering it.
-fn order_statistic(v: &mut [f32], k: usize) -> f32 {
-    let k = k.min(v.len() - 1);
-    *v.select_nth_unstable_by(k, f32::total_cmp).1
+/// `x`'s place in [`f32::total_cmp`]'s order as an unsigned integer.
+fn order_key(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 1 << 31
+    }
+}
+
+/// The inverse of [`order_key`].
+fn from_order_key(k: u32) -> f32 {
+    f32::from_bits(if k >> 31 == 1 { k & !(1 << 31) } else { !k })
+}
+
+/// Values per parallel task of [`order_statistics`].
+const ORDER_CHUNK: usize = 1 << 16;
+
+/// The `k`-th smallest values (0-based, each `k` clamped to the last) of `v` (not empty)
+/// in [`f32::total_cmp`]'s order: exact, from two parallel counting passes over the
+/// values' order keys (the high 16 bits, then the low 16 bits within each wanted high
+/// part), with no copy of `v`. Counts are integers, so the result does not depend on the
+/// thread count.
+pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f32; N] {
+    type Counts = Vec<u64>;
+    let add = |mut a: Counts, b: Counts| {
+        a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+        a
+    };
+    let zero = || vec![0u64; 1 << 16];
+    let high: Counts = v
+        .par_chunks(ORDER_CHUNK)
+        .fold(zero, |mut h, c| {
+            c.iter().for_each(|&x| h[(order_key(x) >> 16) as usize] += 1);
+            h
+        })
+        .reduce(zero, add);
+    // (high part, rank within it) of every wanted rank.
+    let place = |k: usize| {
+        let mut k = k.min(v.len() - 1) as u64;
+        let mut b = 0;
+        while k >= high[b] {
+            k -= high[b];
+            b += 1;
+        }
+        (b as u32, k)
+    };
+    let places = ks.map(place);
+    let low: Vec<Counts> = v
+        .par_chunks(ORDER_CHUNK)
+        .fold(
+            || places.iter().map(|_| zero()).collect::<Vec<Counts>>(),
+            |mut h, c| {
+                for &x in c {
+                    let key = order_key(x);
+                    for (j, &(b, _)) in places.iter().enumerate() {
+                        if key >> 16 == b {
+                            h[j][(key & 0xffff) as usize] += 1;
+                        }
+                    }
+                }
+                h
+            },
+        )
+        .reduce(
+            || places.iter().map(|_| zero()).collect(),
+            |a, b| a.into_iter().zip(b).map(|(a, b)| add(a, b)).collect(),
+        );
+    std::array::from_fn(|j| {
+        let (b, mut k) = places[j];
+        let mut l = 0;
+        while k >= low[j][l] {
+            k -= low[j][l];
+            l += 1;
+        }
+        from_order_key(b << 16 | l as u32)
+    })
 }
 
 impl Normalization {
@@ -35,16 +108,10 @@ impl Normalization {
     /// 99th minus the 1st percentile (order statistics ⌊q (n − 1)⌋), else the range, else 1
     /// (a constant image).
     pub fn of(data: &[f32]) -> Result<Normalization, GridError> {
-        crate::memory::check(
-            crate::memory::bytes_of(data.len() as u128, 4),
-            "a copy of the image for its percentiles",
-        )?;
-        let mut v = data.to_vec();
-        let n = v.len();
+        let n = data.len();
         let at = |q: f64| ((q * (n - 1) as f64).floor() as usize).min(n - 1);
-        let center = order_statistic(&mut v, at(0.5)) as f64;
-        let p99 = order_statistic(&mut v, at(0.99)) as f64;
-        let p01 = order_statistic(&mut v, at(0.01)) as f64;
+        let [center, p99, p01] = order_statistics(data, [at(0.5), at(0.99), at(0.01)]);
+        let (center, p99, p01) = (center as f64, p99 as f64, p01 as f64);
         let mut scale = p99 - p01;
         if scale.is_nan() || scale <= 0.0 {
             let (lo, hi) = data
@@ -134,9 +201,8 @@ pub(crate) fn noise_sigma(image: &Image) -> Result<f64, GridError> {
     if samples.is_empty() {
         return Ok(0.0);
     }
-    let mut v = samples;
-    let k = (v.len() - 1) / 2;
-    let median = order_statistic(&mut v, k) as f64;
+    let [median] = order_statistics(&samples, [(samples.len() - 1) / 2]);
+    let median = median as f64;
     Ok(median / (0.674_489_75 * 6f64.sqrt()))
 }
 
@@ -309,6 +375,45 @@ pub(crate) fn quantile(v: &[f64], q: f64) -> Option<f64> {
 mod tests {
     use super::*;
     use crate::io::image::IDENTITY;
+
+    /// The counting selection against a sort, over values with both signs, signed zeros,
+    /// infinities, many repeats (a constant background) and subnormals, at every rank of a
+    /// small set and at chosen ranks of a large one (several parallel parts).
+    #[test]
+    fn order_statistics_equal_a_sort() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut v: Vec<f32> = (0..300_000)
+            .map(|i| match i % 7 {
+                0 => 0.0,
+                1 => -0.0,
+                2 => f32::from_bits(next() as u32 & 0x007f_ffff),
+                3 => 250.0,
+                _ => (next() % 2_000_000) as f32 / 997.0 - 1000.0,
+            })
+            .collect();
+        v.extend([f32::INFINITY, f32::NEG_INFINITY, f32::MIN_POSITIVE, -f32::MAX]);
+        let mut sorted = v.clone();
+        sorted.sort_by(f32::total_cmp);
+        let n = v.len();
+        let ks = [0, 1, n / 100, n / 7, n / 2, (n - 1) / 2, n - 2, n - 1, n + 5];
+        let got = order_statistics(&v, ks);
+        for (k, g) in ks.iter().zip(got) {
+            let want = sorted[(*k).min(n - 1)];
+            assert_eq!(g.to_bits(), want.to_bits(), "rank {k}");
+        }
+        let small = &v[..40];
+        let mut s = small.to_vec();
+        s.sort_by(f32::total_cmp);
+        for (k, want) in s.iter().enumerate() {
+            assert_eq!(order_statistics(small, [k])[0].to_bits(), want.to_bits(), "rank {k}");
+        }
+    }
 
     #[test]
     fn normalization_is_exact_under_exact_affine_maps() {
