@@ -44,6 +44,9 @@ pub struct Simulation {
     inputs: Inputs,
 }
 
+/// Values per parallel task of [`Simulation::measure`]'s sums (64 tiles).
+const MEASURE_CHUNK: usize = 4096;
+
 impl Simulation {
     /// A simulation of the band of an analytic shape on representation `kind` (the dense
     /// reference gets the band's bounding box with a margin of [`DENSE_MARGIN`] voxels).
@@ -547,12 +550,20 @@ impl Simulation {
         let h = lattice.map_or(spec.voxel_size, |l| l.min_spacing());
         let g = spec.gamma();
         let width = self.settings.delta_width * h;
-        let mut flat_inside = ExactSum::default();
-        let mut band = 0usize;
-        for &v in rep.owned_flat() {
-            flat_inside.add((0.5 - v / h).clamp(0.0, 1.0));
-            band += (v.abs() < g) as usize;
-        }
+        // Exact sums and counts: the same over any split of the band between threads.
+        let (flat_inside, band) = in_pool(&self.settings.pool, || {
+            use rayon::prelude::*;
+            rep.owned_flat()
+                .par_chunks(MEASURE_CHUNK)
+                .map(|c| {
+                    let mut inside = ExactSum::default();
+                    for &v in c {
+                        inside.add((0.5 - v / h).clamp(0.0, 1.0));
+                    }
+                    (inside, c.iter().filter(|v| v.abs() < g).count())
+                })
+                .reduce(|| (ExactSum::default(), 0), |a, b| (a.0.merge(b.0), a.1 + b.1))
+        });
         let unstored = rep.unstored_inside();
         let flat_inside = rep.comm().map_or(flat_inside, |c| c.sum_exact([flat_inside])[0]);
         let [band, unstored, stored, bytes, work_bytes] = self.sum_counts([

@@ -94,7 +94,8 @@ impl TileGrid {
         if n == 0 {
             return Ok((ManageStats::default(), None));
         }
-        let border_new: Vec<AtomicU32> = self.border.iter().map(|&b| AtomicU32::new(b)).collect();
+        let border_new: Vec<AtomicU32> =
+            self.border.par_iter().map(|&b| AtomicU32::new(b)).collect();
         let mut keep = vec![false; n];
         let created = self.keep_and_find_created(table, &border_new, &mut keep);
         if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
@@ -113,8 +114,11 @@ impl TileGrid {
         admit(total)?;
         let recycle = spare.capacity() >= total;
         let arena = if recycle {
+            // The compaction writes every tile: the spare's old values need no clearing,
+            // only the tiles beyond its length need a value (a pass over the whole arena
+            // here ran on one thread at every step that changed the list).
             let mut a = std::mem::take(spare);
-            a.clear();
+            a.truncate(total);
             a.resize(total, Tile::splat(0.0));
             a
         } else {
