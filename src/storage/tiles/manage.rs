@@ -48,9 +48,11 @@ fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
 
 /// `total` copies of `v`, with the headroom of a growing band's buffers
 /// (`grown_capacity`): the step buffers the arena is swapped with then rarely have to grow.
-fn filled<T: Clone>(total: usize, v: T) -> Vec<T> {
+/// Written on the thread pool (a pass over the new list's arrays at every step that
+/// changes it).
+fn filled<T: Clone + Send + Sync>(total: usize, v: T) -> Vec<T> {
     let mut out = Vec::with_capacity(grown_capacity(total));
-    out.resize(total, v);
+    out.par_extend(rayon::iter::repeat_n(v, total));
     out
 }
 

@@ -180,11 +180,13 @@ impl NeighbourTable {
         use rayon::prelude::*;
         assert!(coords.len() < u32::MAX as usize, "tile list too long for a neighbour table");
         let empty = NeighbourRow { matched: 0, ptr: [0; 27] };
-        self.rows.clear();
         // The rows needed and a band's headroom (`grown_capacity`), not a doubling.
         if coords.len() > self.rows.capacity() {
-            self.rows.reserve_exact(crate::memory::grown_capacity(coords.len()));
+            let want = crate::memory::grown_capacity(coords.len());
+            self.rows.reserve_exact(want.saturating_sub(self.rows.len()));
         }
+        // `fill_rows` writes every row: the old rows need no clearing, only new ones a
+        // value (clearing all of them was a pass over the table on one thread).
         self.rows.resize(coords.len(), empty);
         self.rows.par_chunks_mut(Self::CHUNK).enumerate().for_each(|(c, rows)| {
             fill_rows(coords, c * Self::CHUNK, rows);
