@@ -64,7 +64,7 @@ impl Default for Inputs {
 }
 
 /// Values per parallel task of the scans over per-voxel arrays (64 tiles).
-const FINITE_CHUNK: usize = 4096;
+const CHUNK: usize = 4096;
 
 impl Inputs {
     /// Bytes held, used or not.
@@ -125,7 +125,7 @@ impl Inputs {
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
         let finite = |v: &[f32]| {
-            in_pool(pool, || v.par_chunks(FINITE_CHUNK).all(|c| c.iter().all(|x| x.is_finite())))
+            in_pool(pool, || v.par_chunks(CHUNK).all(|c| c.iter().all(|x| x.is_finite())))
         };
         let velocity_ok = self.velocity_scale.is_finite()
             && match written {
@@ -218,7 +218,7 @@ impl Inputs {
         let curvature = &mut self.curvature;
         in_pool(pool, || {
             curvature
-                .par_chunks_mut(FINITE_CHUNK)
+                .par_chunks_mut(CHUNK)
                 .map(|c| {
                     let ok = c.iter().all(|v| v.is_finite() && *v >= 0.0);
                     c.iter_mut().for_each(|v| *v *= eps);
@@ -338,8 +338,8 @@ impl Inputs {
             return eps;
         }
         // A maximum of finite values (checked when written): the same in any grouping.
-        flat.par_chunks(FINITE_CHUNK)
-            .zip(self.curvature.par_chunks(FINITE_CHUNK))
+        flat.par_chunks(CHUNK)
+            .zip(self.curvature.par_chunks(CHUNK))
             .map(|(v, e)| {
                 v.iter().zip(e).filter(|(v, _)| v.abs() < g).fold(0.0f32, |m, (_, &e)| m.max(e))
             })
@@ -348,8 +348,6 @@ impl Inputs {
 
     /// max |F|, max (|u|+|v|+|w|) and max of the unscaled u; see [`Inputs::band_maxima`].
     fn band_maxima_fu(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
-        /// Voxels per parallel task (64 tiles).
-        const CHUNK: usize = 4096;
         let max3 =
             |a: (f32, f32, f32), b: (f32, f32, f32)| (a.0.max(b.0), a.1.max(b.1), a.2.max(b.2));
         let s = self.velocity_scale;

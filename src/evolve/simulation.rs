@@ -429,6 +429,19 @@ impl Simulation {
         self.sum_counts([n as u64])[0] as usize
     }
 
+    /// Bytes held now (collective when distributed): the representation's
+    /// ([`Measures::bytes`]) and its step buffers' with the flow's per-voxel inputs
+    /// ([`Measures::work_bytes`]), without the band's sums [`Simulation::measure`] makes.
+    pub fn held_bytes(&self) -> [usize; 2] {
+        self.sum_counts(self.local_bytes()).map(|b| b as usize)
+    }
+
+    /// This rank's part of [`Simulation::held_bytes`].
+    fn local_bytes(&self) -> [u64; 2] {
+        let rep = self.rep.get();
+        [rep.bytes() as u64, (rep.work_bytes() + self.inputs.bytes()) as u64]
+    }
+
     /// Voxels a stage computes: stored voxels (tile padding included; the ranks' own
     /// tiles when distributed, collective).
     pub fn stored_voxels(&self) -> usize {
@@ -550,29 +563,24 @@ impl Simulation {
         let h = lattice.map_or(spec.voxel_size, |l| l.min_spacing());
         let g = spec.gamma();
         let width = self.settings.delta_width * h;
-        // Exact sums and counts: the same over any split of the band between threads.
-        let (flat_inside, band) = in_pool(&self.settings.pool, || {
+        // Exact sums: the same over any split of the band between threads.
+        let flat_inside = in_pool(&self.settings.pool, || {
             use rayon::prelude::*;
             rep.owned_flat()
                 .par_chunks(MEASURE_CHUNK)
                 .map(|c| {
                     let mut inside = ExactSum::default();
-                    for &v in c {
-                        inside.add((0.5 - v / h).clamp(0.0, 1.0));
-                    }
-                    (inside, c.iter().filter(|v| v.abs() < g).count())
+                    c.iter().for_each(|&v| inside.add((0.5 - v / h).clamp(0.0, 1.0)));
+                    inside
                 })
-                .reduce(|| (ExactSum::default(), 0), |a, b| (a.0.merge(b.0), a.1 + b.1))
+                .reduce(ExactSum::default, ExactSum::merge)
         });
+        let band = levelset_kernels::dispatch_one(BandCount { values: rep.owned_flat(), gamma: g });
         let unstored = rep.unstored_inside();
         let flat_inside = rep.comm().map_or(flat_inside, |c| c.sum_exact([flat_inside])[0]);
-        let [band, unstored, stored, bytes, work_bytes] = self.sum_counts([
-            band as u64,
-            unstored,
-            rep.units() as u64,
-            rep.bytes() as u64,
-            (rep.work_bytes() + self.inputs.bytes()) as u64,
-        ]);
+        let [held, work] = self.local_bytes();
+        let [band, unstored, stored, bytes, work_bytes] =
+            self.sum_counts([band as u64, unstored, rep.units() as u64, held, work]);
         let h3 = lattice.map_or((h as f64).powi(3), |l| l.voxel_volume());
         let area = match lattice {
             // The δ integral's gradient is isotropic.

@@ -42,11 +42,22 @@ fn from_order_key(k: u32) -> f32 {
 /// Values per parallel task of [`order_statistics`].
 const ORDER_CHUNK: usize = 1 << 16;
 
+/// The bucket of `counts` (counts per bucket, in order) that holds rank `k` (0-based),
+/// and `k`'s rank within it.
+fn bucket_of(counts: &[u64], mut k: u64) -> (usize, u64) {
+    let mut b = 0;
+    while k >= counts[b] {
+        k -= counts[b];
+        b += 1;
+    }
+    (b, k)
+}
+
 /// The `k`-th smallest values (0-based, each `k` clamped to the last) of `v` (not empty)
 /// in [`f32::total_cmp`]'s order: exact, from two parallel counting passes over the
-/// values' order keys (the high 16 bits, then the low 16 bits within each wanted high
-/// part), with no copy of `v`. Counts are integers, so the result does not depend on the
-/// thread count.
+/// values' order keys (the high 16 bits, then the low 16 bits within each high part a
+/// wanted rank falls in, counted once however many ranks fall in it), with no copy of
+/// `v`. Counts are integers, so the result does not depend on the thread count.
 pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f32; N] {
     type Counts = Vec<u64>;
     let add = |mut a: Counts, b: Counts| {
@@ -61,45 +72,28 @@ pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f3
             h
         })
         .reduce(zero, add);
-    // (high part, rank within it) of every wanted rank.
-    let place = |k: usize| {
-        let mut k = k.min(v.len() - 1) as u64;
-        let mut b = 0;
-        while k >= high[b] {
-            k -= high[b];
-            b += 1;
-        }
-        (b as u32, k)
-    };
-    let places = ks.map(place);
+    // (high part, rank within it) of every wanted rank, and the distinct high parts.
+    let places = ks.map(|k| bucket_of(&high, k.min(v.len() - 1) as u64));
+    let mut parts: Vec<u32> = places.iter().map(|&(b, _)| b as u32).collect();
+    parts.sort_unstable();
+    parts.dedup();
+    let zeros = || parts.iter().map(|_| zero()).collect::<Vec<Counts>>();
     let low: Vec<Counts> = v
         .par_chunks(ORDER_CHUNK)
-        .fold(
-            || places.iter().map(|_| zero()).collect::<Vec<Counts>>(),
-            |mut h, c| {
-                for &x in c {
-                    let key = order_key(x);
-                    for (j, &(b, _)) in places.iter().enumerate() {
-                        if key >> 16 == b {
-                            h[j][(key & 0xffff) as usize] += 1;
-                        }
-                    }
+        .fold(zeros, |mut h, c| {
+            for &x in c {
+                let key = order_key(x);
+                if let Some(j) = parts.iter().position(|&b| key >> 16 == b) {
+                    h[j][(key & 0xffff) as usize] += 1;
                 }
-                h
-            },
-        )
-        .reduce(
-            || places.iter().map(|_| zero()).collect(),
-            |a, b| a.into_iter().zip(b).map(|(a, b)| add(a, b)).collect(),
-        );
-    std::array::from_fn(|j| {
-        let (b, mut k) = places[j];
-        let mut l = 0;
-        while k >= low[j][l] {
-            k -= low[j][l];
-            l += 1;
-        }
-        from_order_key(b << 16 | l as u32)
+            }
+            h
+        })
+        .reduce(zeros, |a, b| a.into_iter().zip(b).map(|(a, b)| add(a, b)).collect());
+    places.map(|(b, k)| {
+        let j = parts.iter().position(|&p| p == b as u32).expect("a wanted part");
+        let (l, _) = bucket_of(&low[j], k);
+        from_order_key((b as u32) << 16 | l as u32)
     })
 }
 

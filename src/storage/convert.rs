@@ -340,22 +340,21 @@ pub fn check_band_fits(shape: &Shape, spec: &GridSpec, copies: f64) -> Result<()
     crate::memory::check(band_bytes(shape, spec) * copies.max(1.0), "the band of this shape")
 }
 
-/// Stored voxels per voxel of interface area in an evolving tile band, beyond the band's
-/// own 2 × half-width: the tiles that cover the band (4.5) and the layer of neighbour
-/// tiles that tile management keeps around active ones (3). Measured on spheres of radius
-/// 50–800 voxels at half widths 2–8 (`levelset info --shape sphere` gives 2·w + 4.5 for a
-/// built band; `levelset run sphere` 2·w + 7.5 once it steps).
-const TILE_PADDING_VOXELS: f64 = 7.5;
-
-/// Stored voxels per voxel of interface area in a built tile band (no neighbour layer yet),
-/// beyond the band's own 2 × half-width (measured with `TILE_PADDING_VOXELS`).
+/// Stored voxels per voxel of interface area in a built tile band, beyond the band's own
+/// 2 × half-width: the tiles that cover it. Measured on spheres of radius 50–800 voxels at
+/// half widths 2–8 (`levelset info --shape sphere` gives 2·w + 4.5).
 const BUILT_PADDING_VOXELS: f64 = 4.5;
+
+/// The same once the band evolves: the built band's and the layer of neighbour tiles that
+/// tile management keeps around active ones (3; `levelset run sphere` gives 2·w + 7.5 on
+/// the same spheres).
+const TILE_PADDING_VOXELS: f64 = BUILT_PADDING_VOXELS + 3.0;
 
 /// The bytes a built tile grid (`grid`, from a file or a conversion, without the layer of
 /// neighbour tiles tile management adds) will take once it evolves: its own bytes times
-/// (2 × half-width + 7.5) / (2 × half-width + 4.5), the ratio of the stored thickness of an
-/// evolving band to a built one (see the constant `TILE_PADDING_VOXELS`). A grid that has
-/// evolved already holds that layer, and the estimate errs on the large side for it.
+/// (2 × half-width + 7.5) / (2 × half-width + 4.5), the stored thickness of an evolving
+/// band over a built one's. A grid that has evolved already holds that layer, and the
+/// estimate errs on the large side for it.
 pub fn evolving_bytes(grid: &TileGrid) -> f64 {
     let w = 2.0 * grid.spec().half_width as f64;
     grid.memory().used() as f64 * (w + TILE_PADDING_VOXELS) / (w + BUILT_PADDING_VOXELS)
@@ -363,8 +362,8 @@ pub fn evolving_bytes(grid: &TileGrid) -> f64 {
 
 /// The bytes of the tile grid of `shape`'s band while it evolves (values and the list's
 /// other arrays): its area ([`Shape::area`]) in voxels times the band's thickness in stored
-/// voxels (2 × half-width + 7.5, see the constant `TILE_PADDING_VOXELS`), 4 bytes each and 276 bytes per tile
-/// of 256 bytes of values.
+/// voxels while it evolves (2 × half-width + 7.5), 4 bytes each and 276 bytes per tile of
+/// 256 bytes of values.
 pub fn band_bytes(shape: &Shape, spec: &GridSpec) -> f64 {
     let h = spec.voxel_size as f64;
     let area = shape.area() / (h * h);

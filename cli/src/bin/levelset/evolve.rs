@@ -160,14 +160,15 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     .map_err(|e| format!("{name}: {e}"))?;
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    // One pass each over the band (collective when distributed), and the whole band.
+    // One pass each over the band (collective when distributed), the bytes held, and the
+    // whole band.
     let (band_voxels, checksum) = (sim.band_voxels(), sim.checksum());
-    let measures = sim.measure().map_err(|e| format!("{name}: {e}"))?;
+    let [grid_bytes, work_bytes] = sim.held_bytes();
     let memory = MemorySummary::now(
         Some(estimated),
-        (measures.bytes + measures.work_bytes) as u64,
-        measures.band_voxels,
-        measures.bytes,
+        (grid_bytes + work_bytes) as u64,
+        band_voxels,
+        grid_bytes,
     );
     let gathered = match transport {
         Some(_) => sim.gathered_tiles().map_err(|e| format!("{name}: {e}"))?,
