@@ -106,7 +106,7 @@ impl Tri {
     }
 
     /// Squared distance from `p` to the triangle (exact up to f64 rounding).
-    #[inline]
+    #[inline(always)]
     pub(super) fn dist2(&self, p: [f64; 3]) -> f64 {
         let ap = sub(p, self.a);
         if self.inv_n2 == 0.0 {
@@ -158,66 +158,87 @@ impl Tri {
     }
 }
 
-/// Lanes of [`Tri::dist2_x8`].
-pub(super) const LANES: usize = 8;
+/// Voxels of a tile.
+pub(super) const TILE_VOXELS: usize = 64;
+
+/// A triangle in f32 with its vertices relative to a tile's first voxel: the search pass
+/// of [`LocalTri::search_tile`], which only has to find each voxel's nearest triangle (the
+/// distance itself is then taken in f64 from that triangle, [`Tri::dist2`]).
+pub(super) struct LocalTri {
+    a: [f32; 3],
+    ab: [f32; 3],
+    ac: [f32; 3],
+    bc: [f32; 3],
+    n: [f32; 3],
+    side: [[f32; 3]; 3],
+    inv_e2: [f32; 3],
+    inv_n2: f32,
+}
 
 impl Tri {
-    /// Squared distances from 8 points (coordinates by axis) to the triangle, without
-    /// branches so that the compiler runs the lanes as vectors: the plane's distance when
-    /// the point projects inside the triangle (on the inner side of all three edges), else
-    /// the least distance to the three edges; a degenerate triangle takes the edges
-    /// alone. The same value as [`Tri::dist2`] up to f64 rounding (the two routes to one
-    /// distance, tested).
-    #[inline]
-    pub(super) fn dist2_x8(&self, p: &[[f64; LANES]; 3]) -> [f64; LANES] {
-        const N: usize = LANES;
-        // Structure of arrays, one short loop per step, so that each is a vector op.
-        let mut ap = [[0.0; N]; 3];
-        let mut bp = [[0.0; N]; 3];
-        let mut cp = [[0.0; N]; 3];
-        for k in 0..3 {
-            for l in 0..N {
-                ap[k][l] = p[k][l] - self.a[k];
-                bp[k][l] = ap[k][l] - self.ab[k];
-                cp[k][l] = ap[k][l] - self.ac[k];
-            }
+    /// This triangle relative to `base` (a tile's first voxel), in f32: the differences
+    /// are taken in f64 and rounded once, the products computed from those.
+    #[inline(always)]
+    pub(super) fn local(&self, base: [f64; 3]) -> LocalTri {
+        let f = |v: [f64; 3]| v.map(|x| x as f32);
+        let a = f(sub(self.a, base));
+        // A sliver whose 1/|n|² exceeds f32 is its edges to f32 precision (a degenerate
+        // triangle, as in `Tri::new`).
+        let inv_n2 = self.inv_n2 as f32;
+        let solid = inv_n2.is_finite();
+        LocalTri {
+            a,
+            ab: f(self.ab),
+            ac: f(self.ac),
+            bc: f(self.bc),
+            n: f(self.n),
+            side: if solid { self.side.map(f) } else { [[0.0; 3]; 3] },
+            inv_e2: self.inv_e2.map(|x| (x as f32).min(f32::MAX)),
+            inv_n2: if solid { inv_n2 } else { 0.0 },
         }
-        let dotv = |r: &[[f64; N]; 3], d: [f64; 3]| {
-            let mut o = [0.0; N];
-            for l in 0..N {
-                o[l] = r[0][l] * d[0] + r[1][l] * d[1] + r[2][l] * d[2];
-            }
-            o
-        };
-        let segv = |r: &[[f64; N]; 3], d: [f64; 3], inv: f64| {
-            let t = dotv(r, d);
-            let mut o = [0.0; N];
-            for l in 0..N {
-                let t = (t[l] * inv).clamp(0.0, 1.0);
-                let q = [r[0][l] - t * d[0], r[1][l] - t * d[1], r[2][l] - t * d[2]];
-                o[l] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
-            }
-            o
-        };
-        let (s0, s1, s2) =
-            (dotv(&ap, self.side[0]), dotv(&bp, self.side[1]), dotv(&cp, self.side[2]));
-        let h = dotv(&ap, self.n);
-        let (e0, e1, e2) = (
-            segv(&ap, self.ab, self.inv_e2[0]),
-            segv(&ap, self.ac, self.inv_e2[1]),
-            segv(&bp, self.bc, self.inv_e2[2]),
-        );
-        // A degenerate triangle has no inside (its `side` vectors are zero, which would
-        // pass the test).
+    }
+}
+
+impl LocalTri {
+    /// Folds this triangle (`id`) into the 64 voxels' nearest triangles: where its
+    /// squared distance (f32, without branches: the plane's distance where the
+    /// voxel projects inside the triangle, on the inner side of all three edges, else the
+    /// least distance to the three edges; a degenerate triangle takes the edges alone) is below
+    /// `best`, it replaces `best` and `arg`. Loops over the 64 voxels, so the compiler runs
+    /// them as vectors of the widest registers the caller's instruction-set level has.
+    #[inline(always)]
+    pub(super) fn search_tile(
+        &self,
+        id: u32,
+        best: &mut [f32; TILE_VOXELS],
+        arg: &mut [u32; TILE_VOXELS],
+    ) {
         let solid = self.inv_n2 != 0.0;
-        let mut out = [0.0; N];
-        for l in 0..N {
-            let inside = (s0[l] >= 0.0) & (s1[l] >= 0.0) & (s2[l] >= 0.0) & solid;
-            let plane = h[l] * h[l] * self.inv_n2;
-            let edges = e0[l].min(e1[l]).min(e2[l]);
-            out[l] = if inside { plane } else { edges };
+        for l in 0..TILE_VOXELS {
+            let p = [(l & 3) as f32, (l >> 2 & 3) as f32, (l >> 4) as f32];
+            let ap = [p[0] - self.a[0], p[1] - self.a[1], p[2] - self.a[2]];
+            let bp = [ap[0] - self.ab[0], ap[1] - self.ab[1], ap[2] - self.ab[2]];
+            let cp = [ap[0] - self.ac[0], ap[1] - self.ac[1], ap[2] - self.ac[2]];
+            let dot = |r: [f32; 3], d: [f32; 3]| r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
+            let seg = |r: [f32; 3], d: [f32; 3], inv: f32| {
+                let t = (dot(r, d) * inv).clamp(0.0, 1.0);
+                let q = [r[0] - t * d[0], r[1] - t * d[1], r[2] - t * d[2]];
+                dot(q, q)
+            };
+            let inside = (dot(ap, self.side[0]) >= 0.0)
+                & (dot(bp, self.side[1]) >= 0.0)
+                & (dot(cp, self.side[2]) >= 0.0)
+                & solid;
+            let h = dot(ap, self.n);
+            let plane = h * h * self.inv_n2;
+            let edges = seg(ap, self.ab, self.inv_e2[0])
+                .min(seg(ap, self.ac, self.inv_e2[1]))
+                .min(seg(bp, self.bc, self.inv_e2[2]));
+            let d = if inside { plane } else { edges };
+            let better = d < best[l];
+            best[l] = if better { d } else { best[l] };
+            arg[l] = if better { id } else { arg[l] };
         }
-        out
     }
 }
 
@@ -269,9 +290,17 @@ mod tests {
             let p = [r(10.0), r(10.0), r(10.0)];
             let (got, want) = (t.dist2(p).sqrt(), reference(&t, p).sqrt());
             assert!(got.is_finite(), "{a:?} {b:?} {c:?} {p:?}");
-            let lanes = t.dist2_x8(&[[p[0]; LANES], [p[1]; LANES], [p[2]; LANES]]);
-            let x8 = lanes[i % LANES].sqrt();
-            assert!((x8 - want).abs() <= 1e-9 * (1.0 + want), "{i}: {x8} vs {want}");
+            // The f32 search relative to a tile: every voxel's distance within f32
+            // rounding of the reference.
+            let (mut best, mut arg) = ([f32::INFINITY; TILE_VOXELS], [u32::MAX; TILE_VOXELS]);
+            t.local([-1.0, -2.0, 0.0]).search_tile(i as u32, &mut best, &mut arg);
+            for (l, &b) in best.iter().enumerate() {
+                let q = [(l & 3) as f64 - 1.0, (l >> 2 & 3) as f64 - 2.0, (l >> 4) as f64];
+                let want = reference(&t, q).sqrt();
+                let got = (b as f64).sqrt();
+                assert!((got - want).abs() <= 1e-5 * (1.0 + want), "{i}/{l}: {got} vs {want}");
+                assert_eq!(arg[l], i as u32);
+            }
             worst = worst.max((got - want).abs());
             assert!((got - want).abs() <= 1e-9 * (1.0 + want), "{i}: {got} vs {want}");
         }

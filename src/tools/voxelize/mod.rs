@@ -71,7 +71,7 @@ use crate::grid::{GridError, GridSpec};
 use crate::progress::{Cancelled, Progress};
 use crate::storage::tiles::{tile_in_range, Tile, TileGrid, TILE_MAX, TILE_MIN};
 use crate::tools::mesh::TriangleMesh;
-use distance::{Tri, LANES};
+use distance::{Tri, TILE_VOXELS};
 use rayon::prelude::*;
 use sign::{Rays, Votes};
 
@@ -159,8 +159,6 @@ impl crate::error::Error for VoxelizeError {
 
 /// Half-diagonal of a tile's voxel-centre box (3 voxels a side), in voxels.
 const TILE_RADIUS: f64 = 1.5 * 1.732_050_807_568_877_2;
-/// Half-diagonal of a 2³ sub-block of voxel centres (1 voxel a side), in voxels.
-const SUB_RADIUS: f64 = 0.5 * 1.732_050_807_568_877_2;
 /// Relative slack of the distance bounds (covers f64 rounding many times over).
 const SLACK: f64 = 1e-9;
 
@@ -287,28 +285,17 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
     let g = spec.gamma();
     let chunks: Vec<Result<Vec<TileOut>, Cancelled>> = runs
         .par_chunks(64)
-        .map_init(Vec::new, |scratch, chunk| {
-            let mut out = Vec::with_capacity(chunk.len());
-            for &(s, e) in chunk {
-                let t = pairs[s].0;
-                let d2 =
-                    tile_distances(&tris, pairs[s..e].iter().map(|p| p.1), t, gamma_v, scratch);
-                let mut values = [0f32; 64];
-                let mut far = 0u64;
-                for (l, v) in values.iter_mut().enumerate() {
-                    *v = ((d2[l].sqrt() * hf) as f32).min(g);
-                    far |= ((*v >= g) as u64) << l;
-                }
-                // A tile without band voxels stays absent (its signs come later, if a
-                // band tile neighbours it).
-                if far != u64::MAX {
-                    let inside = rays.tile_inside(t);
-                    for (l, v) in values.iter_mut().enumerate() {
-                        if inside >> l & 1 == 1 {
-                            *v = -*v;
-                        }
+        .map(|chunk| {
+            let tiles = TileChunk { tris: &tris, pairs: &pairs, runs: chunk, gamma_v, hf, g };
+            let mut out = levelset_kernels::dispatch_one(tiles);
+            // Signs of the tiles with band voxels (a tile without stays absent; its signs
+            // come later, if a band tile neighbours it).
+            for t in &mut out {
+                t.inside = rays.tile_inside(t.coord);
+                for (l, v) in t.values.iter_mut().enumerate() {
+                    if t.inside >> l & 1 == 1 {
+                        *v = -*v;
                     }
-                    out.push(TileOut { coord: t, values, inside, far });
                 }
             }
             ticker.advance(chunk.len() as u64)?;
@@ -359,7 +346,7 @@ fn check_memory(
     let band = area * 2.0 * half_width;
     let axes = if votes == Votes::Majority { 3.0 } else { 1.0 };
     let bytes = band * 4.0 * 2.5 // tiles, about 40 % of their voxels in the band
-        + pairs * 16.0 // (tile, triangle) pairs
+        + pairs * 40.0 // (tile, triangle) pairs, twice while sorted, and the sort's counts
         + axes * (area + perimeter) * 2.0 * 24.0 // crossings, twice while sorted
         + mesh.triangles.len() as f64 * (std::mem::size_of::<Tri>() as f64 + 24.0);
     crate::memory::check(bytes, "voxelizing the mesh (band tiles, triangle bins, ray crossings)")
@@ -421,65 +408,130 @@ fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
             out
         })
         .collect();
-    let mut pairs: Vec<(Coord, u32)> = chunks.into_iter().flatten().collect();
-    pairs.par_sort_unstable_by_key(|p| (p.0.key(), p.1));
-    pairs
+    sort_pairs(chunks)
+}
+
+/// The pairs of `chunks` (each in triangle order, the chunks in triangle order) sorted by
+/// tile in [`Coord`] order, then triangle. Where the tiles' bounding box has at most two
+/// cells per pair (a surface's bins), a counting sort by cell, stable, so the triangle
+/// order within a tile is kept; else a comparison sort.
+fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
+    let n: usize = chunks.iter().map(Vec::len).sum();
+    let (lo, hi) = chunks
+        .par_iter()
+        .flatten()
+        .fold(
+            || ([i64::MAX; 3], [i64::MIN; 3]),
+            |(mut lo, mut hi), (c, _)| {
+                for (a, v) in [c.x, c.y, c.z].into_iter().enumerate() {
+                    lo[a] = lo[a].min(v as i64);
+                    hi[a] = hi[a].max(v as i64);
+                }
+                (lo, hi)
+            },
+        )
+        .reduce(
+            || ([i64::MAX; 3], [i64::MIN; 3]),
+            |(l0, h0), (l1, h1)| {
+                (
+                    std::array::from_fn(|a| l0[a].min(l1[a])),
+                    std::array::from_fn(|a| h0[a].max(h1[a])),
+                )
+            },
+        );
+    let dims: [u64; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1).max(0) as u64);
+    let cells = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d));
+    match cells {
+        Some(cells) if n > 0 && cells <= 2 * n as u64 => {
+            let cell = |c: Coord| {
+                let r =
+                    [c.x as i64 - lo[0], c.y as i64 - lo[1], c.z as i64 - lo[2]].map(|v| v as u64);
+                ((r[2] * dims[1] + r[1]) * dims[0] + r[0]) as usize
+            };
+            let mut start = vec![0usize; cells as usize + 1];
+            for p in chunks.iter().flatten() {
+                start[cell(p.0) + 1] += 1;
+            }
+            for i in 1..start.len() {
+                start[i] += start[i - 1];
+            }
+            let mut out = vec![(Coord::default(), 0u32); n];
+            for &p in chunks.iter().flatten() {
+                let k = &mut start[cell(p.0)];
+                out[*k] = p;
+                *k += 1;
+            }
+            out
+        }
+        _ => {
+            let mut pairs: Vec<(Coord, u32)> = chunks.into_iter().flatten().collect();
+            pairs.par_sort_unstable_by_key(|p| (p.0.key(), p.1));
+            pairs
+        }
+    }
+}
+
+/// The unsigned distances of a chunk of tiles (runs of pairs with one tile), those with
+/// band voxels, run at the CPU's instruction-set level ([`levelset_kernels::dispatch_one`]).
+struct TileChunk<'a> {
+    tris: &'a [Tri],
+    pairs: &'a [(Coord, u32)],
+    runs: &'a [(usize, usize)],
+    gamma_v: f64,
+    hf: f64,
+    g: f32,
+}
+
+impl levelset_kernels::LaneFn for TileChunk<'_> {
+    type Output = Vec<TileOut>;
+    #[inline(always)]
+    fn call<L: levelset_kernels::Lane>(self) -> Vec<TileOut> {
+        let TileChunk { tris, pairs, runs, gamma_v, hf, g } = self;
+        let mut out = Vec::with_capacity(runs.len());
+        for &(s, e) in runs {
+            let t = pairs[s].0;
+            let d2 = tile_distances(tris, &pairs[s..e], t, gamma_v);
+            let mut values = [0f32; 64];
+            let mut far = 0u64;
+            for (l, v) in values.iter_mut().enumerate() {
+                *v = ((d2[l].sqrt() * hf) as f32).min(g);
+                far |= ((*v >= g) as u64) << l;
+            }
+            if far != u64::MAX {
+                out.push(TileOut { coord: t, values, inside: 0, far });
+            }
+        }
+        out
+    }
 }
 
 /// Squared distances (voxel units) of the 64 voxels of tile `t` to the nearest of the
-/// triangles `ids`, capped at γ². Triangles are taken nearest first (by the distance of
-/// the tile's centre less [`TILE_RADIUS`], a lower bound for every voxel) and the scan
-/// stops when that bound reaches the largest distance still held: the result is the
-/// exact minimum, in any order.
-fn tile_distances(
-    tris: &[Tri],
-    ids: impl Iterator<Item = u32>,
-    t: Coord,
-    gamma: f64,
-    scratch: &mut Vec<(f64, u32)>,
-) -> [f64; 64] {
+/// triangles of `pairs`, capped at γ². Two passes: every triangle against all 64 voxels
+/// in f32, relative to the tile ([`Tri::local`], [`LocalTri::search_tile`]), which finds
+/// each voxel's nearest triangle; then that triangle's distance in f64 ([`Tri::dist2`]).
+/// Where triangles tie within the f32 rounding they share the nearest point (an edge or a
+/// vertex), so either gives the same distance.
+#[inline(always)]
+fn tile_distances(tris: &[Tri], pairs: &[(Coord, u32)], t: Coord, gamma: f64) -> [f64; 64] {
     let base = [4.0 * t.x as f64, 4.0 * t.y as f64, 4.0 * t.z as f64];
-    let centre = base.map(|b| b + 1.5);
-    scratch.clear();
-    scratch
-        .extend(ids.map(|i| ((tris[i as usize].dist2(centre).sqrt() - TILE_RADIUS).max(0.0), i)));
-    scratch.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    // The scan runs over the 2³ sub-blocks of the tile, each skipped when its centre's
-    // distance less its half-diagonal (a bound for its 8 voxels) cannot improve them.
-    let mut best = [gamma * gamma; 64];
-    let mut sub_worst = [gamma * gamma; 8];
-    let sub_centres: [[f64; LANES]; 3] =
-        std::array::from_fn(|a| std::array::from_fn(|s| base[a] + 2.0 * (s >> a & 1) as f64 + 0.5));
-    let mut worst = gamma * gamma;
-    for &(bound, i) in scratch.iter() {
-        let b = bound * (1.0 - SLACK);
-        if b * b >= worst {
-            break;
-        }
-        let tri = &tris[i as usize];
-        let centres = tri.dist2_x8(&sub_centres);
-        for (s, sw) in sub_worst.iter_mut().enumerate() {
-            let ds = (centres[s].sqrt() - SUB_RADIUS) * (1.0 - SLACK);
-            if ds > 0.0 && ds * ds >= *sw {
-                continue;
-            }
-            let (sx, sy, sz) = (2 * (s & 1), 2 * (s >> 1 & 1), 2 * (s >> 2));
-            let p: [[f64; LANES]; 3] = std::array::from_fn(|a| {
-                std::array::from_fn(|v| base[a] + [sx, sy, sz][a] as f64 + (v >> a & 1) as f64)
-            });
-            let d = tri.dist2_x8(&p);
-            let mut m = 0f64;
-            for (v, dv) in d.iter().enumerate() {
-                let (x, y, z) = (sx + (v & 1), sy + (v >> 1 & 1), sz + (v >> 2));
-                let b = &mut best[x + 4 * y + 16 * z];
-                *b = b.min(*dv);
-                m = m.max(*b);
-            }
-            *sw = m;
-        }
-        worst = sub_worst.iter().fold(0.0, |m: f64, &d| m.max(d));
+    // Candidates a little beyond γ in f32, so that none within γ in f64 is lost.
+    let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_VOXELS];
+    let mut arg = [u32::MAX; TILE_VOXELS];
+    for &(_, i) in pairs {
+        tris[i as usize].local(base).search_tile(i, &mut best, &mut arg);
     }
-    best
+    let mut d2 = [gamma * gamma; 64];
+    for (l, (d, &i)) in d2.iter_mut().zip(&arg).enumerate() {
+        if i != u32::MAX {
+            let p = [
+                base[0] + (l & 3) as f64,
+                base[1] + (l >> 2 & 3) as f64,
+                base[2] + (l >> 4) as f64,
+            ];
+            *d = tris[i as usize].dist2(p).min(*d);
+        }
+    }
+    d2
 }
 
 /// The six face directions: (axis, ±1).
@@ -512,6 +564,28 @@ fn fails(present: &[TileOut], c: Coord, mask: u64) -> bool {
             .any(|(&vp, &va)| (p.inside >> vp & 1) != (mask >> va & 1))
     })
 }
+
+/// Per axis, the masks of a tile's two faces across it: the voxels with that coordinate
+/// 0, and 3.
+const FACE_MASKS: [[u64; 2]; 3] = {
+    let mut out = [[0u64; 2]; 3];
+    let mut l = 0;
+    while l < 64 {
+        let xyz = [l & 3, l >> 2 & 3, l >> 4];
+        let mut a = 0;
+        while a < 3 {
+            if xyz[a] == 0 {
+                out[a][0] |= 1 << l;
+            }
+            if xyz[a] == 3 {
+                out[a][1] |= 1 << l;
+            }
+            a += 1;
+        }
+        l += 1;
+    }
+    out
+};
 
 /// Local indices of the 16 voxels of a tile's face: axis `a`, layer `layer` (0 or 3).
 fn face_voxels(a: usize, layer: usize) -> [usize; 16] {
@@ -600,46 +674,35 @@ fn close(
         }
         absent.binary_search_by(|a| a.0.cmp(&c)).ok().map(|i| absent[i].1)
     };
-    let updates: Vec<Vec<(usize, f32)>> = present
+    let changes: Vec<u64> = present
         .par_iter()
         .map(|t| {
-            let mut out = Vec::new();
-            let mut far = t.far;
-            while far != 0 {
-                let l = far.trailing_zeros() as usize;
-                far &= far - 1;
-                let inside = t.inside >> l & 1;
-                let xyz = [l & 3, l >> 2 & 3, l >> 4];
-                let mut change = false;
-                for &(a, d) in &FACES {
-                    let q = xyz[a] as i32 + d;
-                    let (nbr, nl) = if (0..4).contains(&q) {
-                        let mut n = xyz;
-                        n[a] = q as usize;
-                        (t.inside, n[0] + 4 * n[1] + 16 * n[2])
-                    } else {
-                        let mut c = [t.coord.x, t.coord.y, t.coord.z];
-                        c[a] = c[a].wrapping_add(d);
-                        let mut n = xyz;
-                        n[a] = if d > 0 { 0 } else { 3 };
-                        let Some(m) = lookup(Coord::new(c[0], c[1], c[2])) else { continue };
-                        (m, n[0] + 4 * n[1] + 16 * n[2])
-                    };
-                    if nbr >> nl & 1 != inside {
-                        change = true;
-                        break;
-                    }
-                }
-                if change {
-                    out.push((l, if inside == 1 { -half_voxel } else { half_voxel }));
-                }
+            if t.far == 0 {
+                return 0;
             }
-            out
+            // The signs of the six face neighbours of every voxel, as masks over the tile:
+            // inside the tile the mask shifted by the axis's stride, across a face the
+            // neighbour tile's opposite face; without a neighbour tile known, the voxel's
+            // own sign (no change counts there).
+            let m = t.inside;
+            let mut diff = 0u64;
+            for (a, stride) in [(0usize, 1u32), (1, 4), (2, 16)] {
+                let (lo, hi) = (FACE_MASKS[a][0], FACE_MASKS[a][1]);
+                let across = 3 * stride;
+                let plus = lookup(step(t.coord, a, 1)).map_or(m & hi, |n| (n & lo) << across);
+                let minus = lookup(step(t.coord, a, -1)).map_or(m & lo, |n| (n & hi) >> across);
+                let up = ((m >> stride) & !hi) | plus;
+                let down = ((m << stride) & !lo) | minus;
+                diff |= (m ^ up) | (m ^ down);
+            }
+            t.far & diff
         })
         .collect();
-    for (t, up) in present.iter_mut().zip(updates) {
-        for (l, v) in up {
-            t.values[l] = v;
+    for (t, mut change) in present.iter_mut().zip(changes) {
+        while change != 0 {
+            let l = change.trailing_zeros() as usize;
+            change &= change - 1;
+            t.values[l] = if t.inside >> l & 1 == 1 { -half_voxel } else { half_voxel };
         }
     }
     absent
