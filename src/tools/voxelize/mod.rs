@@ -411,6 +411,32 @@ fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
     sort_pairs(chunks)
 }
 
+/// The items of `chunks`, in order, sorted stably by `cell(item)` (each below `cells`):
+/// the sorted items and the start of each cell's run (`cells + 1` offsets). Linear in
+/// the items and cells, one pass to count and one to place.
+pub(super) fn counting_sort<T: Copy + Default>(
+    chunks: &[Vec<T>],
+    cells: usize,
+    cell: impl Fn(&T) -> usize,
+) -> (Vec<T>, Vec<usize>) {
+    let n = chunks.iter().map(Vec::len).sum();
+    let mut start = vec![0usize; cells + 1];
+    for p in chunks.iter().flatten() {
+        start[cell(p) + 1] += 1;
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut next = start.clone();
+    let mut out = vec![T::default(); n];
+    for p in chunks.iter().flatten() {
+        let k = &mut next[cell(p)];
+        out[*k] = *p;
+        *k += 1;
+    }
+    (out, start)
+}
+
 /// The pairs of `chunks` (each in triangle order, the chunks in triangle order) sorted by
 /// tile in [`Coord`] order, then triangle. Where the tiles' bounding box has at most two
 /// cells per pair (a surface's bins), a counting sort by cell, stable, so the triangle
@@ -443,25 +469,13 @@ fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
     let cells = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d));
     match cells {
         Some(cells) if n > 0 && cells <= 2 * n as u64 => {
-            let cell = |c: Coord| {
+            let cell = |p: &(Coord, u32)| {
+                let c = p.0;
                 let r =
                     [c.x as i64 - lo[0], c.y as i64 - lo[1], c.z as i64 - lo[2]].map(|v| v as u64);
                 ((r[2] * dims[1] + r[1]) * dims[0] + r[0]) as usize
             };
-            let mut start = vec![0usize; cells as usize + 1];
-            for p in chunks.iter().flatten() {
-                start[cell(p.0) + 1] += 1;
-            }
-            for i in 1..start.len() {
-                start[i] += start[i - 1];
-            }
-            let mut out = vec![(Coord::default(), 0u32); n];
-            for &p in chunks.iter().flatten() {
-                let k = &mut start[cell(p.0)];
-                out[*k] = p;
-                *k += 1;
-            }
-            out
+            counting_sort(&chunks, cells as usize, cell).0
         }
         _ => {
             let mut pairs: Vec<(Coord, u32)> = chunks.into_iter().flatten().collect();

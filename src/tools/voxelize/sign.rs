@@ -39,14 +39,51 @@ const FRAC: u32 = 24;
 pub(super) struct AxisLines {
     /// The axis the lines run along (0 = x, 1 = y, 2 = z).
     axis: usize,
-    /// Sorted line keys ([`line_key`] of the two other voxel coordinates).
-    keys: Vec<u64>,
-    /// Crossings of line `i`: `start[i]..start[i + 1]`.
-    start: Vec<u32>,
+    /// Where each line's crossings are.
+    index: LineIndex,
     /// Crossing positions along the axis, voxel units, sorted within each line.
     t: Vec<f64>,
     /// Crossing orientations (+1 enters, −1 leaves).
     s: Vec<i8>,
+}
+
+/// The lines' crossings: `t[start[i]..start[i + 1]]` for line `i`.
+enum LineIndex {
+    /// Every line of the lines' bounding rectangle (lower corner `lo` in the two other
+    /// voxel coordinates, `dims` lines a side), line `(j, k)` at `(k − lo₁) dims₀ + j − lo₀`:
+    /// a line is found in one step.
+    Dense { lo: [i64; 2], dims: [u64; 2], start: Vec<u32> },
+    /// The lines with crossings, by sorted [`line_key`] (found by binary search).
+    Sparse { keys: Vec<u64>, start: Vec<u32> },
+}
+
+impl LineIndex {
+    /// The crossings of line `(j, k)`, `None` when it has none. `hint` carries a search
+    /// position from one call to the next along a row of lines (`j` increasing).
+    #[inline]
+    fn line(&self, j: i32, k: i32, hint: &mut Option<usize>) -> Option<(usize, usize)> {
+        match self {
+            LineIndex::Dense { lo, dims, start } => {
+                let (dj, dk) = (j as i64 - lo[0], k as i64 - lo[1]);
+                if dj < 0 || dk < 0 || dj as u64 >= dims[0] || dk as u64 >= dims[1] {
+                    return None;
+                }
+                let cell = (dk as u64 * dims[0] + dj as u64) as usize;
+                let (s, e) = (start[cell] as usize, start[cell + 1] as usize);
+                (s < e).then_some((s, e))
+            }
+            LineIndex::Sparse { keys, start } => {
+                let key = line_key(j, k);
+                let i = hint.get_or_insert_with(|| keys.partition_point(|&x| x < key));
+                if keys.get(*i) != Some(&key) {
+                    return None;
+                }
+                let r = (start[*i] as usize, start[*i + 1] as usize);
+                *i += 1;
+                Some(r)
+            }
+        }
+    }
 }
 
 /// How the sign is decided ([`super::SignMethod`] without its docs).
@@ -121,16 +158,12 @@ impl Rays {
             let (b, c) = others(a);
             for lc in 0..4 {
                 let k = base[c] + lc;
-                // The 4 lines j = base[b]..base[b]+3 of this k, by one search.
-                let mut i = lines.keys.partition_point(|&key| key < line_key(base[b], k));
+                let mut hint = None;
                 for lb in 0..4 {
                     let j = base[b] + lb;
-                    let key = line_key(j, k);
-                    if lines.keys.get(i) != Some(&key) {
+                    let Some((s, e)) = lines.index.line(j, k, &mut hint) else {
                         continue; // no crossing: zero votes on this line
-                    }
-                    let (s, e) = (lines.start[i] as usize, lines.start[i + 1] as usize);
-                    i += 1;
+                    };
                     let (ts, ss) = (&lines.t[s..e], &lines.s[s..e]);
                     let total: i32 = ss.iter().map(|&v| v as i32).sum();
                     for la in 0..4 {
@@ -184,22 +217,61 @@ impl AxisLines {
                 out
             })
             .collect();
-        let mut all: Vec<Crossing> = chunks.into_iter().flatten().collect();
         // Equal (key, t) pairs may come in any order: a query counts crossings strictly
         // before or at-or-before a voxel, never splitting crossings at one position.
-        all.par_sort_unstable_by(|p, q| p.0.cmp(&q.0).then(p.1.total_cmp(&q.1)));
-        let mut keys = Vec::new();
-        let mut start = Vec::new();
-        for (i, c) in all.iter().enumerate() {
-            if keys.last() != Some(&c.0) {
-                keys.push(c.0);
-                start.push(i as u32);
-            }
-        }
-        start.push(all.len() as u32);
+        let (all, index) = sort_crossings(chunks);
         let t = all.iter().map(|c| c.1).collect();
         let s = all.iter().map(|c| c.2).collect();
-        AxisLines { axis: a, keys, start, t, s }
+        AxisLines { axis: a, index, t, s }
+    }
+}
+
+/// The crossings of `chunks` sorted by line key, then position along the line: by a
+/// counting sort over the lines' bounding rectangle when it has at most four cells per
+/// crossing (then each line's few crossings by position), else a comparison sort.
+fn sort_crossings(chunks: Vec<Vec<Crossing>>) -> (Vec<Crossing>, LineIndex) {
+    let n: usize = chunks.iter().map(Vec::len).sum();
+    let jk = |key: u64| {
+        let j = (key as u32 ^ 0x8000_0000) as i32 as i64;
+        let k = ((key >> 32) as u32 ^ 0x8000_0000) as i32 as i64;
+        (j, k)
+    };
+    let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+    for c in chunks.iter().flatten() {
+        let (j, k) = jk(c.0);
+        (lo[0], hi[0]) = (lo[0].min(j), hi[0].max(j));
+        (lo[1], hi[1]) = (lo[1].min(k), hi[1].max(k));
+    }
+    let dims = [(hi[0] - lo[0] + 1).max(0) as u64, (hi[1] - lo[1] + 1).max(0) as u64];
+    match dims[0].checked_mul(dims[1]) {
+        Some(cells) if n > 0 && cells <= 4 * n as u64 => {
+            let cell = |c: &Crossing| {
+                let (j, k) = jk(c.0);
+                ((k - lo[1]) as u64 * dims[0] + (j - lo[0]) as u64) as usize
+            };
+            let (mut all, start) = super::counting_sort(&chunks, cells as usize, cell);
+            for w in start.windows(2) {
+                if w[1] - w[0] > 1 {
+                    all[w[0]..w[1]].sort_unstable_by(|p, q| p.1.total_cmp(&q.1));
+                }
+            }
+            let start = start.into_iter().map(|x| x as u32).collect();
+            (all, LineIndex::Dense { lo, dims, start })
+        }
+        _ => {
+            let mut all: Vec<Crossing> = chunks.into_iter().flatten().collect();
+            all.par_sort_unstable_by(|p, q| p.0.cmp(&q.0).then(p.1.total_cmp(&q.1)));
+            let mut keys = Vec::new();
+            let mut start = Vec::new();
+            for (i, c) in all.iter().enumerate() {
+                if keys.last() != Some(&c.0) {
+                    keys.push(c.0);
+                    start.push(i as u32);
+                }
+            }
+            start.push(all.len() as u32);
+            (all, LineIndex::Sparse { keys, start })
+        }
     }
 }
 
