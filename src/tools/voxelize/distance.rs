@@ -213,31 +213,41 @@ impl LocalTri {
         best: &mut [f32; TILE_VOXELS],
         arg: &mut [u32; TILE_VOXELS],
     ) {
-        let solid = self.inv_n2 != 0.0;
         for l in 0..TILE_VOXELS {
-            let p = [(l & 3) as f32, (l >> 2 & 3) as f32, (l >> 4) as f32];
-            let ap = [p[0] - self.a[0], p[1] - self.a[1], p[2] - self.a[2]];
-            let bp = [ap[0] - self.ab[0], ap[1] - self.ab[1], ap[2] - self.ab[2]];
-            let cp = [ap[0] - self.ac[0], ap[1] - self.ac[1], ap[2] - self.ac[2]];
-            let dot = |r: [f32; 3], d: [f32; 3]| r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
-            let seg = |r: [f32; 3], d: [f32; 3], inv: f32| {
-                let t = (dot(r, d) * inv).clamp(0.0, 1.0);
-                let q = [r[0] - t * d[0], r[1] - t * d[1], r[2] - t * d[2]];
-                dot(q, q)
-            };
-            let inside = (dot(ap, self.side[0]) >= 0.0)
-                & (dot(bp, self.side[1]) >= 0.0)
-                & (dot(cp, self.side[2]) >= 0.0)
-                & solid;
-            let h = dot(ap, self.n);
-            let plane = h * h * self.inv_n2;
-            let edges = seg(ap, self.ab, self.inv_e2[0])
-                .min(seg(ap, self.ac, self.inv_e2[1]))
-                .min(seg(bp, self.bc, self.inv_e2[2]));
-            let d = if inside { plane } else { edges };
+            let d = self.dist2([(l & 3) as f32, (l >> 2 & 3) as f32, (l >> 4) as f32]);
             let better = d < best[l];
             best[l] = if better { d } else { best[l] };
             arg[l] = if better { id } else { arg[l] };
+        }
+    }
+
+    /// The squared distance (f32) from `p`, relative to the same base, without branches
+    /// (see [`LocalTri::search_tile`]); inlined into loops over points, which then run as
+    /// vectors.
+    #[inline(always)]
+    pub(super) fn dist2(&self, p: [f32; 3]) -> f32 {
+        let ap = [p[0] - self.a[0], p[1] - self.a[1], p[2] - self.a[2]];
+        let bp = [ap[0] - self.ab[0], ap[1] - self.ab[1], ap[2] - self.ab[2]];
+        let cp = [ap[0] - self.ac[0], ap[1] - self.ac[1], ap[2] - self.ac[2]];
+        let dot = |r: [f32; 3], d: [f32; 3]| r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
+        let seg = |r: [f32; 3], d: [f32; 3], inv: f32| {
+            let t = (dot(r, d) * inv).clamp(0.0, 1.0);
+            let q = [r[0] - t * d[0], r[1] - t * d[1], r[2] - t * d[2]];
+            dot(q, q)
+        };
+        let inside = (dot(ap, self.side[0]) >= 0.0)
+            & (dot(bp, self.side[1]) >= 0.0)
+            & (dot(cp, self.side[2]) >= 0.0)
+            & (self.inv_n2 != 0.0);
+        let h = dot(ap, self.n);
+        let plane = h * h * self.inv_n2;
+        let edges = seg(ap, self.ab, self.inv_e2[0])
+            .min(seg(ap, self.ac, self.inv_e2[1]))
+            .min(seg(bp, self.bc, self.inv_e2[2]));
+        if inside {
+            plane
+        } else {
+            edges
         }
     }
 }

@@ -159,8 +159,6 @@ impl crate::error::Error for VoxelizeError {
 
 /// Half-diagonal of a tile's voxel-centre box (3 voxels a side), in voxels.
 const TILE_RADIUS: f64 = 1.5 * 1.732_050_807_568_877_2;
-/// Relative slack of the distance bounds (covers f64 rounding many times over).
-const SLACK: f64 = 1e-9;
 
 /// Checks a mesh (non-empty, indices in range, coordinates finite) and returns the box of
 /// the vertices its triangles use.
@@ -356,59 +354,98 @@ fn check_memory(
 /// triangle (so that any voxel of the tile within γ is found), sorted by tile in
 /// [`Coord`] order, then triangle.
 fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
-    let reach = gamma + TILE_RADIUS;
-    let reach2 = reach * reach * (1.0 + SLACK);
     let chunks: Vec<Vec<(Coord, u32)>> = tris
         .par_chunks(1024)
         .enumerate()
         .map(|(ci, chunk)| {
-            let mut out = Vec::new();
-            for (k, tri) in chunk.iter().enumerate() {
-                let id = (ci * 1024 + k) as u32;
-                let v = tri.vertices();
-                let mut tlo = [0i64; 3];
-                let mut thi = [0i64; 3];
-                for a in 0..3 {
-                    let lo = v.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
-                    let hi = v.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
-                    let vlo = (lo - gamma).ceil() as i64;
-                    let vhi = (hi + gamma).floor() as i64;
-                    tlo[a] = vlo.div_euclid(4).max(TILE_MIN as i64);
-                    thi[a] = vhi.div_euclid(4).min(TILE_MAX as i64);
-                }
-                let n = tri.normal();
-                let nn = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                // Scan the two axes across the dominant normal component; along it, only
-                // the tiles whose centre is within `reach` of the plane.
-                let m = (0..3).max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap();
-                let (u, w) = ((m + 1) % 3, (m + 2) % 3);
-                let slab = nn > 0.0 && n[m].abs() > 1e-6 * nn;
-                let nd = n[0] * v[0][0] + n[1] * v[0][1] + n[2] * v[0][2];
-                for tu in tlo[u]..=thi[u] {
-                    for tw in tlo[w]..=thi[w] {
-                        let (cu, cw) = (4.0 * tu as f64 + 1.5, 4.0 * tw as f64 + 1.5);
-                        let (mut m0, mut m1) = (tlo[m], thi[m]);
-                        if slab {
-                            let base = (nd - n[u] * cu - n[w] * cw) / n[m];
-                            let half = reach * nn / n[m].abs() * (1.0 + SLACK);
-                            m0 = m0.max(((base - half - 1.5) / 4.0).ceil() as i64);
-                            m1 = m1.min(((base + half - 1.5) / 4.0).floor() as i64);
-                        }
-                        for tm in m0..=m1 {
-                            let mut c = [0i64; 3];
-                            (c[m], c[u], c[w]) = (tm, tu, tw);
-                            let centre = c.map(|x| 4.0 * x as f64 + 1.5);
-                            if tri.dist2(centre) < reach2 {
-                                out.push((Coord::new(c[0] as i32, c[1] as i32, c[2] as i32), id));
-                            }
-                        }
-                    }
-                }
-            }
-            out
+            levelset_kernels::dispatch_one(BinChunk { tris: chunk, first: ci * 1024, gamma })
         })
         .collect();
     sort_pairs(chunks)
+}
+
+/// The (tile, triangle) pairs of a chunk of triangles (the first numbered `first`), run
+/// at the CPU's instruction-set level ([`levelset_kernels::dispatch_one`]): each
+/// triangle's candidate tiles (its bounding box grown by the reach, along the axis of
+/// its dominant normal component only the tiles whose centre is within the reach of its
+/// plane) are tested in f32, relative to a lattice point next to the triangle, sixteen at
+/// a time, with a relative slack far above the f32 rounding (a pair too many costs a
+/// little time, never a value: the distances are exact).
+struct BinChunk<'a> {
+    tris: &'a [Tri],
+    first: usize,
+    gamma: f64,
+}
+
+/// Candidate tiles tested together in [`BinChunk`].
+const BIN_BATCH: usize = 16;
+
+impl levelset_kernels::LaneFn for BinChunk<'_> {
+    type Output = Vec<(Coord, u32)>;
+    #[inline(always)]
+    fn call<L: levelset_kernels::Lane>(self) -> Vec<(Coord, u32)> {
+        let BinChunk { tris, first, gamma } = self;
+        let reach = gamma + TILE_RADIUS;
+        let reach2 = (reach * reach * (1.0 + 1e-4)) as f32;
+        let mut out = Vec::new();
+        let mut cand: Vec<[i64; 3]> = Vec::new();
+        for (k, tri) in tris.iter().enumerate() {
+            let id = (first + k) as u32;
+            let v = tri.vertices();
+            let mut tlo = [0i64; 3];
+            let mut thi = [0i64; 3];
+            for a in 0..3 {
+                let lo = v.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
+                let hi = v.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
+                let vlo = (lo - gamma).ceil() as i64;
+                let vhi = (hi + gamma).floor() as i64;
+                tlo[a] = vlo.div_euclid(4).max(TILE_MIN as i64);
+                thi[a] = vhi.div_euclid(4).min(TILE_MAX as i64);
+            }
+            let n = tri.normal();
+            let nn = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            // Scan the two axes across the dominant normal component; along it, only
+            // the tiles whose centre is within `reach` of the plane.
+            let m = (0..3).max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs())).unwrap_or(0);
+            let (u, w) = ((m + 1) % 3, (m + 2) % 3);
+            let slab = nn > 0.0 && n[m].abs() > 1e-6 * nn;
+            let nd = n[0] * v[0][0] + n[1] * v[0][1] + n[2] * v[0][2];
+            cand.clear();
+            for tu in tlo[u]..=thi[u] {
+                for tw in tlo[w]..=thi[w] {
+                    let (cu, cw) = (4.0 * tu as f64 + 1.5, 4.0 * tw as f64 + 1.5);
+                    let (mut m0, mut m1) = (tlo[m], thi[m]);
+                    if slab {
+                        let base = (nd - n[u] * cu - n[w] * cw) / n[m];
+                        let half = reach * nn / n[m].abs() * (1.0 + 1e-4);
+                        m0 = m0.max(((base - half - 1.5) / 4.0).ceil() as i64);
+                        m1 = m1.min(((base + half - 1.5) / 4.0).floor() as i64);
+                    }
+                    for tm in m0..=m1 {
+                        let mut c = [0i64; 3];
+                        (c[m], c[u], c[w]) = (tm, tu, tw);
+                        cand.push(c);
+                    }
+                }
+            }
+            let base = v[0].map(f64::floor);
+            let local = tri.local(base);
+            for batch in cand.chunks(BIN_BATCH) {
+                let mut d = [f32::INFINITY; BIN_BATCH];
+                for (d, c) in d.iter_mut().zip(batch) {
+                    let p: [f32; 3] =
+                        std::array::from_fn(|a| (4.0 * c[a] as f64 + 1.5 - base[a]) as f32);
+                    *d = local.dist2(p);
+                }
+                for (d, c) in d.iter().zip(batch) {
+                    if *d < reach2 {
+                        out.push((Coord::new(c[0] as i32, c[1] as i32, c[2] as i32), id));
+                    }
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The items of `chunks`, in order, sorted stably by `cell(item)` (each below `cells`):
