@@ -595,15 +595,69 @@ fn step(c: Coord, a: usize, d: i32) -> Coord {
     Coord::new(n[0], n[1], n[2])
 }
 
+/// Positions of the tiles of a sorted list: a table over the tiles' bounding box when it
+/// has at most eight cells per tile (one step a lookup), else binary search.
+struct TileIndex {
+    lo: [i64; 3],
+    dims: [u64; 3],
+    /// Position + 1 per cell of the box, 0 where no tile is; empty: binary search.
+    cell: Vec<u32>,
+}
+
+impl TileIndex {
+    fn new(present: &[TileOut]) -> TileIndex {
+        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+        for t in present {
+            for (a, v) in [t.coord.x, t.coord.y, t.coord.z].into_iter().enumerate() {
+                (lo[a], hi[a]) = (lo[a].min(v as i64), hi[a].max(v as i64));
+            }
+        }
+        let dims: [u64; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1).max(0) as u64);
+        let cells = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d));
+        let mut index = TileIndex { lo, dims, cell: Vec::new() };
+        match cells {
+            Some(n) if n <= 8 * present.len() as u64 && present.len() < u32::MAX as usize => {
+                index.cell = vec![0; n as usize];
+                for (i, t) in present.iter().enumerate() {
+                    let c = index.cell_of(t.coord).expect("in the box");
+                    index.cell[c] = i as u32 + 1;
+                }
+            }
+            _ => {}
+        }
+        index
+    }
+
+    #[inline]
+    fn cell_of(&self, c: Coord) -> Option<usize> {
+        let r = [c.x as i64 - self.lo[0], c.y as i64 - self.lo[1], c.z as i64 - self.lo[2]];
+        if (0..3).any(|a| r[a] < 0 || r[a] as u64 >= self.dims[a]) {
+            return None;
+        }
+        let r = r.map(|v| v as u64);
+        Some(((r[2] * self.dims[1] + r[1]) * self.dims[0] + r[0]) as usize)
+    }
+
+    /// The position of tile `c` in `present` (the list this index was made from).
+    #[inline]
+    fn get(&self, present: &[TileOut], c: Coord) -> Option<usize> {
+        if self.cell.is_empty() {
+            return present.binary_search_by(|t| t.coord.cmp(&c)).ok();
+        }
+        let i = self.cell[self.cell_of(c)?];
+        (i != 0).then(|| i as usize - 1)
+    }
+}
+
 /// Whether the absent tile `c` with sign mask `mask` cannot stay absent: its signs differ
 /// inside it, or one of its face voxels differs from the voxel it touches in a present
 /// tile (a sign change needs band voxels on both sides).
-fn fails(present: &[TileOut], c: Coord, mask: u64) -> bool {
+fn fails(present: &[TileOut], index: &TileIndex, c: Coord, mask: u64) -> bool {
     if mask != 0 && mask != u64::MAX {
         return true;
     }
     FACES.iter().any(|&(a, d)| {
-        let Ok(p) = present.binary_search_by(|t| t.coord.cmp(&step(c, a, d))) else {
+        let Some(p) = index.get(present, step(c, a, d)) else {
             return false;
         };
         let p = &present[p];
@@ -660,8 +714,8 @@ fn close(
 ) -> Vec<(Coord, u64)> {
     let mut absent: Vec<(Coord, u64)> = Vec::new();
     let mut fresh: Vec<Coord> = present.iter().map(|t| t.coord).collect();
-    let find = |present: &[TileOut], c: Coord| present.binary_search_by(|t| t.coord.cmp(&c)).ok();
     loop {
+        let index = TileIndex::new(present);
         // Absent neighbours of the new tiles whose signs are not known yet.
         let mut todo: Vec<Coord> = fresh
             .par_iter()
@@ -675,7 +729,7 @@ fn close(
                     (d != Coord::new(0, 0, 0) && tile_in_range(n)).then_some(n)
                 })
             })
-            .filter(|&n| find(present, n).is_none())
+            .filter(|&n| index.get(present, n).is_none())
             .collect();
         todo.par_sort_unstable();
         todo.dedup();
@@ -696,7 +750,7 @@ fn close(
             .par_iter()
             .filter_map(|&c| {
                 let mask = absent[absent.binary_search_by(|a| a.0.cmp(&c)).ok()?].1;
-                fails(present, c, mask).then_some((c, mask))
+                fails(present, &index, c, mask).then_some((c, mask))
             })
             .collect();
         if failed.is_empty() {
@@ -719,8 +773,9 @@ fn close(
         }
     }
     // Then ±h/2 on every voxel beyond the band with a face neighbour of the other sign.
+    let index = TileIndex::new(present);
     let lookup = |c: Coord| -> Option<u64> {
-        if let Ok(i) = present.binary_search_by(|t| t.coord.cmp(&c)) {
+        if let Some(i) = index.get(present, c) {
             return Some(present[i].inside);
         }
         absent.binary_search_by(|a| a.0.cmp(&c)).ok().map(|i| absent[i].1)
