@@ -289,7 +289,7 @@ fn copy_rows(parts: &[&[f32; 64]; 27], values: &mut [f32; BLOCK]) {
 /// A dense array: slots are the tiles whose block the surface crosses, stored are all
 /// tiles that meet the array or the voxel layer before it; values beyond the array read
 /// `iso + γ` (for an open border the linear extrapolation of
-/// [`DenseSource::extrapolated`]), ±∞ as `iso ± γ`.
+/// [`DenseSource::beyond`]), ±∞ as `iso ± γ`.
 struct DenseSource<'a> {
     field: &'a DenseField,
     spec: GridSpec,
@@ -305,35 +305,9 @@ struct DenseSource<'a> {
 
 impl DenseSource<'_> {
     /// Whether voxels beyond the array read an extrapolation of the array (an open
-    /// border, see [`DenseSource::extrapolated`]) rather than `iso + γ`.
+    /// border, see [`DenseSource::beyond`]) rather than `iso + γ`.
     fn clamps(&self) -> bool {
         self.cells.is_some_and(|r| r.open)
-    }
-
-    /// For a voxel `c` beyond the array: the value at the nearest array voxel p plus,
-    /// along each axis on which `c` lies beyond, the distance times the one-sided
-    /// difference at p toward the outside (zero where the array is one voxel thick). So
-    /// the central differences at the array's border voxels are one-sided differences
-    /// of the same scale. `None` for a voxel of the array.
-    fn extrapolated(&self, c: [i64; 3]) -> Option<f32> {
-        let (lo, hi) = (self.field.origin(), self.field.max_coord());
-        let (lo, hi) =
-            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
-        let p = [0, 1, 2].map(|a| c[a].clamp(lo[a], hi[a]));
-        if p == c {
-            return None;
-        }
-        let base = self.value(p) as f64;
-        let mut v = base;
-        for a in 0..3 {
-            let beyond = c[a] - p[a];
-            if beyond != 0 && lo[a] < hi[a] {
-                let mut q = p;
-                q[a] -= beyond.signum();
-                v += beyond.abs() as f64 * (base - self.value(q) as f64);
-            }
-        }
-        Some(v as f32)
     }
 }
 
@@ -388,42 +362,84 @@ impl DenseSource<'_> {
         (0..3).all(|a| (self.tlo[a]..=self.thi[a]).contains(&t[a]))
     }
 
+    /// The value of the array voxel `p` (inside the array), ±∞ read as far distances.
+    #[inline(always)]
+    fn at(&self, p: [i64; 3]) -> f32 {
+        let o = self.field.origin();
+        let [nx, ny, _] = self.field.dims();
+        let r = [p[0] - o.x as i64, p[1] - o.y as i64, p[2] - o.z as i64].map(|v| v as usize);
+        self.read(self.field.data()[r[0] + nx * (r[1] + ny * r[2])])
+    }
+
+    /// An array value as the surface reads it: ±∞ as far distances.
+    #[inline(always)]
+    fn read(&self, x: f32) -> f32 {
+        if x == f32::INFINITY {
+            self.outside
+        } else if x == f32::NEG_INFINITY {
+            self.inside
+        } else {
+            x
+        }
+    }
+
+    /// [`Source::value`] of a voxel `c` beyond the array, `p` the nearest array voxel:
+    /// `iso + γ` for a closed border; for an open one the value at p plus, along each
+    /// axis on which `c` lies beyond, the distance times the one-sided difference at p
+    /// toward the outside (zero where the array is one voxel thick), so the central
+    /// differences at the array's border voxels are one-sided differences of the same
+    /// scale.
+    #[inline]
+    fn beyond(&self, c: [i64; 3], p: [i64; 3]) -> f32 {
+        if !self.clamps() {
+            return self.outside;
+        }
+        let (lo, hi) = (self.field.origin(), self.field.max_coord());
+        let (lo, hi) =
+            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
+        let base = self.at(p) as f64;
+        let mut v = base;
+        for a in 0..3 {
+            let beyond = c[a] - p[a];
+            if beyond != 0 && lo[a] < hi[a] {
+                let mut q = p;
+                q[a] -= beyond.signum();
+                v += beyond.abs() as f64 * (base - self.at(q) as f64);
+            }
+        }
+        v as f32
+    }
+
+    /// The block of tile `tile` (voxels `4 t − 2 .. 4 t + 6` per axis), each voxel as
+    /// [`Source::value`] reads it: the parts of rows inside the array copied, the voxels
+    /// beyond it from [`DenseSource::beyond`].
     fn fill(&self, tile: [i64; 3], values: &mut [f32; BLOCK]) {
         let lo = tile.map(|t| 4 * t - 2);
         let o = self.field.origin();
         let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
-        if (0..3).all(|a| lo[a] >= o[a] && lo[a] + 8 <= o[a] + dims[a] as i64) {
-            // Inside the array: whole rows of 8, ±∞ read as far distances.
-            let data = self.field.data();
-            let (nx, ny) = (dims[0], dims[1]);
-            let at = |y: usize, z: usize| {
-                let r = |a: usize, d: usize| (lo[a] - o[a]) as usize + d;
-                r(0, 0) + nx * (r(1, y) + ny * r(2, z))
-            };
-            for (r, row) in values.chunks_exact_mut(8).enumerate() {
-                let i = at(r % 8, r / 8);
-                for (v, &x) in row.iter_mut().zip(&data[i..i + 8]) {
-                    *v = if x == f32::INFINITY {
-                        self.outside
-                    } else if x == f32::NEG_INFINITY {
-                        self.inside
-                    } else {
-                        x
-                    };
+        let data = self.field.data();
+        let (nx, ny) = (dims[0], dims[1]);
+        let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
+        // The block's x range inside the array: local x in xa..xb.
+        let xa = (o[0] - lo[0]).clamp(0, 8) as usize;
+        let xb = (hi[0] + 1 - lo[0]).clamp(0, 8) as usize;
+        for (r, row) in values.chunks_exact_mut(8).enumerate() {
+            let (y, z) = (lo[1] + (r % 8) as i64, lo[2] + (r / 8) as i64);
+            let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
+            let row_in = py == y && pz == z;
+            if row_in && xa < xb {
+                let i = (lo[0] + xa as i64 - o[0]) as usize
+                    + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                for (v, &x) in row[xa..xb].iter_mut().zip(&data[i..i + (xb - xa)]) {
+                    *v = self.read(x);
                 }
             }
-            return;
-        }
-        for z in 0..8 {
-            for y in 0..8 {
-                for x in 0..8 {
-                    let v = [
-                        4 * tile[0] - 2 + x as i64,
-                        4 * tile[1] - 2 + y as i64,
-                        4 * tile[2] - 2 + z as i64,
-                    ];
-                    values[bidx(x, y, z)] = self.value(v);
+            for (x, v) in row.iter_mut().enumerate() {
+                if row_in && (xa..xb).contains(&x) {
+                    continue;
                 }
+                let c = [lo[0] + x as i64, y, z];
+                *v = self.beyond(c, [c[0].clamp(o[0], hi[0]), py, pz]);
             }
         }
     }
@@ -450,21 +466,14 @@ impl Source for DenseSource<'_> {
     }
 
     fn value(&self, c: [i64; 3]) -> f32 {
-        if self.clamps() {
-            if let Some(v) = self.extrapolated(c) {
-                return v;
-            }
-        }
-        let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);
-        if c.iter().all(|&v| ok(v)) {
-            match self.field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)) {
-                Some(v) if v == f32::INFINITY => self.outside,
-                Some(v) if v == f32::NEG_INFINITY => self.inside,
-                Some(v) => v,
-                None => self.outside,
-            }
+        let (lo, hi) = (self.field.origin(), self.field.max_coord());
+        let (lo, hi) =
+            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
+        let p = [0, 1, 2].map(|a| c[a].clamp(lo[a], hi[a]));
+        if p == c {
+            self.at(p)
         } else {
-            self.outside
+            self.beyond(c, p)
         }
     }
 
