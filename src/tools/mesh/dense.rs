@@ -172,9 +172,7 @@ pub fn isosurface_dense_with(
             )));
         }
     }
-    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
-        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
+    super::surface::check_nan(field)?;
     let iso = match opts.iso {
         Some(iso) => iso,
         None => mid_range(field)?,

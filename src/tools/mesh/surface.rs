@@ -331,6 +331,13 @@ impl DenseSource<'_> {
         let n = dims.map(|d| d as i64);
         let lo = [t.x as i64, t.y as i64, t.z as i64].map(|c| 4 * c - 2);
         let mut out = [0u64; 8];
+        // A block whose cells (lower corners at block 0..8 in x and y, 0..7 in z) all
+        // have their eight corners in the array, without a mask: every cell.
+        let r = [0, 1, 2].map(|a| lo[a] - o[a]);
+        if rule.mask.is_none() && r.iter().all(|&r| r >= 0) && (0..3).all(|a| r[a] + 8 < n[a]) {
+            out[..7].fill(!0);
+            return out;
+        }
         for (z, layer) in out.iter_mut().enumerate().take(7) {
             for y in 0..8 {
                 for x in 0..8 {
@@ -442,6 +449,92 @@ impl DenseSource<'_> {
                 *v = self.beyond(c, [c[0].clamp(o[0], hi[0]), py, pz]);
             }
         }
+    }
+}
+
+impl DenseSource<'_> {
+    /// The stored tiles whose reach (block voxels 1..=6 along each axis, `4 t − 1 ..=
+    /// 4 t + 4`: what [`uniform`] looks at) holds voxels on both sides of iso, in
+    /// [`Coord`] order: the tiles whose filled block is not [`uniform`], found without
+    /// filling blocks (each voxel's side is read once, then the windows are merged one
+    /// axis at a time: along x per voxel row, along y per tile column, along z per tile).
+    fn crossed_tiles(&self, below: f32) -> Vec<Coord> {
+        let (tlo, thi) = (self.tlo, self.thi);
+        let tn = [0, 1, 2].map(|a| (thi[a] - tlo[a] + 1).max(0) as usize);
+        if tn.contains(&0) {
+            return Vec::new();
+        }
+        let vlo = tlo.map(|t| 4 * t - 1);
+        let vn = tn.map(|n| 4 * n + 2);
+        let o = self.field.origin();
+        let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
+        let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
+        let data = self.field.data();
+        let (nx, ny) = (dims[0], dims[1]);
+        // Sides along x: per voxel row (y, z) and tile x, bit 0 = a voxel below iso in the
+        // tile's window, bit 1 = one not below.
+        let mut fx = vec![0u8; vn[2] * vn[1] * tn[0]];
+        fx.par_chunks_mut(vn[1] * tn[0]).enumerate().for_each(|(zi, plane)| {
+            let z = vlo[2] + zi as i64;
+            let mut side = vec![0u8; vn[0]];
+            for (yi, row) in plane.chunks_exact_mut(tn[0]).enumerate() {
+                let y = vlo[1] + yi as i64;
+                let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
+                let row_in = py == y && pz == z;
+                // The array's voxels of the row (±∞ read as iso ± γ, on the same side).
+                let (xa, xb) = if row_in { (o[0] - vlo[0], hi[0] + 1 - vlo[0]) } else { (0, 0) };
+                let (xa, xb) =
+                    (xa.clamp(0, vn[0] as i64) as usize, xb.clamp(0, vn[0] as i64) as usize);
+                if xa < xb {
+                    let i = (vlo[0] + xa as i64 - o[0]) as usize
+                        + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                    for (sd, &v) in side[xa..xb].iter_mut().zip(&data[i..i + (xb - xa)]) {
+                        *sd = if self.read(v) < below { 1 } else { 2 };
+                    }
+                }
+                for (xi, sd) in side.iter_mut().enumerate() {
+                    if (xa..xb).contains(&xi) {
+                        continue;
+                    }
+                    let x = vlo[0] + xi as i64;
+                    let v = self.beyond([x, y, z], [x.clamp(o[0], hi[0]), py, pz]);
+                    *sd = if v < below { 1 } else { 2 };
+                }
+                for (t, f) in row.iter_mut().enumerate() {
+                    *f = side[4 * t..4 * t + 6].iter().fold(0, |a, &b| a | b);
+                }
+            }
+        });
+        // Along y: per voxel z and tile (x, y).
+        let mut fy = vec![0u8; vn[2] * tn[1] * tn[0]];
+        fy.par_chunks_mut(tn[1] * tn[0]).enumerate().for_each(|(zi, plane)| {
+            let src = &fx[zi * vn[1] * tn[0]..(zi + 1) * vn[1] * tn[0]];
+            for (ty, row) in plane.chunks_exact_mut(tn[0]).enumerate() {
+                for yi in 4 * ty..4 * ty + 6 {
+                    for (f, &g) in row.iter_mut().zip(&src[yi * tn[0]..(yi + 1) * tn[0]]) {
+                        *f |= g;
+                    }
+                }
+            }
+        });
+        // Along z: per tile; the crossed ones in (z, y, x) order.
+        (0..tn[2])
+            .into_par_iter()
+            .flat_map_iter(|tz| {
+                let mut plane = vec![0u8; tn[1] * tn[0]];
+                for zi in 4 * tz..4 * tz + 6 {
+                    let src = &fy[zi * tn[1] * tn[0]..(zi + 1) * tn[1] * tn[0]];
+                    for (f, &g) in plane.iter_mut().zip(src) {
+                        *f |= g;
+                    }
+                }
+                let (tz, tlo) = (tz as i64 + tlo[2], tlo);
+                plane.into_iter().enumerate().filter(|&(_, f)| f == 3).map(move |(k, _)| {
+                    let (tx, ty) = ((k % tn[0]) as i64 + tlo[0], (k / tn[0]) as i64 + tlo[1]);
+                    Coord::new(tx as i32, ty as i32, tz as i32)
+                })
+            })
+            .collect()
     }
 }
 
@@ -1070,12 +1163,24 @@ pub fn isosurface_dense(
     spec: &GridSpec,
     iso: f64,
 ) -> Result<TriangleMesh, MeshError> {
+    check_nan(field)?;
     let none = crate::progress::Progress::none();
     Ok(dense_mesh(field, spec, iso, None, false, &none)?.0)
 }
 
+/// [`MeshError::NaN`] at the first NaN of the field.
+pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
+    // A vectorised scan first; the position only when there is one.
+    if field.data().par_chunks(1 << 16).any(|c| c.iter().fold(false, |a, v| a | v.is_nan())) {
+        let i = field.data().iter().position(|v| v.is_nan()).expect("a NaN was seen");
+        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    Ok(())
+}
+
 /// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
-/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles.
+/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles. The
+/// caller has checked that the field holds no NaN ([`check_nan`]).
 pub(super) fn dense_mesh(
     field: &DenseField,
     spec: &GridSpec,
@@ -1085,9 +1190,6 @@ pub(super) fn dense_mesh(
     progress: &crate::progress::Progress,
 ) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     check_iso(iso)?;
-    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
-        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
     let o = field.origin();
     let hi = field.max_coord();
     let lo = [o.x as i64 - 1, o.y as i64 - 1, o.z as i64 - 1];
@@ -1106,23 +1208,7 @@ pub(super) fn dense_mesh(
     };
     // The slots: the stored tiles whose block the surface crosses (any other tile has no
     // cut edge and no cut cell).
-    let below = f32_threshold(iso);
-    let (tlo, thi) = (src.tlo, src.thi);
-    let src_ref = &src;
-    let coords = (tlo[2]..=thi[2])
-        .into_par_iter()
-        .flat_map_iter(|z| {
-            let mut values = Box::new([0f32; BLOCK]);
-            (tlo[1]..=thi[1])
-                .flat_map(move |y| (tlo[0]..=thi[0]).map(move |x| [x, y, z]))
-                .filter_map(move |t| {
-                    src_ref.fill(t, &mut values);
-                    (!uniform(&signs(&values, below)))
-                        .then(|| Coord::new(t[0] as i32, t[1] as i32, t[2] as i32))
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let coords = src.crossed_tiles(f32_threshold(iso));
     src.coords = coords;
     let ticker = progress.start(src.coords.len() as u64);
     run(&src, iso, &ticker, ranges)
