@@ -6,6 +6,7 @@ use crate::watch;
 use numpy::ndarray::{Array3, ShapeBuilder};
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use rayon::prelude::*;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::tools::fmm::{self, Order};
@@ -240,13 +241,18 @@ fn isosurface<'py>(
         if !level.is_finite() {
             return Err(crate::value_error(format!("level must be finite, got {level}")));
         }
+        // The smallest and largest value that is not NaN (f32::min and max skip NaN), on
+        // all threads.
         let (lo, hi) = field
             .data()
-            .iter()
-            .filter(|v| !v.is_nan())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v as f64), hi.max(v as f64))
-            });
+            .par_chunks(1 << 16)
+            .map(|c| {
+                c.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(v), hi.max(v))
+                })
+            })
+            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+        let (lo, hi) = (lo as f64, hi as f64);
         if !(lo < level && level < hi) && field.data().iter().all(|v| !v.is_nan()) {
             return Err(crate::value_error(format!(
                 "surface level {level} must be strictly within the volume's data range [{lo}, {hi}]"

@@ -301,6 +301,8 @@ struct DenseSource<'a> {
     inside: f32,
     /// Which cells are meshed; `None`: all.
     cells: Option<CellRule<'a>>,
+    /// −1 to mesh the negated array (without a negated copy), else 1.
+    sign: f32,
 }
 
 impl DenseSource<'_> {
@@ -378,9 +380,11 @@ impl DenseSource<'_> {
         self.read(self.field.data()[r[0] + nx * (r[1] + ny * r[2])])
     }
 
-    /// An array value as the surface reads it: ±∞ as far distances.
+    /// An array value as the surface reads it: times [`DenseSource::sign`], ±∞ as far
+    /// distances.
     #[inline(always)]
     fn read(&self, x: f32) -> f32 {
+        let x = self.sign * x;
         if x == f32::INFINITY {
             self.outside
         } else if x == f32::NEG_INFINITY {
@@ -1165,7 +1169,7 @@ pub fn isosurface_dense(
 ) -> Result<TriangleMesh, MeshError> {
     check_nan(field)?;
     let none = crate::progress::Progress::none();
-    Ok(dense_mesh(field, spec, iso, None, false, &none)?.0)
+    Ok(dense_mesh(field, false, spec, iso, None, false, &none)?.0)
 }
 
 /// [`MeshError::NaN`] at the first NaN of the field.
@@ -1180,9 +1184,11 @@ pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
 
 /// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
 /// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles. The
-/// caller has checked that the field holds no NaN ([`check_nan`]).
+/// caller has checked that the field holds no NaN ([`check_nan`]). `negate`: mesh `−field`
+/// (the same bits as a negated copy, without the copy).
 pub(super) fn dense_mesh(
     field: &DenseField,
+    negate: bool,
     spec: &GridSpec,
     iso: f64,
     cells: Option<CellRule>,
@@ -1205,6 +1211,7 @@ pub(super) fn dense_mesh(
         outside: (iso + spec.gamma() as f64) as f32,
         inside: (iso - spec.gamma() as f64) as f32,
         cells,
+        sign: if negate { -1.0 } else { 1.0 },
     };
     // The slots: the stored tiles whose block the surface crosses (any other tile has no
     // cut edge and no cut cell).
