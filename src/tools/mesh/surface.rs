@@ -485,15 +485,41 @@ impl DenseSource<'_> {
                 let y = vlo[1] + yi as i64;
                 let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
                 let row_in = py == y && pz == z;
-                // The array's voxels of the row (±∞ read as iso ± γ, on the same side).
-                let (xa, xb) = if row_in { (o[0] - vlo[0], hi[0] + 1 - vlo[0]) } else { (0, 0) };
+                // The voxels of the row above the array's x range: the array's own, or
+                // for an open border a row beyond it in y or z, extrapolated from the
+                // array's rows as [`DenseSource::beyond`] does (the same operations).
+                let (xa, xb) = (o[0] - vlo[0], hi[0] + 1 - vlo[0]);
                 let (xa, xb) =
                     (xa.clamp(0, vn[0] as i64) as usize, xb.clamp(0, vn[0] as i64) as usize);
+                let (xa, xb) = if row_in || self.clamps() { (xa, xb) } else { (0, 0) };
                 if xa < xb {
-                    let i = (vlo[0] + xa as i64 - o[0]) as usize
-                        + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
-                    for (sd, &v) in side[xa..xb].iter_mut().zip(&data[i..i + (xb - xa)]) {
-                        *sd = if self.read(v) < below { 1 } else { 2 };
+                    let row_at = |y: i64, z: i64| {
+                        let i = (vlo[0] + xa as i64 - o[0]) as usize
+                            + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                        &data[i..i + (xb - xa)]
+                    };
+                    let base = row_at(py, pz);
+                    // Per axis y, z beyond the array: the distance and the row one voxel
+                    // inward from the base row.
+                    let (by, bz) = (y - py, z - pz);
+                    let inner_y = (by != 0 && o[1] < hi[1]).then(|| row_at(py - by.signum(), pz));
+                    let inner_z = (bz != 0 && o[2] < hi[2]).then(|| row_at(py, pz - bz.signum()));
+                    for (k, sd) in side[xa..xb].iter_mut().enumerate() {
+                        let b = self.read(base[k]);
+                        let v = if row_in {
+                            b
+                        } else {
+                            let b = b as f64;
+                            let mut v = b;
+                            if let Some(r) = inner_y {
+                                v += by.abs() as f64 * (b - self.read(r[k]) as f64);
+                            }
+                            if let Some(r) = inner_z {
+                                v += bz.abs() as f64 * (b - self.read(r[k]) as f64);
+                            }
+                            v as f32
+                        };
+                        *sd = if v < below { 1 } else { 2 };
                     }
                 }
                 for (xi, sd) in side.iter_mut().enumerate() {
@@ -1252,6 +1278,59 @@ mod tests {
                 }
             }
             assert!(checked > 1000, "{checked}");
+        }
+    }
+
+    /// A dense array's crossed tiles, found separably, are the tiles whose filled block is
+    /// not uniform (the scan over every block), at open and closed borders, with ±∞,
+    /// negated reads and arrays one voxel thick along an axis.
+    #[test]
+    fn crossed_tiles_are_the_tiles_with_a_mixed_block() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for (k, dims) in [[13, 11, 9], [9, 1, 12], [17, 14, 6]].into_iter().enumerate() {
+            let o = Coord::new(-3 + k as i32, 2, -5);
+            let mut field = DenseField::from_fn(o, dims, |c| {
+                let p = [c.x as f32 + 0.3, c.y as f32 - 4.1, c.z as f32 + 1.7];
+                (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 5.0
+            })
+            .unwrap();
+            for _ in 0..6 {
+                let i = rng.usize(..field.data().len());
+                field.data_mut()[i] = if rng.bool() { f32::INFINITY } else { f32::NEG_INFINITY };
+            }
+            let (lo, hi) = (field.origin(), field.max_coord());
+            let (lo, hi) = ([lo.x, lo.y, lo.z].map(|c| c as i64 - 1), [hi.x, hi.y, hi.z]);
+            for open in [false, true] {
+                for negate in [false, true] {
+                    let iso = if negate { -0.5 } else { 0.5 };
+                    let src = DenseSource {
+                        field: &field,
+                        spec: GridSpec::default(),
+                        coords: Vec::new(),
+                        tlo: lo.map(|c| c.div_euclid(4)),
+                        thi: hi.map(|c| (c as i64).div_euclid(4)),
+                        outside: iso + 3.0,
+                        inside: iso - 3.0,
+                        cells: open.then_some(CellRule { open, mask: None }),
+                        sign: if negate { -1.0 } else { 1.0 },
+                    };
+                    let below = f32_threshold(iso as f64);
+                    let mut scan = Vec::new();
+                    let mut values = Box::new([0f32; BLOCK]);
+                    for z in src.tlo[2]..=src.thi[2] {
+                        for y in src.tlo[1]..=src.thi[1] {
+                            for x in src.tlo[0]..=src.thi[0] {
+                                src.fill([x, y, z], &mut values);
+                                if !uniform(&signs(&values, below)) {
+                                    scan.push(Coord::new(x as i32, y as i32, z as i32));
+                                }
+                            }
+                        }
+                    }
+                    assert!(scan.len() > 3, "{dims:?}");
+                    assert_eq!(src.crossed_tiles(below), scan, "{dims:?} open {open} {negate}");
+                }
+            }
         }
     }
 
