@@ -247,9 +247,8 @@ fn isosurface<'py>(
             .data()
             .par_chunks(1 << 16)
             .map(|c| {
-                c.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                    (lo.min(v), hi.max(v))
-                })
+                c.iter()
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
             })
             .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
         let (lo, hi) = (lo as f64, hi as f64);
