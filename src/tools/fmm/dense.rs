@@ -213,7 +213,7 @@ pub fn dense_distance(
         // The same march on a flat array (same values, bit for bit).
         let scale = |v: f64| (v * h0) as f32;
         return match super::flat::distance(phi, &lattice, second, limit, &opts.progress, scale)? {
-            Some((values, reached)) => Ok(DenseMarch { values, reached }),
+            Some(out) => Ok(out),
             None => Err(FmmError::NoInterface),
         };
     }

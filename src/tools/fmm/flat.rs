@@ -24,6 +24,7 @@
 //! nothing the march changes, so they run on all threads, one z-slab per task, and give
 //! the same values on any thread count.
 
+use super::dense::DenseMarch;
 use super::march::{solve_terms, Lattice, Term};
 use super::source::interface_distance;
 use super::store::{FAR, FROZEN, INITIAL, INSIDE, TRIAL};
@@ -290,8 +291,8 @@ impl Flat {
 /// The signed distance (march units, φ < 0 inside) of the dense array `phi` on
 /// `lattice` (no periodic axis), as [`super::march::Marcher`] computes it from the
 /// interface of [`super::source::freeze_interface`]; `f` maps a frozen voxel's value
-/// to the output. Returns `(values, reached)` in the array's order, `None` when the
-/// array has no interface.
+/// to the output. Returns the values and reached flags in the array's order, `None` when
+/// the array has no interface.
 pub(super) fn distance(
     phi: &[f32],
     lattice: &Lattice,
@@ -299,7 +300,7 @@ pub(super) fn distance(
     limit: f64,
     progress: &Progress,
     f: impl Fn(f64) -> f32 + Sync,
-) -> Result<Option<(Vec<f32>, Vec<bool>)>, FmmError> {
+) -> Result<Option<DenseMarch>, FmmError> {
     debug_assert!(!lattice.periodic.contains(&true));
     let dims = lattice.dims;
     let pad = dims.map(|n| usize::from(n > 1));
@@ -452,5 +453,5 @@ pub(super) fn distance(
             }
         },
     );
-    Ok(Some((values, reached)))
+    Ok(Some(DenseMarch { values, reached }))
 }

@@ -184,10 +184,11 @@ fn the_flat_march_equals_the_sparse_one_bit_for_bit() {
                     sparse_distance(&phi, lattice.clone(), h0, second, limit, &Progress::none())
                         .unwrap();
                 let scale = |v: f64| (v * h0) as f32;
-                let (values, reached) =
+                let flat =
                     super::flat::distance(&phi, &lattice, second, limit, &Progress::none(), scale)
                         .unwrap()
                         .unwrap();
+                let (values, reached) = (flat.values, flat.reached);
                 assert_eq!(reached, sparse.reached, "case {k}, second {second}, {narrow:?}");
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&values), bits(&sparse.values), "case {k}, {second}, {narrow:?}");
