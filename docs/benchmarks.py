@@ -496,19 +496,21 @@ def python_section(meta):
         "## Python beside scikit-fmm and scikit-image",
         "",
         f"Two runs of `{runs[0]['command']}` (first / second; the fastest of its repeats each):"
-        " `sparse_levelset.distance` against `skfmm.distance` (order 2) on a distorted torus,"
+        " `sparse_levelset.distance` against `skfmm.distance` (order 2) on a distorted torus"
+        " (n³) and circle (n²),"
         " `sparse_levelset.isosurface` against `skimage.measure.marching_cubes` on a sphere;"
         " errors in voxels (the same in both runs). Tables and conditions:"
         " [python.md](python.md).",
         "",
-        "| n³ | narrow | max error ≤ 2.5 voxels: scikit-fmm / ours | seconds: scikit-fmm | seconds: ours | speed-up |",
+        "| size | narrow | max error ≤ 2.5 voxels: scikit-fmm / ours | seconds: scikit-fmm | seconds: ours | speed-up |",
         "|---|---|---|---|---|---|",
     ]
     for i, r in enumerate(runs[0]["distance"]):
         b = runs[1]["distance"][i]
         narrow = "—" if r["narrow"] is None else f"{r['narrow']:g}"
         out.append(
-            f"| {r['n']} | {narrow} | {r['max_near_skfmm']:.3f} / {r['max_near_ours']:.3f} | "
+            f"| {r['n']}{'²' if r.get('dims', 3) == 2 else '³'} | {narrow} |"
+            f" {r['max_near_skfmm']:.3f} / {r['max_near_ours']:.3f} | "
             f"{pair(r['t_skfmm'], b['t_skfmm'], lambda v: f'{v:.3f}')} | "
             f"{pair(r['t_ours'], b['t_ours'], lambda v: f'{v:.3f}')} | "
             f"{r['t_skfmm'] / r['t_ours']:.1f}× / {b['t_skfmm'] / b['t_ours']:.1f}× |"

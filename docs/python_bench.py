@@ -15,7 +15,9 @@ target/py-venv). Every time is the fastest of --repeat runs.
   voxels; max and mean error against the exact distance within 2.5 voxels of the surface and
   over the whole array; `skfmm.distance(phi, order=2)` and `sl.distance(phi, order=2)`,
   then both with `narrow=3` (distances only within 3 voxels, what a level-set method
-  needs).
+  needs). Then the same in 2-D (--sizes-2d, default 1024): a distorted circle of radius
+  0.3 n on n² pixels (the exact signed distance of the circle times a smooth positive
+  factor between about 0.4 and 1.8).
 * isosurface: the signed distance of a sphere of radius 0.4 n on n³ voxels; relative area
   error, watertightness (trimesh), and time of `skimage.measure.marching_cubes(vol, 0)`
   and `sl.isosurface(vol, 0)`.
@@ -61,15 +63,24 @@ def torus(n):
     return exact * factor, exact
 
 
-def distance_rows(n, repeat):
-    phi, exact = torus(n)
+def circle(n):
+    y, x = np.mgrid[:n, :n].astype(np.float64)
+    c = (n - 1) / 2
+    X, Y = x - c, y - c
+    exact = np.sqrt(X**2 + Y**2) - 0.3 * n
+    factor = (1 + 0.4 * np.sin(X / 23) * np.cos(Y / 17) + 0.2 * Y / n) * np.exp(0.0004 * X)
+    return exact * factor, exact
+
+
+def distance_rows(n, repeat, dims=3):
+    phi, exact = torus(n) if dims == 3 else circle(n)
     near = np.abs(exact) < 2.5
     rows = []
     for narrow in (None, 3.0):
         kw = {} if narrow is None else {"narrow": narrow}
         t_them, theirs = best_of(repeat, lambda: skfmm.distance(phi, order=2, **kw))
         t_us, ours = best_of(repeat, lambda: sl.distance(phi, order=2, **kw))
-        row = {"n": n, "narrow": narrow, "t_skfmm": t_them, "t_ours": t_us}
+        row = {"n": n, "dims": dims, "narrow": narrow, "t_skfmm": t_them, "t_ours": t_us}
         for name, d in (("skfmm", theirs), ("ours", ours)):
             err = np.abs(np.ma.getdata(d) - exact)
             row[f"max_near_{name}"] = err[near].max()
@@ -110,11 +121,16 @@ def machine():
     return f"{cpu}, {os.cpu_count()} cores, {width}"
 
 
+def size(r):
+    """n³ or n² (records without `dims` are 3-D)."""
+    return f"{r['n']}{'²' if r.get('dims', 3) == 2 else '³'}"
+
+
 def tables(dist, iso, repeat):
     out = []
-    out.append("**Signed distance of the distorted torus** (order 2; error in voxels against "
-               "the exact distance; time in seconds)\n")
-    out.append("| n³ | narrow | max error ≤ 2.5 voxels: scikit-fmm / ours | mean error ≤ 2.5 voxels: "
+    out.append("**Signed distance of the distorted torus (n³) and circle (n²)** (order 2; error "
+               "in voxels against the exact distance; time in seconds)\n")
+    out.append("| size | narrow | max error ≤ 2.5 voxels: scikit-fmm / ours | mean error ≤ 2.5 voxels: "
                "scikit-fmm / ours | max error, whole array: scikit-fmm / ours | time: scikit-fmm "
                "/ ours | speed-up |")
     out.append("|---|---|---|---|---|---|---|")
@@ -123,7 +139,7 @@ def tables(dist, iso, repeat):
         whole = ("—" if r["narrow"] is not None
                  else f"{r['max_all_skfmm']:.3f} / {r['max_all_ours']:.3f}")
         out.append(
-            f"| {r['n']} | {narrow} | {r['max_near_skfmm']:.3f} / {r['max_near_ours']:.3f} | "
+            f"| {size(r)} | {narrow} | {r['max_near_skfmm']:.3f} / {r['max_near_ours']:.3f} | "
             f"{r['mean_near_skfmm']:.4f} / {r['mean_near_ours']:.4f} | {whole} | "
             f"{r['t_skfmm']:.3f} / {r['t_ours']:.3f} | {r['t_skfmm'] / r['t_ours']:.1f}× |"
         )
@@ -143,27 +159,34 @@ def tables(dist, iso, repeat):
     return "\n".join(out)
 
 
+def args(a):
+    """The command line of this run (without the output options)."""
+    return (f"--sizes {' '.join(map(str, a.sizes))} --sizes-2d {' '.join(map(str, a.sizes_2d))} "
+            f"--repeat {a.repeat}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", type=int, nargs="+", default=[96, 160])
+    ap.add_argument("--sizes-2d", type=int, nargs="*", default=[1024])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--write-docs", action="store_true", help="fill the table in docs/python.md")
     ap.add_argument("--json", type=Path, help="also write the records to this JSON file")
     a = ap.parse_args()
     dist = [row for n in a.sizes for row in distance_rows(n, a.repeat)]
+    dist += [row for n in a.sizes_2d for row in distance_rows(n, a.repeat, dims=2)]
     iso = [iso_row(n, a.repeat) for n in a.sizes]
     body = tables(dist, iso, a.repeat)
     import skimage
     note = (
         f"Measured {datetime.date.today().isoformat()} on {machine()} with "
-        f"`target/py-venv/bin/python docs/python_bench.py --sizes {' '.join(map(str, a.sizes))} "
-        f"--repeat {a.repeat}` (fastest of {a.repeat}; sparse_levelset {sl.__version__}, "
+        f"`target/py-venv/bin/python docs/python_bench.py {args(a)}` (fastest of {a.repeat}; sparse_levelset {sl.__version__}, "
         f"scikit-fmm {skfmm.__version__}, scikit-image {skimage.__version__}, NumPy "
         f"{np.__version__}, Python {platform.python_version()})."
     )
     print(note + "\n\n" + body)
     if a.json:
-        command = f"target/py-venv/bin/python docs/python_bench.py --sizes {' '.join(map(str, a.sizes))} --repeat {a.repeat}"
+        command = f"target/py-venv/bin/python docs/python_bench.py {args(a)}"
         clean = lambda rows: [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()} for r in rows]
         a.json.write_text(json.dumps({"note": note, "command": command, "distance": clean(dist),
                                       "isosurface": clean(iso)}, indent=2, default=bool) + "\n")

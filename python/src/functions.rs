@@ -6,6 +6,7 @@ use crate::watch;
 use numpy::ndarray::{Array3, ShapeBuilder};
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use rayon::prelude::*;
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::storage::dense::DenseField;
 use sparse_levelset::tools::fmm::{self, Order};
@@ -240,13 +241,17 @@ fn isosurface<'py>(
         if !level.is_finite() {
             return Err(crate::value_error(format!("level must be finite, got {level}")));
         }
+        // The smallest and largest value that is not NaN (f32::min and max skip NaN), on
+        // all threads.
         let (lo, hi) = field
             .data()
-            .iter()
-            .filter(|v| !v.is_nan())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v as f64), hi.max(v as f64))
-            });
+            .par_chunks(1 << 16)
+            .map(|c| {
+                c.iter()
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+            })
+            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+        let (lo, hi) = (lo as f64, hi as f64);
         if !(lo < level && level < hi) && field.data().iter().all(|v| !v.is_nan()) {
             return Err(crate::value_error(format!(
                 "surface level {level} must be strictly within the volume's data range [{lo}, {hi}]"
@@ -270,23 +275,27 @@ fn isosurface<'py>(
     let m = &s.mesh;
     // Lattice (x, y, z) → array axes; reversing the axes (C order) mirrors the mesh, so the
     // triangles are reversed to keep their orientation (and once more for `reverse`).
+    // Per vertex, independently: on all threads.
     let axis = vol.axis_of();
-    let mut verts = vec![[0f32; 3]; m.positions.len()];
-    let mut normals = vec![[0f32; 3]; m.positions.len()];
-    for (i, (p, n)) in m.positions.iter().zip(&m.normals).enumerate() {
-        let mut q = [0f64; 3];
-        for d in 0..3 {
-            let a = axis[d];
-            verts[i][a] = (p[d] * spacing[a]) as f32;
-            q[a] = n[d] as f64 / spacing[a];
-        }
-        let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-        normals[i] = if len > 0.0 { q.map(|c| (c / len) as f32) } else { [0.0; 3] };
-    }
+    let (verts, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = m
+        .positions
+        .par_iter()
+        .zip(&m.normals)
+        .map(|(p, n)| {
+            let (mut v, mut q) = ([0f32; 3], [0f64; 3]);
+            for d in 0..3 {
+                let a = axis[d];
+                v[a] = (p[d] * spacing[a]) as f32;
+                q[a] = n[d] as f64 / spacing[a];
+            }
+            let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            (v, if len > 0.0 { q.map(|c| (c / len) as f32) } else { [0.0; 3] })
+        })
+        .unzip();
     let faces: Vec<[u32; 3]> = if vol.fortran != reverse {
         s.mesh.triangles
     } else {
-        s.mesh.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect()
+        s.mesh.triangles.par_iter().map(|t| [t[0], t[2], t[1]]).collect()
     };
     let values = numpy::PyArray1::from_vec(py, s.values);
     Ok((to_rows(py, &verts)?, to_rows(py, &faces)?, to_rows(py, &normals)?, values))

@@ -100,7 +100,7 @@ pub const MIN_SPEED: f64 = f64::EPSILON;
 
 /// Checks the grid, the arrays' lengths, `narrow` and φ; returns the lattice (obstacles
 /// from `mask` and `extra`).
-fn checked_lattice(
+pub(super) fn checked_lattice(
     phi: &[f32],
     grid: &DenseGrid,
     mask: Option<&[bool]>,
@@ -207,9 +207,32 @@ pub fn dense_distance(
     opts: &DenseOptions,
 ) -> Result<DenseMarch, FmmError> {
     let (lattice, h0) = checked_lattice(phi, grid, mask, opts.narrow, None)?;
-    let mut m = Marcher::on_lattice(opts.order == Order::Second, lattice.clone(), UnitCost);
+    let second = opts.order == Order::Second;
+    let limit = opts.narrow.map_or(f64::INFINITY, |w| w / h0);
+    if !lattice.periodic.contains(&true) && super::flat::fits(lattice.dims) {
+        // The same march on a flat array (same values, bit for bit).
+        let scale = |v: f64| (v * h0) as f32;
+        return match super::flat::distance(phi, &lattice, second, limit, &opts.progress, scale)? {
+            Some(out) => Ok(out),
+            None => Err(FmmError::NoInterface),
+        };
+    }
+    sparse_distance(phi, lattice, h0, second, limit, &opts.progress)
+}
+
+/// [`dense_distance`] through the sparse march (periodic axes; the tests' reference for
+/// the flat one).
+pub(super) fn sparse_distance(
+    phi: &[f32],
+    lattice: Lattice,
+    h0: f64,
+    second: bool,
+    limit: f64,
+    progress: &Progress,
+) -> Result<DenseMarch, FmmError> {
+    let mut m = Marcher::on_lattice(second, lattice.clone(), UnitCost);
     freeze(phi, &mut m, &lattice)?;
-    m.run(opts.narrow.map_or(f64::INFINITY, |w| w / h0), &opts.progress)?;
+    m.run(limit, progress)?;
     Ok(collect(&m, phi.len(), |v| (v * h0) as f32))
 }
 

@@ -50,6 +50,7 @@
 //! ```
 
 mod dense;
+mod flat;
 mod heap;
 mod march;
 mod source;

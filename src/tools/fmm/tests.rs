@@ -136,3 +136,64 @@ fn lattice_steps_wrap_periodic_axes_and_stop_at_obstacles() {
     assert_eq!(l.step(Coord::new(1, 0, 0), 1, 1), None, "an obstacle");
     assert_eq!(l.index(Coord::new(3, 2, 1)), 23);
 }
+
+/// The flat march of `dense_distance` gives the sparse march's values bit for bit (and
+/// the same reached voxels): 1-D, 2-D and 3-D arrays, per-axis spacing, obstacles, ±∞,
+/// exact zeros, plateaus of equal times (ties broken by coordinate), both orders, with
+/// and without a limit.
+#[test]
+fn the_flat_march_equals_the_sparse_one_bit_for_bit() {
+    use super::dense::{checked_lattice, sparse_distance, DenseGrid};
+    use crate::progress::Progress;
+    let mut rng = fastrand::Rng::with_seed(11);
+    let cases: Vec<([usize; 3], [f64; 3])> = vec![
+        ([40, 1, 1], [1.0; 3]),
+        ([31, 26, 1], [1.0, 0.5, 1.0]),
+        ([1, 23, 17], [1.0, 1.0, 2.0]),
+        ([18, 15, 13], [1.0; 3]),
+        ([14, 17, 12], [0.7, 1.0, 1.3]),
+    ];
+    for (k, (dims, spacing)) in cases.into_iter().enumerate() {
+        let n: usize = dims.iter().product();
+        let c = dims.map(|d| (d as f64 - 1.0) / 2.0 + 0.3);
+        let r = 0.3 * dims.iter().copied().filter(|&d| d > 1).min().unwrap() as f64;
+        let mut phi: Vec<f32> = (0..n)
+            .map(|i| {
+                let p = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+                let d2: f64 = (0..3).map(|a| ((p[a] as f64 - c[a]) * spacing[a]).powi(2)).sum();
+                let wobble = 1.0 + 0.4 * (p[0] as f64 * 0.7).sin() * (p[1] as f64 * 0.5).cos();
+                ((d2.sqrt() - r) * wobble) as f32
+            })
+            .collect();
+        if k == 3 {
+            // Plateaus: a plane front with many equal times, a zero and infinities.
+            for (i, v) in phi.iter_mut().enumerate() {
+                *v = (i % dims[0]) as f32 - 6.0;
+            }
+            phi[5] = f32::INFINITY;
+            phi[n - 1] = f32::NEG_INFINITY;
+        }
+        let mask: Option<Vec<bool>> = (k == 4).then(|| (0..n).map(|_| rng.u8(..) < 20).collect());
+        let grid = DenseGrid { dims, spacing, periodic: [false; 3] };
+        for second in [false, true] {
+            for narrow in [None, Some(2.5)] {
+                let (lattice, h0) =
+                    checked_lattice(&phi, &grid, mask.as_deref(), narrow, None).unwrap();
+                let limit = narrow.map_or(f64::INFINITY, |w| w / h0);
+                let sparse =
+                    sparse_distance(&phi, lattice.clone(), h0, second, limit, &Progress::none())
+                        .unwrap();
+                let scale = |v: f64| (v * h0) as f32;
+                let flat =
+                    super::flat::distance(&phi, &lattice, second, limit, &Progress::none(), scale)
+                        .unwrap()
+                        .unwrap();
+                let (values, reached) = (flat.values, flat.reached);
+                assert_eq!(reached, sparse.reached, "case {k}, second {second}, {narrow:?}");
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&values), bits(&sparse.values), "case {k}, {second}, {narrow:?}");
+                assert!(reached.iter().filter(|&&r| r).count() > 8, "case {k}");
+            }
+        }
+    }
+}

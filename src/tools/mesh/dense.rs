@@ -4,7 +4,7 @@
 //! zero-area triangles ([`isosurface_dense_with`]).
 //!
 //! Everything but the cell rule (mask, open border) happens before or after the two
-//! passes of the surface module: the step samples the array, `Inside::Above` negates it,
+//! passes of the surface module: the step samples the array, `Inside::Above` negates it (as it is read, without a copy when the step is 1),
 //! and the values, the removal of zero-area triangles and the removal of vertices no
 //! triangle uses run over the finished mesh, in order, on one thread. So the result is
 //! the same bits for any thread count, like the mesh itself.
@@ -172,9 +172,7 @@ pub fn isosurface_dense_with(
             )));
         }
     }
-    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
-        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
+    super::surface::check_nan(field)?;
     let iso = match opts.iso {
         Some(iso) => iso,
         None => mid_range(field)?,
@@ -187,7 +185,9 @@ pub fn isosurface_dense_with(
     let sampled;
     let sampled_mask;
     let sampled_spec;
-    let (f, spec, mask) = if step > 1 || above {
+    // Every step-th voxel, negated for `Above`; with step 1 the array itself, negated as
+    // it is read.
+    let (f, spec, mask) = if step > 1 {
         let dims = field.dims();
         let sd = dims.map(|d| (d - 1) / step + 1);
         let src =
@@ -217,20 +217,25 @@ pub fn isosurface_dense_with(
             ],
             half_width: spec.half_width,
         };
-        let (origin, spec) =
-            if step > 1 { (Coord::new(0, 0, 0), &sampled_spec) } else { (o, spec) };
-        sampled = DenseField::from_vec(origin, sd, data).map_err(|e| {
+        sampled = DenseField::from_vec(Coord::new(0, 0, 0), sd, data).map_err(|e| {
             MeshError::InvalidParameter(format!("sampling the array every {step} voxels: {e}"))
         })?;
         sampled_mask = flags;
-        (&sampled, spec, opts.mask.map(|_| &sampled_mask[..]))
+        (&sampled, &sampled_spec, opts.mask.map(|_| &sampled_mask[..]))
     } else {
         (field, spec, opts.mask)
     };
     let open = opts.border == Border::Open;
     let rule = (open || mask.is_some()).then_some(CellRule { open, mask });
-    let (mesh, ranges) =
-        dense_mesh(f, spec, if above { -iso } else { iso }, rule, true, &opts.progress)?;
+    let (mesh, ranges) = dense_mesh(
+        f,
+        above && step == 1,
+        spec,
+        if above { -iso } else { iso },
+        rule,
+        true,
+        &opts.progress,
+    )?;
     let mut values = vec![0f32; mesh.positions.len()];
     for (t, &r) in mesh.triangles.iter().zip(&ranges) {
         for &v in t {

@@ -289,7 +289,7 @@ fn copy_rows(parts: &[&[f32; 64]; 27], values: &mut [f32; BLOCK]) {
 /// A dense array: slots are the tiles whose block the surface crosses, stored are all
 /// tiles that meet the array or the voxel layer before it; values beyond the array read
 /// `iso + γ` (for an open border the linear extrapolation of
-/// [`DenseSource::extrapolated`]), ±∞ as `iso ± γ`.
+/// [`DenseSource::beyond`]), ±∞ as `iso ± γ`.
 struct DenseSource<'a> {
     field: &'a DenseField,
     spec: GridSpec,
@@ -301,39 +301,15 @@ struct DenseSource<'a> {
     inside: f32,
     /// Which cells are meshed; `None`: all.
     cells: Option<CellRule<'a>>,
+    /// −1 to mesh the negated array (without a negated copy), else 1.
+    sign: f32,
 }
 
 impl DenseSource<'_> {
     /// Whether voxels beyond the array read an extrapolation of the array (an open
-    /// border, see [`DenseSource::extrapolated`]) rather than `iso + γ`.
+    /// border, see [`DenseSource::beyond`]) rather than `iso + γ`.
     fn clamps(&self) -> bool {
         self.cells.is_some_and(|r| r.open)
-    }
-
-    /// For a voxel `c` beyond the array: the value at the nearest array voxel p plus,
-    /// along each axis on which `c` lies beyond, the distance times the one-sided
-    /// difference at p toward the outside (zero where the array is one voxel thick). So
-    /// the central differences at the array's border voxels are one-sided differences
-    /// of the same scale. `None` for a voxel of the array.
-    fn extrapolated(&self, c: [i64; 3]) -> Option<f32> {
-        let (lo, hi) = (self.field.origin(), self.field.max_coord());
-        let (lo, hi) =
-            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
-        let p = [0, 1, 2].map(|a| c[a].clamp(lo[a], hi[a]));
-        if p == c {
-            return None;
-        }
-        let base = self.value(p) as f64;
-        let mut v = base;
-        for a in 0..3 {
-            let beyond = c[a] - p[a];
-            if beyond != 0 && lo[a] < hi[a] {
-                let mut q = p;
-                q[a] -= beyond.signum();
-                v += beyond.abs() as f64 * (base - self.value(q) as f64);
-            }
-        }
-        Some(v as f32)
     }
 }
 
@@ -357,6 +333,13 @@ impl DenseSource<'_> {
         let n = dims.map(|d| d as i64);
         let lo = [t.x as i64, t.y as i64, t.z as i64].map(|c| 4 * c - 2);
         let mut out = [0u64; 8];
+        // A block whose cells (lower corners at block 0..8 in x and y, 0..7 in z) all
+        // have their eight corners in the array, without a mask: every cell.
+        let r = [0, 1, 2].map(|a| lo[a] - o[a]);
+        if rule.mask.is_none() && r.iter().all(|&r| r >= 0) && (0..3).all(|a| r[a] + 8 < n[a]) {
+            out[..7].fill(!0);
+            return out;
+        }
         for (z, layer) in out.iter_mut().enumerate().take(7) {
             for y in 0..8 {
                 for x in 0..8 {
@@ -388,44 +371,200 @@ impl DenseSource<'_> {
         (0..3).all(|a| (self.tlo[a]..=self.thi[a]).contains(&t[a]))
     }
 
+    /// The value of the array voxel `p` (inside the array), ±∞ read as far distances.
+    #[inline(always)]
+    fn at(&self, p: [i64; 3]) -> f32 {
+        let o = self.field.origin();
+        let [nx, ny, _] = self.field.dims();
+        let r = [p[0] - o.x as i64, p[1] - o.y as i64, p[2] - o.z as i64].map(|v| v as usize);
+        self.read(self.field.data()[r[0] + nx * (r[1] + ny * r[2])])
+    }
+
+    /// An array value as the surface reads it: times [`DenseSource::sign`], ±∞ as far
+    /// distances.
+    #[inline(always)]
+    fn read(&self, x: f32) -> f32 {
+        let x = self.sign * x;
+        if x == f32::INFINITY {
+            self.outside
+        } else if x == f32::NEG_INFINITY {
+            self.inside
+        } else {
+            x
+        }
+    }
+
+    /// [`Source::value`] of a voxel `c` beyond the array, `p` the nearest array voxel:
+    /// `iso + γ` for a closed border; for an open one the value at p plus, along each
+    /// axis on which `c` lies beyond, the distance times the one-sided difference at p
+    /// toward the outside (zero where the array is one voxel thick), so the central
+    /// differences at the array's border voxels are one-sided differences of the same
+    /// scale.
+    #[inline]
+    fn beyond(&self, c: [i64; 3], p: [i64; 3]) -> f32 {
+        if !self.clamps() {
+            return self.outside;
+        }
+        let (lo, hi) = (self.field.origin(), self.field.max_coord());
+        let (lo, hi) =
+            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
+        let base = self.at(p) as f64;
+        let mut v = base;
+        for a in 0..3 {
+            let beyond = c[a] - p[a];
+            if beyond != 0 && lo[a] < hi[a] {
+                let mut q = p;
+                q[a] -= beyond.signum();
+                v += beyond.abs() as f64 * (base - self.at(q) as f64);
+            }
+        }
+        v as f32
+    }
+
+    /// The block of tile `tile` (voxels `4 t − 2 .. 4 t + 6` per axis), each voxel as
+    /// [`Source::value`] reads it: the parts of rows inside the array copied, the voxels
+    /// beyond it from [`DenseSource::beyond`].
     fn fill(&self, tile: [i64; 3], values: &mut [f32; BLOCK]) {
         let lo = tile.map(|t| 4 * t - 2);
         let o = self.field.origin();
         let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
-        if (0..3).all(|a| lo[a] >= o[a] && lo[a] + 8 <= o[a] + dims[a] as i64) {
-            // Inside the array: whole rows of 8, ±∞ read as far distances.
-            let data = self.field.data();
-            let (nx, ny) = (dims[0], dims[1]);
-            let at = |y: usize, z: usize| {
-                let r = |a: usize, d: usize| (lo[a] - o[a]) as usize + d;
-                r(0, 0) + nx * (r(1, y) + ny * r(2, z))
-            };
-            for (r, row) in values.chunks_exact_mut(8).enumerate() {
-                let i = at(r % 8, r / 8);
-                for (v, &x) in row.iter_mut().zip(&data[i..i + 8]) {
-                    *v = if x == f32::INFINITY {
-                        self.outside
-                    } else if x == f32::NEG_INFINITY {
-                        self.inside
-                    } else {
-                        x
+        let data = self.field.data();
+        let (nx, ny) = (dims[0], dims[1]);
+        let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
+        // The block's x range inside the array: local x in xa..xb.
+        let xa = (o[0] - lo[0]).clamp(0, 8) as usize;
+        let xb = (hi[0] + 1 - lo[0]).clamp(0, 8) as usize;
+        for (r, row) in values.chunks_exact_mut(8).enumerate() {
+            let (y, z) = (lo[1] + (r % 8) as i64, lo[2] + (r / 8) as i64);
+            let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
+            let row_in = py == y && pz == z;
+            if row_in && xa < xb {
+                let i = (lo[0] + xa as i64 - o[0]) as usize
+                    + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                for (v, &x) in row[xa..xb].iter_mut().zip(&data[i..i + (xb - xa)]) {
+                    *v = self.read(x);
+                }
+            }
+            for (x, v) in row.iter_mut().enumerate() {
+                if row_in && (xa..xb).contains(&x) {
+                    continue;
+                }
+                let c = [lo[0] + x as i64, y, z];
+                *v = self.beyond(c, [c[0].clamp(o[0], hi[0]), py, pz]);
+            }
+        }
+    }
+}
+
+impl DenseSource<'_> {
+    /// The stored tiles whose reach (block voxels 1..=6 along each axis, `4 t − 1 ..=
+    /// 4 t + 4`: what [`uniform`] looks at) holds voxels on both sides of iso, in
+    /// [`Coord`] order: the tiles whose filled block is not [`uniform`], found without
+    /// filling blocks (each voxel's side is read once, then the windows are merged one
+    /// axis at a time: along x per voxel row, along y per tile column, along z per tile).
+    fn crossed_tiles(&self, below: f32) -> Vec<Coord> {
+        let (tlo, thi) = (self.tlo, self.thi);
+        let tn = [0, 1, 2].map(|a| (thi[a] - tlo[a] + 1).max(0) as usize);
+        if tn.contains(&0) {
+            return Vec::new();
+        }
+        let vlo = tlo.map(|t| 4 * t - 1);
+        let vn = tn.map(|n| 4 * n + 2);
+        let o = self.field.origin();
+        let (o, dims) = ([o.x as i64, o.y as i64, o.z as i64], self.field.dims());
+        let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
+        let data = self.field.data();
+        let (nx, ny) = (dims[0], dims[1]);
+        // Sides along x: per voxel row (y, z) and tile x, bit 0 = a voxel below iso in the
+        // tile's window, bit 1 = one not below.
+        let mut fx = vec![0u8; vn[2] * vn[1] * tn[0]];
+        fx.par_chunks_mut(vn[1] * tn[0]).enumerate().for_each(|(zi, plane)| {
+            let z = vlo[2] + zi as i64;
+            let mut side = vec![0u8; vn[0]];
+            for (yi, row) in plane.chunks_exact_mut(tn[0]).enumerate() {
+                let y = vlo[1] + yi as i64;
+                let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
+                let row_in = py == y && pz == z;
+                // The voxels of the row above the array's x range: the array's own, or
+                // for an open border a row beyond it in y or z, extrapolated from the
+                // array's rows as [`DenseSource::beyond`] does (the same operations).
+                let (xa, xb) = (o[0] - vlo[0], hi[0] + 1 - vlo[0]);
+                let (xa, xb) =
+                    (xa.clamp(0, vn[0] as i64) as usize, xb.clamp(0, vn[0] as i64) as usize);
+                let (xa, xb) = if row_in || self.clamps() { (xa, xb) } else { (0, 0) };
+                if xa < xb {
+                    let row_at = |y: i64, z: i64| {
+                        let i = (vlo[0] + xa as i64 - o[0]) as usize
+                            + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                        &data[i..i + (xb - xa)]
                     };
+                    let base = row_at(py, pz);
+                    // Per axis y, z beyond the array: the distance and the row one voxel
+                    // inward from the base row.
+                    let (by, bz) = (y - py, z - pz);
+                    let inner_y = (by != 0 && o[1] < hi[1]).then(|| row_at(py - by.signum(), pz));
+                    let inner_z = (bz != 0 && o[2] < hi[2]).then(|| row_at(py, pz - bz.signum()));
+                    for (k, sd) in side[xa..xb].iter_mut().enumerate() {
+                        let b = self.read(base[k]);
+                        let v = if row_in {
+                            b
+                        } else {
+                            let b = b as f64;
+                            let mut v = b;
+                            if let Some(r) = inner_y {
+                                v += by.abs() as f64 * (b - self.read(r[k]) as f64);
+                            }
+                            if let Some(r) = inner_z {
+                                v += bz.abs() as f64 * (b - self.read(r[k]) as f64);
+                            }
+                            v as f32
+                        };
+                        *sd = if v < below { 1 } else { 2 };
+                    }
+                }
+                for (xi, sd) in side.iter_mut().enumerate() {
+                    if (xa..xb).contains(&xi) {
+                        continue;
+                    }
+                    let x = vlo[0] + xi as i64;
+                    let v = self.beyond([x, y, z], [x.clamp(o[0], hi[0]), py, pz]);
+                    *sd = if v < below { 1 } else { 2 };
+                }
+                for (t, f) in row.iter_mut().enumerate() {
+                    *f = side[4 * t..4 * t + 6].iter().fold(0, |a, &b| a | b);
                 }
             }
-            return;
-        }
-        for z in 0..8 {
-            for y in 0..8 {
-                for x in 0..8 {
-                    let v = [
-                        4 * tile[0] - 2 + x as i64,
-                        4 * tile[1] - 2 + y as i64,
-                        4 * tile[2] - 2 + z as i64,
-                    ];
-                    values[bidx(x, y, z)] = self.value(v);
+        });
+        // Along y: per voxel z and tile (x, y).
+        let mut fy = vec![0u8; vn[2] * tn[1] * tn[0]];
+        fy.par_chunks_mut(tn[1] * tn[0]).enumerate().for_each(|(zi, plane)| {
+            let src = &fx[zi * vn[1] * tn[0]..(zi + 1) * vn[1] * tn[0]];
+            for (ty, row) in plane.chunks_exact_mut(tn[0]).enumerate() {
+                for yi in 4 * ty..4 * ty + 6 {
+                    for (f, &g) in row.iter_mut().zip(&src[yi * tn[0]..(yi + 1) * tn[0]]) {
+                        *f |= g;
+                    }
                 }
             }
-        }
+        });
+        // Along z: per tile; the crossed ones in (z, y, x) order.
+        (0..tn[2])
+            .into_par_iter()
+            .flat_map_iter(|tz| {
+                let mut plane = vec![0u8; tn[1] * tn[0]];
+                for zi in 4 * tz..4 * tz + 6 {
+                    let src = &fy[zi * tn[1] * tn[0]..(zi + 1) * tn[1] * tn[0]];
+                    for (f, &g) in plane.iter_mut().zip(src) {
+                        *f |= g;
+                    }
+                }
+                let (tz, tlo) = (tz as i64 + tlo[2], tlo);
+                plane.into_iter().enumerate().filter(|&(_, f)| f == 3).map(move |(k, _)| {
+                    let (tx, ty) = ((k % tn[0]) as i64 + tlo[0], (k / tn[0]) as i64 + tlo[1]);
+                    Coord::new(tx as i32, ty as i32, tz as i32)
+                })
+            })
+            .collect()
     }
 }
 
@@ -450,21 +589,14 @@ impl Source for DenseSource<'_> {
     }
 
     fn value(&self, c: [i64; 3]) -> f32 {
-        if self.clamps() {
-            if let Some(v) = self.extrapolated(c) {
-                return v;
-            }
-        }
-        let ok = |v: i64| (i32::MIN as i64..=i32::MAX as i64).contains(&v);
-        if c.iter().all(|&v| ok(v)) {
-            match self.field.get(Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)) {
-                Some(v) if v == f32::INFINITY => self.outside,
-                Some(v) if v == f32::NEG_INFINITY => self.inside,
-                Some(v) => v,
-                None => self.outside,
-            }
+        let (lo, hi) = (self.field.origin(), self.field.max_coord());
+        let (lo, hi) =
+            ([lo.x as i64, lo.y as i64, lo.z as i64], [hi.x as i64, hi.y as i64, hi.z as i64]);
+        let p = [0, 1, 2].map(|a| c[a].clamp(lo[a], hi[a]));
+        if p == c {
+            self.at(p)
         } else {
-            self.outside
+            self.beyond(c, p)
         }
     }
 
@@ -1061,14 +1193,28 @@ pub fn isosurface_dense(
     spec: &GridSpec,
     iso: f64,
 ) -> Result<TriangleMesh, MeshError> {
+    check_nan(field)?;
     let none = crate::progress::Progress::none();
-    Ok(dense_mesh(field, spec, iso, None, false, &none)?.0)
+    Ok(dense_mesh(field, false, spec, iso, None, false, &none)?.0)
+}
+
+/// [`MeshError::NaN`] at the first NaN of the field.
+pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
+    // A vectorised scan first; the position only when there is one.
+    if field.data().par_chunks(1 << 16).any(|c| c.iter().fold(false, |a, v| a | v.is_nan())) {
+        let i = field.data().iter().position(|v| v.is_nan()).expect("a NaN was seen");
+        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    Ok(())
 }
 
 /// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
-/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles.
+/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles. The
+/// caller has checked that the field holds no NaN ([`check_nan`]). `negate`: mesh `−field`
+/// (the same bits as a negated copy, without the copy).
 pub(super) fn dense_mesh(
     field: &DenseField,
+    negate: bool,
     spec: &GridSpec,
     iso: f64,
     cells: Option<CellRule>,
@@ -1076,9 +1222,6 @@ pub(super) fn dense_mesh(
     progress: &crate::progress::Progress,
 ) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     check_iso(iso)?;
-    if let Some(i) = field.data().iter().position(|v| v.is_nan()) {
-        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
     let o = field.origin();
     let hi = field.max_coord();
     let lo = [o.x as i64 - 1, o.y as i64 - 1, o.z as i64 - 1];
@@ -1094,26 +1237,11 @@ pub(super) fn dense_mesh(
         outside: (iso + spec.gamma() as f64) as f32,
         inside: (iso - spec.gamma() as f64) as f32,
         cells,
+        sign: if negate { -1.0 } else { 1.0 },
     };
     // The slots: the stored tiles whose block the surface crosses (any other tile has no
     // cut edge and no cut cell).
-    let below = f32_threshold(iso);
-    let (tlo, thi) = (src.tlo, src.thi);
-    let src_ref = &src;
-    let coords = (tlo[2]..=thi[2])
-        .into_par_iter()
-        .flat_map_iter(|z| {
-            let mut values = Box::new([0f32; BLOCK]);
-            (tlo[1]..=thi[1])
-                .flat_map(move |y| (tlo[0]..=thi[0]).map(move |x| [x, y, z]))
-                .filter_map(move |t| {
-                    src_ref.fill(t, &mut values);
-                    (!uniform(&signs(&values, below)))
-                        .then(|| Coord::new(t[0] as i32, t[1] as i32, t[2] as i32))
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let coords = src.crossed_tiles(f32_threshold(iso));
     src.coords = coords;
     let ticker = progress.start(src.coords.len() as u64);
     run(&src, iso, &ticker, ranges)
@@ -1150,6 +1278,59 @@ mod tests {
                 }
             }
             assert!(checked > 1000, "{checked}");
+        }
+    }
+
+    /// A dense array's crossed tiles, found separably, are the tiles whose filled block is
+    /// not uniform (the scan over every block), at open and closed borders, with ±∞,
+    /// negated reads and arrays one voxel thick along an axis.
+    #[test]
+    fn crossed_tiles_are_the_tiles_with_a_mixed_block() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for (k, dims) in [[13, 11, 9], [9, 1, 12], [17, 14, 6]].into_iter().enumerate() {
+            let o = Coord::new(-3 + k as i32, 2, -5);
+            let mut field = DenseField::from_fn(o, dims, |c| {
+                let p = [c.x as f32 + 0.3, c.y as f32 - 4.1, c.z as f32 + 1.7];
+                (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 5.0
+            })
+            .unwrap();
+            for _ in 0..6 {
+                let i = rng.usize(..field.data().len());
+                field.data_mut()[i] = if rng.bool() { f32::INFINITY } else { f32::NEG_INFINITY };
+            }
+            let (lo, hi) = (field.origin(), field.max_coord());
+            let (lo, hi) = ([lo.x, lo.y, lo.z].map(|c| c as i64 - 1), [hi.x, hi.y, hi.z]);
+            for open in [false, true] {
+                for negate in [false, true] {
+                    let iso = if negate { -0.5 } else { 0.5 };
+                    let src = DenseSource {
+                        field: &field,
+                        spec: GridSpec::default(),
+                        coords: Vec::new(),
+                        tlo: lo.map(|c| c.div_euclid(4)),
+                        thi: hi.map(|c| (c as i64).div_euclid(4)),
+                        outside: iso + 3.0,
+                        inside: iso - 3.0,
+                        cells: open.then_some(CellRule { open, mask: None }),
+                        sign: if negate { -1.0 } else { 1.0 },
+                    };
+                    let below = f32_threshold(iso as f64);
+                    let mut scan = Vec::new();
+                    let mut values = Box::new([0f32; BLOCK]);
+                    for z in src.tlo[2]..=src.thi[2] {
+                        for y in src.tlo[1]..=src.thi[1] {
+                            for x in src.tlo[0]..=src.thi[0] {
+                                src.fill([x, y, z], &mut values);
+                                if !uniform(&signs(&values, below)) {
+                                    scan.push(Coord::new(x as i32, y as i32, z as i32));
+                                }
+                            }
+                        }
+                    }
+                    assert!(scan.len() > 3, "{dims:?}");
+                    assert_eq!(src.crossed_tiles(below), scan, "{dims:?} open {open} {negate}");
+                }
+            }
         }
     }
 
