@@ -25,6 +25,7 @@
 //! Arrays are `x`-fastest over `dims = [nx, ny, nz]` (a NumPy C-ordered array of shape
 //! `(nz, ny, nx)`); a 1-D or 2-D array is a box with `ny = nz = 1` or `nz = 1`.
 
+use super::flat::DenseMarch;
 use super::march::{Cost, Extension, Lattice, Marcher, UnitCost};
 use super::source::{freeze_interface, LatticeSource};
 use super::store::FROZEN;
@@ -71,17 +72,6 @@ pub struct DenseOptions {
     pub narrow: Option<f64>,
     /// Progress (share of the narrow band, or of the array's voxels) and cancellation.
     pub progress: Progress,
-}
-
-/// The result of a dense march: one value per voxel (x fastest) and whether the march
-/// reached it. Voxels not reached (obstacles, cut off by obstacles, beyond `narrow`) hold
-/// 0.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DenseMarch {
-    /// The marched value (distance in world units, or travel time) per voxel.
-    pub values: Vec<f32>,
-    /// Whether the march froze the voxel (false: an obstacle, cut off, beyond `narrow`).
-    pub reached: Vec<bool>,
 }
 
 /// [`dense_extension_velocities`]'s result: the signed distance and the extended field

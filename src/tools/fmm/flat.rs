@@ -24,13 +24,23 @@
 //! nothing the march changes, so they run on all threads, one z-slab per task, and give
 //! the same values on any thread count.
 
-use super::dense::DenseMarch;
 use super::march::{solve_terms, Lattice, Term};
 use super::source::interface_distance;
 use super::store::{FAR, FROZEN, INITIAL, INSIDE, TRIAL};
 use super::FmmError;
 use crate::progress::Progress;
 use rayon::prelude::*;
+
+/// The result of a dense march: one value per voxel (x fastest) and whether the march
+/// reached it. Voxels not reached (obstacles, cut off by obstacles, beyond `narrow`) hold
+/// 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DenseMarch {
+    /// The marched value (distance in world units, or travel time) per voxel.
+    pub values: Vec<f32>,
+    /// Whether the march froze the voxel (false: an obstacle, cut off, beyond `narrow`).
+    pub reached: Vec<bool>,
+}
 
 /// State of a padding voxel or an obstacle (neither far, trial nor frozen).
 const WALL: u8 = 3;

@@ -61,8 +61,9 @@ mod tests;
 
 pub use dense::{
     dense_distance, dense_extension_velocities, dense_travel_time, DenseExtension, DenseGrid,
-    DenseMarch, DenseOptions, MIN_SPEED,
+    DenseOptions, MIN_SPEED,
 };
+pub use flat::DenseMarch;
 
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};

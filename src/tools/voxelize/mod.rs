@@ -5,15 +5,19 @@
 //! distance to the mesh:
 //!
 //! * **Magnitude: exact distances.** Every voxel within γ of the mesh gets its distance to
-//!   the nearest triangle, computed in f64 by the closest point on each triangle (Ericson)
+//!   the nearest triangle, computed in f64 by the closest point on that triangle (Ericson)
 //!   and stored as f32. This is Sec. 6.2.1's result ("accurate to within machine
 //!   precision") reached by binning instead of characteristic polyhedra: each triangle is
 //!   listed with the 4³ tiles whose centre lies within γ + the tile's half-diagonal of it
-//!   (a tile–triangle distance bound, scanned over the slab around the triangle's plane),
-//!   the (tile, triangle) pairs are sorted by tile, and the tiles are computed in parallel,
-//!   each taking its triangles nearest first, skipping the 2³ sub-blocks a triangle cannot
-//!   improve, and stopping once the next triangle's bound cannot improve any voxel. Memory is O(band + triangles + pairs), as the paper's subvolume
-//!   scheme is; nothing is dense.
+//!   (a tile–triangle distance bound, scanned over the slab around the triangle's plane and
+//!   tested sixteen candidate tiles at a time), the (tile, triangle) pairs are sorted by
+//!   tile (a counting sort over the tiles' box), and the tiles are computed in parallel.
+//!   A tile takes two passes: every listed triangle against all 64 voxels in f32,
+//!   relative to the tile, without branches (vectors of the widest registers the CPU has,
+//!   chosen at run time), which finds each voxel's nearest triangle; then that triangle's
+//!   distance in f64. Triangles that tie within the f32 rounding share the nearest point
+//!   (an edge or a vertex), so either gives the distance. Memory is O(band + triangles +
+//!   pairs), as the paper's subvolume scheme is; nothing is dense.
 //! * **Sign: ray votes** ([`SignMethod::Rays`], Sec. 6.2.2 after Houston et al. 2003):
 //!   axis-aligned rays along the voxel-centre lines of x, y and z accumulate the oriented
 //!   crossings of the triangles (the winding count along the ray), each line giving a vote
