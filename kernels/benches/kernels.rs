@@ -6,8 +6,11 @@
 //!
 //! * `dense/<kernel>/<lanes>`: a 32³ block (the `levelset-speedup --kernels` fixture),
 //!   lanes = consecutive x voxels, contiguous unaligned loads — the best case;
-//! * `tile/<kernel>/<lanes>`: one padded 4³ tile (what the Sorted Tile List sweeps);
-//!   `f32x8`/`f32x16` assemble their lanes from 2/4 tile rows per stencil point;
+//! * `tile/<kernel>/<lanes>`: 512 padded 4³ tiles covering the same 32³ block, each
+//!   gathered once beforehand (what the Sorted Tile List sweeps, without the gather);
+//!   `f32x8`/`f32x16` assemble their lanes from 2/4 tile rows per stencil point. Run at
+//!   the CPU's instruction-set level as the engines run (`levelset_kernels::dispatch`),
+//!   like `dense`;
 //! * `points/<kernel>/f32`: per-voxel stencil arrays through the DT-Grid point windows,
 //!   pre-gathered (so only the arithmetic and the window reads count) — scalar only, as
 //!   a point-by-point grid runs.
@@ -17,7 +20,6 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use levelset_kernels::bench::{Fixture, KERNELS};
-use levelset_kernels::wide::{f32x16, f32x4, f32x8};
 use levelset_kernels::{
     box27_index, star19_index, BoxStarWindow, BoxWindow, Eq3Rate, Euler, Lane, Rk3, TileBlock,
     Upwind1, VoxelKernel, Weno5,
@@ -32,17 +34,45 @@ fn phi(x: i32, y: i32, z: i32) -> f32 {
     (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 8.3
 }
 
-fn tile<const R: usize>() -> Vec<f32> {
+/// The 512 padded tiles (halo `R`) of the 32³ block of [`phi`], each a whole padded block.
+fn tiles_of<const R: usize>() -> Vec<Vec<f32>> {
     let r = R as i32;
-    let mut t = vec![0.0; TileBlock::<R>::LEN];
-    for z in -r..4 + r {
-        for y in -r..4 + r {
-            for x in -r..4 + r {
-                t[TileBlock::<R>::index(x, y, z)] = phi(x, y, z);
+    let mut out = Vec::new();
+    for tz in 0..8 {
+        for ty in 0..8 {
+            for tx in 0..8 {
+                let mut t = vec![0.0; TileBlock::<R>::LEN];
+                for z in -r..4 + r {
+                    for y in -r..4 + r {
+                        for x in -4..8 {
+                            t[TileBlock::<R>::index(x, y, z)] =
+                                phi(4 * tx + x, 4 * ty + y, 4 * tz + z);
+                        }
+                    }
+                }
+                out.push(t);
             }
         }
     }
-    t
+    out
+}
+
+/// One sweep of a kernel over tiles of halo `R`, at the CPU's level.
+struct TileSweep<'a, K, const R: usize> {
+    tiles: &'a [Vec<f32>],
+    kernel: &'a K,
+    out: &'a mut [f32],
+}
+
+impl<K: VoxelKernel, const R: usize> levelset_kernels::LaneFn for TileSweep<'_, K, R> {
+    type Output = ();
+    #[inline(always)]
+    fn call<L: Lane>(self) {
+        for (t, o) in self.tiles.iter().zip(self.out.chunks_exact_mut(64)) {
+            let o: &mut [f32; 64] = o.try_into().expect("64 voxels");
+            TileBlock::<R>::new(t).unwrap().apply::<L, _>(self.kernel, o).unwrap();
+        }
+    }
 }
 
 fn upwind() -> Euler<Eq3Rate<Upwind1, f32>> {
@@ -70,28 +100,29 @@ fn dense(c: &mut Criterion) {
     g.finish();
 }
 
-fn tile_case<L: Lane>(g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
-    let (t1, t3) = (tile::<1>(), tile::<3>());
-    let phi_n: Vec<f32> = (0..64).map(|i| phi(i % 4, (i / 4) % 4, i / 16) * 0.99).collect();
-    let (b1, b3) = (TileBlock::<1>::new(&t1).unwrap(), TileBlock::<3>::new(&t3).unwrap());
-    let mut out = [0.0f32; 64];
-    let (ku, kw) = (upwind(), weno(&phi_n));
-    g.bench_function(BenchmarkId::new("upwind_curvature", L::NAME), |b| {
-        b.iter(|| b1.apply::<L, _>(black_box(&ku), black_box(&mut out)).unwrap())
-    });
-    g.bench_function(BenchmarkId::new("weno5_rk3", L::NAME), |b| {
-        b.iter(|| b3.apply::<L, _>(black_box(&kw), black_box(&mut out)).unwrap())
-    });
-}
-
 fn tiles(c: &mut Criterion) {
-    let mut g = c.benchmark_group("tile_4x4x4=64voxels");
-    g.throughput(Throughput::Elements(64));
+    let (t1, t3) = (tiles_of::<1>(), tiles_of::<3>());
+    let phi_n: Vec<f32> = (0..64).map(|i| phi(i % 4, (i / 4) % 4, i / 16) * 0.99).collect();
+    let mut out = vec![0.0f32; 64 * t1.len()];
+    let (ku, kw) = (upwind(), weno(&phi_n));
+    let mut g = c.benchmark_group(format!("tile_512x4x4x4={}voxels", out.len()));
+    g.throughput(Throughput::Elements(out.len() as u64));
     g.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2));
-    tile_case::<f32>(&mut g);
-    tile_case::<f32x4>(&mut g);
-    tile_case::<f32x8>(&mut g);
-    tile_case::<f32x16>(&mut g);
+    for lanes in levelset_kernels::bench::LANES {
+        let kind = levelset_kernels::LaneKind::from_name(lanes).expect("a lane type");
+        g.bench_function(BenchmarkId::new("upwind_curvature", lanes), |b| {
+            b.iter(|| {
+                let sweep = TileSweep::<_, 1> { tiles: &t1, kernel: &ku, out: black_box(&mut out) };
+                levelset_kernels::dispatch(kind, sweep)
+            })
+        });
+        g.bench_function(BenchmarkId::new("weno5_rk3", lanes), |b| {
+            b.iter(|| {
+                let sweep = TileSweep::<_, 3> { tiles: &t3, kernel: &kw, out: black_box(&mut out) };
+                levelset_kernels::dispatch(kind, sweep)
+            })
+        });
+    }
     g.finish();
 }
 

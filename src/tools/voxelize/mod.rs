@@ -15,9 +15,12 @@
 //!   A tile takes two passes: every listed triangle against all 64 voxels in f32,
 //!   relative to the tile, without branches (vectors of the widest registers the CPU has,
 //!   chosen at run time), which finds each voxel's nearest triangle; then that triangle's
-//!   distance in f64. Triangles that tie within the f32 rounding share the nearest point
-//!   (an edge or a vertex), so either gives the distance. Memory is O(band + triangles +
-//!   pairs), as the paper's subvolume scheme is; nothing is dense.
+//!   distance in f64. Triangles that tie within the f32 rounding at a shared edge or
+//!   vertex give the same distance; different nearest points closer than that rounding
+//!   (the medial axis) may be taken in either order, an error of the f32 rounding
+//!   relative to the triangle's size (below 10⁻⁵ voxel for triangles ten voxels across).
+//!   Memory is O(band + triangles + pairs), as the paper's subvolume scheme is; nothing is
+//!   dense.
 //! * **Sign: ray votes** ([`SignMethod::Rays`], Sec. 6.2.2 after Houston et al. 2003):
 //!   axis-aligned rays along the voxel-centre lines of x, y and z accumulate the oriented
 //!   crossings of the triangles (the winding count along the ray), each line giving a vote
@@ -373,8 +376,8 @@ fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
 /// triangle's candidate tiles (its bounding box grown by the reach, along the axis of
 /// its dominant normal component only the tiles whose centre is within the reach of its
 /// plane) are tested in f32, relative to a lattice point next to the triangle, sixteen at
-/// a time, with a relative slack far above the f32 rounding (a pair too many costs a
-/// little time, never a value: the distances are exact).
+/// a time, with a slack far above the f32 rounding, which grows with the triangle's size
+/// (a pair too many costs a little time, never a value).
 struct BinChunk<'a> {
     tris: &'a [Tri],
     first: usize,
@@ -390,7 +393,6 @@ impl levelset_kernels::LaneFn for BinChunk<'_> {
     fn call<L: levelset_kernels::Lane>(self) -> Vec<(Coord, u32)> {
         let BinChunk { tris, first, gamma } = self;
         let reach = gamma + TILE_RADIUS;
-        let reach2 = (reach * reach * (1.0 + 1e-4)) as f32;
         let mut out = Vec::new();
         let mut cand: Vec<[i64; 3]> = Vec::new();
         for (k, tri) in tris.iter().enumerate() {
@@ -434,6 +436,11 @@ impl levelset_kernels::LaneFn for BinChunk<'_> {
             }
             let base = v[0].map(f64::floor);
             let local = tri.local(base);
+            // The slack covers the f32 rounding of points up to `span` voxels from the
+            // base (a few units of 10⁻⁷ × span) many times over.
+            let span = (0..3).map(|a| (thi[a] - tlo[a] + 2) as f64 * 4.0).fold(0.0, f64::max);
+            let slack = 1e-3 + 1e-5 * span;
+            let reach2 = ((reach + slack) * (reach + slack)) as f32;
             for batch in cand.chunks(BIN_BATCH) {
                 let mut d = [f32::INFINITY; BIN_BATCH];
                 for (d, c) in d.iter_mut().zip(batch) {
@@ -484,6 +491,9 @@ pub(super) fn counting_sort<T: Copy + Default>(
 /// order within a tile is kept; else a comparison sort.
 fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
     let n: usize = chunks.iter().map(Vec::len).sum();
+    if n == 0 {
+        return Vec::new();
+    }
     let (lo, hi) = chunks
         .par_iter()
         .flatten()
@@ -564,8 +574,11 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 /// triangles of `pairs`, capped at γ². Two passes: every triangle against all 64 voxels
 /// in f32, relative to the tile ([`Tri::local`], [`LocalTri::search_tile`]), which finds
 /// each voxel's nearest triangle; then that triangle's distance in f64 ([`Tri::dist2`]).
-/// Where triangles tie within the f32 rounding they share the nearest point (an edge or a
-/// vertex), so either gives the same distance.
+/// Where triangles tie within the f32 rounding at a shared edge or vertex, either gives
+/// the same distance; two triangles whose nearest points differ but whose distances
+/// differ by less than the f32 rounding (a voxel on the medial axis) may be taken in
+/// either order, an error of that rounding: below 10⁻⁶ × the distance from the tile to
+/// the triangle's first vertex (10⁻⁵ voxel for triangles ten voxels across).
 #[inline(always)]
 fn tile_distances(tris: &[Tri], pairs: &[(Coord, u32)], t: Coord, gamma: f64) -> [f64; 64] {
     let base = [4.0 * t.x as f64, 4.0 * t.y as f64, 4.0 * t.z as f64];
@@ -610,6 +623,9 @@ struct TileIndex {
 
 impl TileIndex {
     fn new(present: &[TileOut]) -> TileIndex {
+        if present.is_empty() {
+            return TileIndex { lo: [0; 3], dims: [0; 3], cell: Vec::new() };
+        }
         let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
         for t in present {
             for (a, v) in [t.coord.x, t.coord.y, t.coord.z].into_iter().enumerate() {

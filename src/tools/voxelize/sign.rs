@@ -231,6 +231,9 @@ impl AxisLines {
 /// crossing (then each line's few crossings by position), else a comparison sort.
 fn sort_crossings(chunks: Vec<Vec<Crossing>>) -> (Vec<Crossing>, LineIndex) {
     let n: usize = chunks.iter().map(Vec::len).sum();
+    if n == 0 {
+        return (Vec::new(), LineIndex::Sparse { keys: Vec::new(), start: vec![0] });
+    }
     let jk = |key: u64| {
         let j = (key as u32 ^ 0x8000_0000) as i32 as i64;
         let k = ((key >> 32) as u32 ^ 0x8000_0000) as i32 as i64;
