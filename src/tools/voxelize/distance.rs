@@ -221,6 +221,40 @@ impl LocalTri {
         }
     }
 
+    /// `p − q` for the point `q` of the triangle nearest to `p` (f32, relative to the
+    /// same base, without branches: the plane's normal offset where `p` projects inside,
+    /// else the offset from the nearest of the three edges).
+    #[inline(always)]
+    pub(super) fn offset(&self, p: [f32; 3]) -> [f32; 3] {
+        let ap = [p[0] - self.a[0], p[1] - self.a[1], p[2] - self.a[2]];
+        let bp = [ap[0] - self.ab[0], ap[1] - self.ab[1], ap[2] - self.ab[2]];
+        let cp = [ap[0] - self.ac[0], ap[1] - self.ac[1], ap[2] - self.ac[2]];
+        let dot = |r: [f32; 3], d: [f32; 3]| r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
+        let seg = |r: [f32; 3], d: [f32; 3], inv: f32| {
+            let t = (dot(r, d) * inv).clamp(0.0, 1.0);
+            [r[0] - t * d[0], r[1] - t * d[1], r[2] - t * d[2]]
+        };
+        let inside = (dot(ap, self.side[0]) >= 0.0)
+            & (dot(bp, self.side[1]) >= 0.0)
+            & (dot(cp, self.side[2]) >= 0.0)
+            & (self.inv_n2 != 0.0);
+        let k = dot(ap, self.n) * self.inv_n2;
+        let plane = [k * self.n[0], k * self.n[1], k * self.n[2]];
+        let (e0, e1, e2) = (
+            seg(ap, self.ab, self.inv_e2[0]),
+            seg(ap, self.ac, self.inv_e2[1]),
+            seg(bp, self.bc, self.inv_e2[2]),
+        );
+        let (d0, d1, d2) = (dot(e0, e0), dot(e1, e1), dot(e2, e2));
+        let e01 = if d1 < d0 { e1 } else { e0 };
+        let e = if d2 < d0.min(d1) { e2 } else { e01 };
+        if inside {
+            plane
+        } else {
+            e
+        }
+    }
+
     /// The squared distance (f32) from `p`, relative to the same base, without branches
     /// (see [`LocalTri::search_tile`]); inlined into loops over points, which then run as
     /// vectors.
@@ -303,13 +337,18 @@ mod tests {
             // The f32 search relative to a tile: every voxel's distance within f32
             // rounding of the reference.
             let (mut best, mut arg) = ([f32::INFINITY; TILE_VOXELS], [u32::MAX; TILE_VOXELS]);
-            t.local([-1.0, -2.0, 0.0]).search_tile(i as u32, &mut best, &mut arg);
+            let local = t.local([-1.0, -2.0, 0.0]);
+            local.search_tile(i as u32, &mut best, &mut arg);
             for (l, &b) in best.iter().enumerate() {
                 let q = [(l & 3) as f64 - 1.0, (l >> 2 & 3) as f64 - 2.0, (l >> 4) as f64];
                 let want = reference(&t, q).sqrt();
                 let got = (b as f64).sqrt();
                 assert!((got - want).abs() <= 1e-5 * (1.0 + want), "{i}/{l}: {got} vs {want}");
                 assert_eq!(arg[l], i as u32);
+                // The offset to the nearest point has the distance's length.
+                let v = local.offset([(l & 3) as f32, (l >> 2 & 3) as f32, (l >> 4) as f32]);
+                let len = v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
+                assert!((len - want).abs() <= 1e-5 * (1.0 + want), "{i}/{l}: |v| {len} vs {want}");
             }
             worst = worst.max((got - want).abs());
             assert!((got - want).abs() <= 1e-9 * (1.0 + want), "{i}: {got} vs {want}");

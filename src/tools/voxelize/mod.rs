@@ -377,7 +377,11 @@ fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
 /// its dominant normal component only the tiles whose centre is within the reach of its
 /// plane) are tested in f32, relative to a lattice point next to the triangle, sixteen at
 /// a time, with a slack far above the f32 rounding, which grows with the triangle's size
-/// (a pair too many costs a little time, never a value).
+/// (a pair too many costs a little time, never a value). The test: with v = the tile's
+/// centre minus the triangle's nearest point, every voxel of the tile (a box of half-side
+/// 1.5 around the centre) is at least |v| − 1.5 (|vₓ| + |v_y| + |v_z|)/|v| from the
+/// triangle, since the triangle lies beyond the plane through its nearest point normal
+/// to v (it is convex) and the box reaches that far towards it along v.
 struct BinChunk<'a> {
     tris: &'a [Tri],
     first: usize,
@@ -441,15 +445,22 @@ impl levelset_kernels::LaneFn for BinChunk<'_> {
             let span = (0..3).map(|a| (thi[a] - tlo[a] + 2) as f64 * 4.0).fold(0.0, f64::max);
             let slack = 1e-3 + 1e-5 * span;
             let reach2 = ((reach + slack) * (reach + slack)) as f32;
+            let gamma_s = (gamma + slack) as f32;
             for batch in cand.chunks(BIN_BATCH) {
-                let mut d = [f32::INFINITY; BIN_BATCH];
-                for (d, c) in d.iter_mut().zip(batch) {
+                let mut near = [false; BIN_BATCH];
+                for (near, c) in near.iter_mut().zip(batch) {
                     let p: [f32; 3] =
                         std::array::from_fn(|a| (4.0 * c[a] as f64 + 1.5 - base[a]) as f32);
-                    *d = local.dist2(p);
+                    // With v = centre − nearest point, the tile's voxels are at least
+                    // |v| − 1.5 (|vₓ| + |v_y| + |v_z|)/|v| from the triangle (see above):
+                    // a voxel within γ needs |v|² − 1.5 |v|₁ ≤ γ |v|.
+                    let v = local.offset(p);
+                    let d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                    let l1 = v[0].abs() + v[1].abs() + v[2].abs();
+                    *near = d2 < reach2 && d2 - 1.5 * l1 <= gamma_s * d2.sqrt();
                 }
-                for (d, c) in d.iter().zip(batch) {
-                    if *d < reach2 {
+                for (near, c) in near.iter().zip(batch) {
+                    if *near {
                         out.push((Coord::new(c[0] as i32, c[1] as i32, c[2] as i32), id));
                     }
                 }
