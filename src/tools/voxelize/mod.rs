@@ -502,41 +502,10 @@ pub(super) fn counting_sort<T: Copy + Default>(
 /// order within a tile is kept; else a comparison sort.
 fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
     let n: usize = chunks.iter().map(Vec::len).sum();
-    if n == 0 {
-        return Vec::new();
-    }
-    let (lo, hi) = chunks
-        .par_iter()
-        .flatten()
-        .fold(
-            || ([i64::MAX; 3], [i64::MIN; 3]),
-            |(mut lo, mut hi), (c, _)| {
-                for (a, v) in [c.x, c.y, c.z].into_iter().enumerate() {
-                    lo[a] = lo[a].min(v as i64);
-                    hi[a] = hi[a].max(v as i64);
-                }
-                (lo, hi)
-            },
-        )
-        .reduce(
-            || ([i64::MAX; 3], [i64::MIN; 3]),
-            |(l0, h0), (l1, h1)| {
-                (
-                    std::array::from_fn(|a| l0[a].min(l1[a])),
-                    std::array::from_fn(|a| h0[a].max(h1[a])),
-                )
-            },
-        );
-    let dims: [u64; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1).max(0) as u64);
-    let cells = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d));
-    match cells {
-        Some(cells) if n > 0 && cells <= 2 * n as u64 => {
-            let cell = |p: &(Coord, u32)| {
-                let c = p.0;
-                let r =
-                    [c.x as i64 - lo[0], c.y as i64 - lo[1], c.z as i64 - lo[2]].map(|v| v as u64);
-                ((r[2] * dims[1] + r[1]) * dims[0] + r[0]) as usize
-            };
+    let b = CoordBox::of(chunks.iter().flatten().map(|p| p.0));
+    match b.cells() {
+        Some(cells) if cells <= 2 * n as u64 => {
+            let cell = |p: &(Coord, u32)| b.cell_of(p.0).expect("in the box");
             counting_sort(&chunks, cells as usize, cell).0
         }
         _ => {
@@ -623,40 +592,31 @@ fn step(c: Coord, a: usize, d: i32) -> Coord {
     Coord::new(n[0], n[1], n[2])
 }
 
-/// Positions of the tiles of a sorted list: a table over the tiles' bounding box when it
-/// has at most eight cells per tile (one step a lookup), else binary search.
-struct TileIndex {
+/// The bounding box of some coordinates and the cells' order in it (x fastest, so cell
+/// order is [`Coord`] order): what the counting sort and the tile table index by.
+struct CoordBox {
     lo: [i64; 3],
+    /// Cells a side; all 0 for no coordinates.
     dims: [u64; 3],
-    /// Position + 1 per cell of the box, 0 where no tile is; empty: binary search.
-    cell: Vec<u32>,
 }
 
-impl TileIndex {
-    fn new(present: &[TileOut]) -> TileIndex {
-        if present.is_empty() {
-            return TileIndex { lo: [0; 3], dims: [0; 3], cell: Vec::new() };
-        }
+impl CoordBox {
+    fn of(coords: impl Iterator<Item = Coord>) -> CoordBox {
         let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
-        for t in present {
-            for (a, v) in [t.coord.x, t.coord.y, t.coord.z].into_iter().enumerate() {
+        for c in coords {
+            for (a, v) in [c.x, c.y, c.z].into_iter().enumerate() {
                 (lo[a], hi[a]) = (lo[a].min(v as i64), hi[a].max(v as i64));
             }
         }
-        let dims: [u64; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1).max(0) as u64);
-        let cells = dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d));
-        let mut index = TileIndex { lo, dims, cell: Vec::new() };
-        match cells {
-            Some(n) if n <= 8 * present.len() as u64 && present.len() < u32::MAX as usize => {
-                index.cell = vec![0; n as usize];
-                for (i, t) in present.iter().enumerate() {
-                    let c = index.cell_of(t.coord).expect("in the box");
-                    index.cell[c] = i as u32 + 1;
-                }
-            }
-            _ => {}
+        if lo[0] > hi[0] {
+            return CoordBox { lo: [0; 3], dims: [0; 3] };
         }
-        index
+        CoordBox { lo, dims: std::array::from_fn(|a| (hi[a] - lo[a] + 1) as u64) }
+    }
+
+    /// Cells in the box, `None` on overflow.
+    fn cells(&self) -> Option<u64> {
+        self.dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d))
     }
 
     #[inline]
@@ -668,6 +628,31 @@ impl TileIndex {
         let r = r.map(|v| v as u64);
         Some(((r[2] * self.dims[1] + r[1]) * self.dims[0] + r[0]) as usize)
     }
+}
+
+/// Positions of the tiles of a sorted list: a table over the tiles' bounding box when it
+/// has at most eight cells per tile (one step a lookup), else binary search.
+struct TileIndex {
+    b: CoordBox,
+    /// Position + 1 per cell of the box, 0 where no tile is; empty: binary search.
+    cell: Vec<u32>,
+}
+
+impl TileIndex {
+    fn new(present: &[TileOut]) -> TileIndex {
+        let b = CoordBox::of(present.iter().map(|t| t.coord));
+        let mut cell = Vec::new();
+        match b.cells() {
+            Some(n) if n <= 8 * present.len() as u64 && present.len() < u32::MAX as usize => {
+                cell = vec![0; n as usize];
+                for (i, t) in present.iter().enumerate() {
+                    cell[b.cell_of(t.coord).expect("in the box")] = i as u32 + 1;
+                }
+            }
+            _ => {}
+        }
+        TileIndex { b, cell }
+    }
 
     /// The position of tile `c` in `present` (the list this index was made from).
     #[inline]
@@ -675,7 +660,7 @@ impl TileIndex {
         if self.cell.is_empty() {
             return present.binary_search_by(|t| t.coord.cmp(&c)).ok();
         }
-        let i = self.cell[self.cell_of(c)?];
+        let i = self.cell[self.b.cell_of(c)?];
         (i != 0).then(|| i as usize - 1)
     }
 }
