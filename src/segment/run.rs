@@ -598,8 +598,10 @@ fn method_flow(
                 }
                 None => g.data.par_iter().map(|&v| propagation * v).collect(),
             };
-            let velocity =
-                gg.map(|c| Arc::new(c.into_iter().map(|v| -alpha * v).collect::<Vec<f32>>()));
+            let velocity = gg.map(|mut c| {
+                c.par_iter_mut().for_each(|v| *v *= -alpha);
+                Arc::new(c)
+            });
             let z = VoxelField { lookup, data: Arc::new(g.data.clone()), outside: 1.0 };
             let f = VoxelField { lookup, data: Arc::new(speed), outside };
             let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
@@ -1356,9 +1358,32 @@ fn initial_field(
                     }
                 })
                 .collect();
+            // Beyond r + γ of every centre along some axis a voxel's distance exceeds γ from
+            // every ball, and it keeps the γ it was filled with: only the voxels of the
+            // balls' boxes are computed (the same values).
+            let boxes: Vec<[std::ops::Range<usize>; 3]> = balls
+                .iter()
+                .map(|(c, r)| {
+                    std::array::from_fn(|a| {
+                        let (lo, hi) = ((c[a] - r) - gamma as f64, (c[a] + r) + gamma as f64);
+                        let n = if a == 2 { nz } else { image.dims[a] };
+                        if a == 2 && image.is_2d() {
+                            return 0..1;
+                        }
+                        let first = (lo / s[a]).floor().max(0.0).min(n as f64) as usize;
+                        let end = ((hi / s[a]).ceil() + 1.0).max(0.0).min(n as f64) as usize;
+                        first..end.max(first)
+                    })
+                })
+                .collect();
             phi.par_chunks_mut(slice).enumerate().take(nz).for_each(|(z, out)| {
+                let in_z: Vec<&[std::ops::Range<usize>; 3]> =
+                    boxes.iter().filter(|b| b[2].contains(&z)).collect();
                 for y in 0..ny {
-                    for x in 0..nx {
+                    let xs = in_z.iter().filter(|b| b[1].contains(&y)).map(|b| b[0].clone());
+                    let x_lo = xs.clone().map(|r| r.start).min().unwrap_or(0);
+                    let x_hi = xs.map(|r| r.end).max().unwrap_or(0);
+                    for x in x_lo..x_hi {
                         let p = [x as f64 * s[0], y as f64 * s[1], z as f64 * s[2]];
                         let d = balls
                             .iter()

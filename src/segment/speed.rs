@@ -27,6 +27,15 @@ impl Lookup {
         let (x, y, z) = (c.x as usize, c.y as usize, z as usize);
         (x < nx && y < ny && z < nz).then(|| x + nx * (y + ny * z))
     }
+
+    /// The data indices of the `len` voxels from `start` along x, when all of them are in
+    /// the image (consecutive in the data): the fields' runs read such a slice at once
+    /// instead of looking up each voxel.
+    #[inline]
+    pub fn run(&self, start: Coord, len: usize) -> Option<std::ops::Range<usize>> {
+        let first = self.index(start)?;
+        (start.x as usize + len <= self.dims[0]).then(|| first..first + len)
+    }
 }
 
 /// A dense volume on the image lattice as a scalar field of the flow (speed F or the
@@ -39,6 +48,12 @@ pub(crate) struct VoxelField {
 
 impl ScalarFn for VoxelField {
     fn fill_run(&self, _spec: &GridSpec, start: Coord, _t: f64, out: &mut [f32]) {
+        // Element by element, not `copy_from_slice`: the runs are 4 voxels, and a copy of
+        // unknown length calls `memmove` (12.6 % of a GAC run in `perf`).
+        if let Some(r) = self.lookup.run(start, out.len()) {
+            out.iter_mut().zip(&self.data[r]).for_each(|(o, &d)| *o = d);
+            return;
+        }
         for (i, o) in out.iter_mut().enumerate() {
             let c = Coord::new(start.x + i as i32, start.y, start.z);
             *o = self.lookup.index(c).map_or(self.outside, |k| self.data[k]);
@@ -58,6 +73,12 @@ pub(crate) struct VoxelVector {
 impl VectorFn for VoxelVector {
     fn fill_run(&self, _spec: &GridSpec, start: Coord, _t: f64, out: [&mut [f32]; 3]) {
         let [u, v, w] = out;
+        if let Some(r) = self.lookup.run(start, u.len()) {
+            for (o, d) in [u, v, w].into_iter().zip(&self.data) {
+                o.iter_mut().zip(&d[r.clone()]).for_each(|(o, &d)| *o = d);
+            }
+            return;
+        }
         for i in 0..u.len() {
             let c = Coord::new(start.x + i as i32, start.y, start.z);
             (u[i], v[i], w[i]) = match self.lookup.index(c) {
@@ -132,18 +153,18 @@ impl ScalarFn for RegionForce {
         let (c1, c2) = self.means();
         let d = c1 - c2;
         let scale = if d != 0.0 { 1.0 / (d * d) } else { 0.0 };
+        let force = |v: f32| {
+            let (a, b) = (v - c1, v - c2);
+            self.weight
+                * ((self.lambda2 * b * b - self.lambda1 * a * a) * scale - self.nu).clamp(-1.0, 1.0)
+        };
+        if let Some(r) = self.lookup.run(start, out.len()) {
+            out.iter_mut().zip(&self.data[r]).for_each(|(o, &v)| *o = force(v));
+            return;
+        }
         for (i, o) in out.iter_mut().enumerate() {
             let c = Coord::new(start.x + i as i32, start.y, start.z);
-            *o = match self.lookup.index(c) {
-                Some(k) => {
-                    let v = self.data[k];
-                    let (a, b) = (v - c1, v - c2);
-                    self.weight
-                        * ((self.lambda2 * b * b - self.lambda1 * a * a) * scale - self.nu)
-                            .clamp(-1.0, 1.0)
-                }
-                None => -self.weight,
-            };
+            *o = self.lookup.index(c).map_or(-self.weight, |k| force(self.data[k]));
         }
     }
     /// The means change between steps (the driver sets them), so F is sampled in every

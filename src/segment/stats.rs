@@ -54,36 +54,54 @@ fn bucket_of(counts: &[u64], mut k: u64) -> (usize, u64) {
 }
 
 /// The `k`-th smallest values (0-based, each `k` clamped to the last) of `v` (not empty)
-/// in [`f32::total_cmp`]'s order: exact, from two parallel counting passes over the
-/// values' order keys (the high 16 bits, then the low 16 bits within each high part a
-/// wanted rank falls in, counted once however many ranks fall in it), with no copy of
-/// `v`. Counts are integers, so the result does not depend on the thread count.
+/// in [`f32::total_cmp`]'s order: [`order_statistics_of_parts`] over one part per thread
+/// (at least [`ORDER_CHUNK`] values each), with no copy of `v`.
 pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f32; N] {
+    let chunk = ORDER_CHUNK.max(v.len().div_ceil(rayon::current_num_threads()));
+    let parts: Vec<&[f32]> = v.chunks(chunk).collect();
+    order_statistics_of_parts(&parts, ks)
+}
+
+/// The `k`-th smallest values (0-based, each `k` clamped to the last) of the values of all
+/// `parts` together (not all empty), in [`f32::total_cmp`]'s order: exact, from two
+/// parallel counting passes over the values' order keys (the high 16 bits, then the low
+/// 16 bits within each high part a wanted rank falls in, counted once however many ranks
+/// fall in it), a histogram per part. Counts are integers, so the result depends neither
+/// on the parts nor on the thread count. Callers give about one part per thread: each
+/// histogram is 512 kB to zero, and a part per 2¹⁶ values made these passes scale worse
+/// than not at all on two threads (page faults and unmapping of the histograms).
+pub(crate) fn order_statistics_of_parts<const N: usize>(
+    parts: &[&[f32]],
+    ks: [usize; N],
+) -> [f32; N] {
     type Counts = Vec<u64>;
+    let len: usize = parts.iter().map(|p| p.len()).sum();
     let add = |mut a: Counts, b: Counts| {
         a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
         a
     };
     let zero = || vec![0u64; 1 << 16];
-    let high: Counts = v
-        .par_chunks(ORDER_CHUNK)
-        .fold(zero, |mut h, c| {
+    let high: Counts = parts
+        .par_iter()
+        .map(|c| {
+            let mut h = zero();
             c.iter().for_each(|&x| h[(order_key(x) >> 16) as usize] += 1);
             h
         })
         .reduce(zero, add);
     // (high part, rank within it) of every wanted rank, and the distinct high parts.
-    let places = ks.map(|k| bucket_of(&high, k.min(v.len() - 1) as u64));
-    let mut parts: Vec<u32> = places.iter().map(|&(b, _)| b as u32).collect();
-    parts.sort_unstable();
-    parts.dedup();
-    let zeros = || parts.iter().map(|_| zero()).collect::<Vec<Counts>>();
-    let low: Vec<Counts> = v
-        .par_chunks(ORDER_CHUNK)
-        .fold(zeros, |mut h, c| {
-            for &x in c {
+    let places = ks.map(|k| bucket_of(&high, k.min(len - 1) as u64));
+    let mut wanted: Vec<u32> = places.iter().map(|&(b, _)| b as u32).collect();
+    wanted.sort_unstable();
+    wanted.dedup();
+    let zeros = || wanted.iter().map(|_| zero()).collect::<Vec<Counts>>();
+    let low: Vec<Counts> = parts
+        .par_iter()
+        .map(|c| {
+            let mut h = zeros();
+            for &x in c.iter() {
                 let key = order_key(x);
-                if let Some(j) = parts.iter().position(|&b| key >> 16 == b) {
+                if let Some(j) = wanted.iter().position(|&b| key >> 16 == b) {
                     h[j][(key & 0xffff) as usize] += 1;
                 }
             }
@@ -91,7 +109,7 @@ pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f3
         })
         .reduce(zeros, |a, b| a.into_iter().zip(b).map(|(a, b)| add(a, b)).collect());
     places.map(|(b, k)| {
-        let j = parts.iter().position(|&p| p == b as u32).expect("a wanted part");
+        let j = wanted.iter().position(|&p| p == b as u32).expect("a wanted part");
         let (l, _) = bucket_of(&low[j], k);
         from_order_key((b as u32) << 16 | l as u32)
     })
@@ -165,13 +183,15 @@ pub(crate) fn noise_sigma(image: &Image) -> Result<f64, GridError> {
     let [nx, ny, nz] = image.dims;
     let d = &image.data;
     let strides = [(0usize, 1usize), (1, nx), (2, nx * ny)];
-    // Every second voxel along x, all rows: enough samples, half the work.
-    let rows: Vec<usize> = (0..ny * nz).collect();
-    let samples: Vec<f32> = rows
-        .par_chunks(64)
-        .flat_map_iter(|chunk| {
+    // Every second voxel along x, all rows: enough samples, half the work. One part of
+    // rows per thread, each part's samples in a vector of its own (no concatenation).
+    let rows = ny * nz;
+    let per = rows.div_ceil(rayon::current_num_threads()).max(1);
+    let parts: Vec<Vec<f32>> = (0..rows.div_ceil(per))
+        .into_par_iter()
+        .map(|part| {
             let mut out = Vec::new();
-            for &row in chunk {
+            for row in part * per..((part + 1) * per).min(rows) {
                 let (y, z) = (row % ny, row / ny);
                 for x in (0..nx).step_by(2) {
                     let i = x + nx * row;
@@ -192,10 +212,12 @@ pub(crate) fn noise_sigma(image: &Image) -> Result<f64, GridError> {
             out
         })
         .collect();
-    if samples.is_empty() {
+    let count: usize = parts.iter().map(Vec::len).sum();
+    if count == 0 {
         return Ok(0.0);
     }
-    let [median] = order_statistics(&samples, [(samples.len() - 1) / 2]);
+    let parts: Vec<&[f32]> = parts.iter().map(Vec::as_slice).collect();
+    let [median] = order_statistics_of_parts(&parts, [(count - 1) / 2]);
     let median = median as f64;
     Ok(median / (0.674_489_75 * 6f64.sqrt()))
 }
@@ -400,6 +422,15 @@ mod tests {
         for (k, g) in ks.iter().zip(got) {
             let want = sorted[(*k).min(n - 1)];
             assert_eq!(g.to_bits(), want.to_bits(), "rank {k}");
+        }
+        // Uneven parts, empty ones among them, in any split: the same values.
+        let (a, rest) = v.split_at(7);
+        let (b, c) = rest.split_at(200_000);
+        for parts in [vec![a, &[], b, c], vec![&v[..]], vec![c, &[], a, b, &[]]] {
+            let got = order_statistics_of_parts(&parts, ks);
+            for (k, g) in ks.iter().zip(got) {
+                assert_eq!(g.to_bits(), sorted[(*k).min(n - 1)].to_bits(), "rank {k}");
+            }
         }
         let small = &v[..40];
         let mut s = small.to_vec();
