@@ -59,11 +59,24 @@ fn morph(src: &[u8], dims: [usize; 3], r: usize, op: Op) -> Vec<u8> {
 }
 
 fn along(src: &[u8], dims: [usize; 3], r: usize, axis: usize, op: Op) -> Vec<u8> {
+    // One instance per operation, so that the loops below compile to vector minima and
+    // maxima: with the operation chosen per voxel, this function took 11 % of a GAC
+    // segmentation's preparation of a 128³ image in `perf`.
+    match op {
+        Op::Erode => along_by(src, dims, r, axis, op, u8::min),
+        Op::Dilate => along_by(src, dims, r, axis, op, u8::max),
+    }
+}
+
+fn along_by(
+    src: &[u8],
+    dims: [usize; 3],
+    r: usize,
+    axis: usize,
+    op: Op,
+    combine: impl Fn(u8, u8) -> u8 + Sync,
+) -> Vec<u8> {
     let [nx, ny, nz] = dims;
-    let combine = |a: u8, b: u8| match op {
-        Op::Erode => a.min(b),
-        Op::Dilate => a.max(b),
-    };
     let mut out = vec![0u8; src.len()];
     out.par_chunks_mut(nx).enumerate().take(ny * nz).for_each(|(row, dst)| {
         let (y, z) = (row % ny, row / ny);
