@@ -439,8 +439,15 @@ impl DenseSource<'_> {
                 let i =
                     (lo[0] - o[0]) as usize + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
                 let src: &[f32; 8] = data[i..i + 8].try_into().expect("a row of eight");
-                for (v, &x) in row.iter_mut().zip(src) {
-                    *v = self.read(x);
+                if finite(src) {
+                    // `read` of a finite value is the product with the sign.
+                    for (v, &x) in row.iter_mut().zip(src) {
+                        *v = self.sign * x;
+                    }
+                } else {
+                    for (v, &x) in row.iter_mut().zip(src) {
+                        *v = self.read(x);
+                    }
                 }
             }
             return;
@@ -468,6 +475,13 @@ impl DenseSource<'_> {
             }
         }
     }
+}
+
+/// Whether no value is infinite: one vectorised pass (a NaN counts as finite here; the
+/// arrays were checked for NaN before).
+#[inline(always)]
+fn finite(v: &[f32]) -> bool {
+    !v.iter().fold(false, |a, x| a | (x.abs() == f32::INFINITY))
 }
 
 impl DenseSource<'_> {
@@ -519,9 +533,15 @@ impl DenseSource<'_> {
                     let inner_y = (by != 0 && o[1] < hi[1]).then(|| row_at(py - by.signum(), pz));
                     let inner_z = (bz != 0 && o[2] < hi[2]).then(|| row_at(py, pz - bz.signum()));
                     if row_in {
-                        // The common case on its own: a loop the compiler vectorises.
-                        for (sd, &x) in side[xa..xb].iter_mut().zip(base) {
-                            *sd = if self.read(x) < below { 1 } else { 2 };
+                        // The common case on its own, in a loop the compiler vectorises
+                        // when the row has no infinite value (`read` is then the product
+                        // with the sign).
+                        let sides = side[xa..xb].iter_mut().zip(base);
+                        if finite(base) {
+                            let sign = self.sign;
+                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(sign * x < below));
+                        } else {
+                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(self.read(x) < below));
                         }
                     } else {
                         for (k, sd) in side[xa..xb].iter_mut().enumerate() {
