@@ -421,7 +421,7 @@ def isosurface(
     verts, faces, normals, values = _native.isosurface(
         a, lv, s, side, reverse, step, m, bool(closed), bool(allow_degenerate), progress
     )
-    return verts, faces.astype(np.int32), normals, values
+    return verts, faces, normals, values
 
 
 def save_mesh(path: Union[str, os.PathLike], verts, faces, normals=None) -> None:

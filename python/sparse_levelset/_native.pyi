@@ -58,7 +58,7 @@ def isosurface(
     closed: bool = ...,
     allow_degenerate: bool = ...,
     progress: _Progress = ...,
-) -> Tuple[_F32, npt.NDArray[np.uint32], _F32, npt.NDArray[np.float32]]: ...
+) -> Tuple[_F32, npt.NDArray[np.int32], _F32, npt.NDArray[np.float32]]: ...
 def save_mesh(
     path: str,
     verts: npt.NDArray[np.float64],

@@ -12,10 +12,11 @@ use pyo3::prelude::*;
 pub type MeshArrays<'py> =
     (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>, Bound<'py, PyArray2<f32>>);
 
-/// An isosurface of an array: vertices (float32, array axes), triangles, normals.
+/// An isosurface of an array: vertices (float32, array axes), triangles (int32, as
+/// scikit-image's), normals, values.
 pub type IsoArrays<'py> = (
     Bound<'py, PyArray2<f32>>,
-    Bound<'py, PyArray2<u32>>,
+    Bound<'py, PyArray2<i32>>,
     Bound<'py, PyArray2<f32>>,
     Bound<'py, numpy::PyArray1<f32>>,
 );

@@ -431,6 +431,27 @@ impl DenseSource<'_> {
         let data = self.field.data();
         let (nx, ny) = (dims[0], dims[1]);
         let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
+        // A block inside the array (almost every crossed tile): whole rows of eight, a
+        // fixed length the compiler turns into vector loads and selects.
+        if (0..3).all(|a| lo[a] >= o[a] && lo[a] + 7 <= hi[a]) {
+            for (r, row) in values.chunks_exact_mut(8).enumerate() {
+                let (y, z) = (lo[1] + (r % 8) as i64, lo[2] + (r / 8) as i64);
+                let i =
+                    (lo[0] - o[0]) as usize + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                let src: &[f32; 8] = data[i..i + 8].try_into().expect("a row of eight");
+                if finite(src) {
+                    // `read` of a finite value is the product with the sign.
+                    for (v, &x) in row.iter_mut().zip(src) {
+                        *v = self.sign * x;
+                    }
+                } else {
+                    for (v, &x) in row.iter_mut().zip(src) {
+                        *v = self.read(x);
+                    }
+                }
+            }
+            return;
+        }
         // The block's x range inside the array: local x in xa..xb.
         let xa = (o[0] - lo[0]).clamp(0, 8) as usize;
         let xb = (hi[0] + 1 - lo[0]).clamp(0, 8) as usize;
@@ -454,6 +475,17 @@ impl DenseSource<'_> {
             }
         }
     }
+}
+
+/// Whether no value is infinite: one vectorised pass (a NaN counts as finite here; the
+/// arrays were checked for NaN before). Rows that pass are read with the product by the
+/// sign, in loops the compiler vectorises (per-value `read` compiled to scalar branches);
+/// with the fill's whole rows of eight this took `sl.isosurface` of the sphere of
+/// docs/python_bench.py from 7.4 to 6.1 ms at 96³ and from 23 to 18 ms at 160³ (fastest
+/// of 30, two runs; 2-core AMD EPYC, 2026-11-28).
+#[inline(always)]
+fn finite(v: &[f32]) -> bool {
+    !v.iter().fold(false, |a, x| a | (x.abs() == f32::INFINITY))
 }
 
 impl DenseSource<'_> {
@@ -504,12 +536,20 @@ impl DenseSource<'_> {
                     let (by, bz) = (y - py, z - pz);
                     let inner_y = (by != 0 && o[1] < hi[1]).then(|| row_at(py - by.signum(), pz));
                     let inner_z = (bz != 0 && o[2] < hi[2]).then(|| row_at(py, pz - bz.signum()));
-                    for (k, sd) in side[xa..xb].iter_mut().enumerate() {
-                        let b = self.read(base[k]);
-                        let v = if row_in {
-                            b
+                    if row_in {
+                        // The common case on its own, in a loop the compiler vectorises
+                        // when the row has no infinite value (`read` is then the product
+                        // with the sign).
+                        let sides = side[xa..xb].iter_mut().zip(base);
+                        if finite(base) {
+                            let sign = self.sign;
+                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(sign * x < below));
                         } else {
-                            let b = b as f64;
+                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(self.read(x) < below));
+                        }
+                    } else {
+                        for (k, sd) in side[xa..xb].iter_mut().enumerate() {
+                            let b = self.read(base[k]) as f64;
                             let mut v = b;
                             if let Some(r) = inner_y {
                                 v += by.abs() as f64 * (b - self.read(r[k]) as f64);
@@ -517,9 +557,8 @@ impl DenseSource<'_> {
                             if let Some(r) = inner_z {
                                 v += bz.abs() as f64 * (b - self.read(r[k]) as f64);
                             }
-                            v as f32
-                        };
-                        *sd = if v < below { 1 } else { 2 };
+                            *sd = if (v as f32) < below { 1 } else { 2 };
+                        }
                     }
                 }
                 for (xi, sd) in side.iter_mut().enumerate() {
