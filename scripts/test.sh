@@ -39,7 +39,10 @@ fi
 "$venv/bin/python" -m pip install -q -r python/requirements-test.txt
 
 echo "== [${SECONDS}s] Rust tests, with MPI (distributed runs under mpirun on 2 and 3 ranks)"
-cargo test --workspace --locked --features sparse-levelset/mpi,levelset-cli/mpi "$@"
+# The Python crate holds no Rust test (its tests are the pytest suite below, on the wheel):
+# left out here, it is not compiled a second time, in the test profile, for nothing.
+cargo test --workspace --exclude sparse-levelset-python --locked \
+  --features sparse-levelset/mpi,levelset-cli/mpi "$@"
 
 echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux), tested where no Rust is"
 rm -rf target/wheels
