@@ -1365,11 +1365,11 @@ fn initial_field(
                 .iter()
                 .map(|(c, r)| {
                     std::array::from_fn(|a| {
-                        let (lo, hi) = ((c[a] - r) - gamma as f64, (c[a] + r) + gamma as f64);
-                        let n = if a == 2 { nz } else { image.dims[a] };
                         if a == 2 && image.is_2d() {
                             return 0..1;
                         }
+                        let (lo, hi) = ((c[a] - r) - gamma as f64, (c[a] + r) + gamma as f64);
+                        let n = image.dims[a];
                         let first = (lo / s[a]).floor().max(0.0).min(n as f64) as usize;
                         let end = ((hi / s[a]).ceil() + 1.0).max(0.0).min(n as f64) as usize;
                         first..end.max(first)
@@ -1380,9 +1380,10 @@ fn initial_field(
                 let in_z: Vec<&[std::ops::Range<usize>; 3]> =
                     boxes.iter().filter(|b| b[2].contains(&z)).collect();
                 for y in 0..ny {
-                    let xs = in_z.iter().filter(|b| b[1].contains(&y)).map(|b| b[0].clone());
-                    let x_lo = xs.clone().map(|r| r.start).min().unwrap_or(0);
-                    let x_hi = xs.map(|r| r.end).max().unwrap_or(0);
+                    let (x_lo, x_hi) = in_z
+                        .iter()
+                        .filter(|b| b[1].contains(&y))
+                        .fold((nx, 0), |(lo, hi), b| (lo.min(b[0].start), hi.max(b[0].end)));
                     for x in x_lo..x_hi {
                         let p = [x as f64 * s[0], y as f64 * s[1], z as f64 * s[2]];
                         let d = balls

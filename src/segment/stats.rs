@@ -68,8 +68,7 @@ pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f3
 /// 16 bits within each high part a wanted rank falls in, counted once however many ranks
 /// fall in it), a histogram per part. Counts are integers, so the result depends neither
 /// on the parts nor on the thread count. Callers give about one part per thread: each
-/// histogram is 512 kB to zero, and a part per 2¹⁶ values made these passes scale worse
-/// than not at all on two threads (page faults and unmapping of the histograms).
+/// part zeroes and adds a histogram of 512 kB, whatever its length.
 pub(crate) fn order_statistics_of_parts<const N: usize>(
     parts: &[&[f32]],
     ks: [usize; N],

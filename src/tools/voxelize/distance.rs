@@ -1,6 +1,8 @@
 //! Exact point–triangle distances (Ericson, *Real-Time Collision Detection*, Sec. 5.1.5,
 //! "closest point on triangle to point"), in f64 and voxel units.
 
+use crate::storage::tiles::TILE_LEN;
+
 /// A triangle prepared for distance queries: vertices in voxel units (voxel centres at
 /// integers) and the dot products every query shares.
 #[derive(Clone, Debug)]
@@ -158,9 +160,6 @@ impl Tri {
     }
 }
 
-/// Voxels of a tile.
-pub(super) const TILE_VOXELS: usize = 64;
-
 /// A triangle in f32 with its vertices relative to a tile's first voxel: the search pass
 /// of [`LocalTri::search_tile`], which only has to find each voxel's nearest triangle (the
 /// distance itself is then taken in f64 from that triangle, [`Tri::dist2`]).
@@ -210,10 +209,10 @@ impl LocalTri {
     pub(super) fn search_tile(
         &self,
         id: u32,
-        best: &mut [f32; TILE_VOXELS],
-        arg: &mut [u32; TILE_VOXELS],
+        best: &mut [f32; TILE_LEN],
+        arg: &mut [u32; TILE_LEN],
     ) {
-        for l in 0..TILE_VOXELS {
+        for l in 0..TILE_LEN {
             let d = self.dist2([(l & 3) as f32, (l >> 2 & 3) as f32, (l >> 4) as f32]);
             let better = d < best[l];
             best[l] = if better { d } else { best[l] };
@@ -336,7 +335,7 @@ mod tests {
             assert!(got.is_finite(), "{a:?} {b:?} {c:?} {p:?}");
             // The f32 search relative to a tile: every voxel's distance within f32
             // rounding of the reference.
-            let (mut best, mut arg) = ([f32::INFINITY; TILE_VOXELS], [u32::MAX; TILE_VOXELS]);
+            let (mut best, mut arg) = ([f32::INFINITY; TILE_LEN], [u32::MAX; TILE_LEN]);
             let local = t.local([-1.0, -2.0, 0.0]);
             local.search_tile(i as u32, &mut best, &mut arg);
             for (l, &b) in best.iter().enumerate() {

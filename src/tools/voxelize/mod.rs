@@ -76,9 +76,9 @@ mod sign;
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
 use crate::progress::{Cancelled, Progress};
-use crate::storage::tiles::{tile_in_range, Tile, TileGrid, TILE_MAX, TILE_MIN};
+use crate::storage::tiles::{tile_in_range, Tile, TileGrid, TILE_LEN, TILE_MAX, TILE_MIN};
 use crate::tools::mesh::TriangleMesh;
-use distance::{Tri, TILE_VOXELS};
+use distance::Tri;
 use rayon::prelude::*;
 use sign::{Rays, Votes};
 
@@ -563,8 +563,8 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 fn tile_distances(tris: &[Tri], pairs: &[(Coord, u32)], t: Coord, gamma: f64) -> [f64; 64] {
     let base = [4.0 * t.x as f64, 4.0 * t.y as f64, 4.0 * t.z as f64];
     // Candidates a little beyond γ in f32, so that none within γ in f64 is lost.
-    let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_VOXELS];
-    let mut arg = [u32::MAX; TILE_VOXELS];
+    let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_LEN];
+    let mut arg = [u32::MAX; TILE_LEN];
     for &(_, i) in pairs {
         tris[i as usize].local(base).search_tile(i, &mut best, &mut arg);
     }
