@@ -705,18 +705,17 @@ impl Representation for TilesRep {
         // The new list and its neighbour table are allocated next to the current list
         // (which a step in progress keeps until it stands); the step buffers grow to the
         // new list in the next step, which admits them before its first stage.
-        let table = &self.table;
-        debug_assert_eq!(table.len(), self.grid.len(), "stale neighbour table");
+        debug_assert_eq!(self.table.len(), self.grid.len(), "stale neighbour table");
         // The new list's values go into the memory of the step buffer that does not hold
         // φⁿ, when it is large enough; the list before the step then keeps no values of
-        // its own (φⁿ is put back into it on undo).
+        // its own (φⁿ is put back into it on undo). The table follows the list.
         let spare = self.buf.spare(self.undo);
         let managed = self.grid.manage_tiles_checked(
-            Some(table),
+            Some(&mut self.table),
             |tiles| {
                 let needed = current
                     + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
-                    + table.growth_bytes(tiles) as u64;
+                    + NeighbourTable::follow_bytes(tiles) as u64;
                 budget.admit(needed, current, "the band's tiles")
             },
             spare,
@@ -728,7 +727,6 @@ impl Representation for TilesRep {
             (Err(e), Some(p)) => p.comm.abort(&format!("tile management: {e}")),
         };
         if let Some(prev) = prev {
-            self.table.rebuild(self.grid.tile_coords());
             // A step in progress keeps the list its φⁿ belongs to.
             if self.undo != Undo::Nothing && self.prev.is_none() {
                 self.prev = Some(Box::new(prev));

@@ -23,7 +23,7 @@
 //! [`TileGrid::manage_tiles_streamed`] (tested).
 
 use super::flags::{ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
-use super::stream::{NeighbourCursor, NeighbourTable};
+use super::stream::{ListMoves, NeighbourCursor, NeighbourTable, NONE};
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
@@ -77,7 +77,9 @@ impl TileGrid {
     /// of `tiles` tiles (an error from it is returned and leaves the grid unchanged), and
     /// returns the previous grid when the list changed (`None` when nothing changed), so
     /// that a caller can put it back. `table`, when given, holds the neighbours of the
-    /// current list (a caller that keeps one saves the walk that finds them).
+    /// current list (a caller that keeps one saves the walk that finds them); when the
+    /// list changes, it is made to follow it ([`NeighbourTable::follow`]) instead of being
+    /// rebuilt.
     ///
     /// `spare` is a buffer of tiles whose contents do not matter (a step's scratch
     /// buffer). When its capacity holds the new list, the new values are written into its
@@ -88,7 +90,7 @@ impl TileGrid {
     /// list changes without a second value array next to the first.
     pub(crate) fn manage_tiles_checked(
         &mut self,
-        table: Option<&NeighbourTable>,
+        table: Option<&mut NeighbourTable>,
         admit: impl FnOnce(usize) -> Result<(), GridError>,
         spare: &mut Vec<Tile>,
     ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
@@ -99,7 +101,7 @@ impl TileGrid {
         let border_new: Vec<AtomicU32> =
             self.border.par_iter().map(|&b| AtomicU32::new(b)).collect();
         let mut keep = vec![false; n];
-        let created = self.keep_and_find_created(table, &border_new, &mut keep);
+        let created = self.keep_and_find_created(table.as_deref(), &border_new, &mut keep);
         if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
             return Err(GridError::OutOfRange { coord: c });
         }
@@ -126,8 +128,11 @@ impl TileGrid {
         } else {
             filled(total, Tile::splat(0.0))
         };
-        let (coords, arena, border, activity) =
-            self.compact(&keep, &border_new, &created, &created_inside, arena);
+        let (list, moves) = self.compact(&keep, &border_new, &created, &created_inside, arena);
+        let (coords, arena, border, activity) = list;
+        if let Some(t) = table {
+            t.follow(&coords, &moves);
+        }
         let mut prev = self.replace_list(coords, arena, border, activity);
         if recycle {
             std::mem::swap(spare, &mut prev.arena);
@@ -159,52 +164,22 @@ impl TileGrid {
                 let end = start + keep.len();
                 let mut cur = table.is_none().then(|| NeighbourCursor::new(coords, start, end));
                 for (i, &coord) in coords[start..end].iter().enumerate() {
-                    let nb = match table {
-                        Some(t) => t.row(start + i).neighbours(start + i, coord),
-                        None => cur
-                            .as_mut()
-                            .and_then(NeighbourCursor::next)
-                            .expect("a cursor yields every entry of its range"),
+                    let p = start + i;
+                    let tile = Classify { p, coord, activity, border_new };
+                    keep[i] = match table {
+                        // The row's positions, computed for the bits visited only.
+                        Some(t) => {
+                            let row = t.row(p);
+                            tile.run(row.matched, |d| row.position(d), &mut created)
+                        }
+                        None => {
+                            let nb = cur
+                                .as_mut()
+                                .and_then(NeighbourCursor::next)
+                                .expect("a cursor yields every entry of its range");
+                            tile.run(nb.matched, |d| nb.ptr[d], &mut created)
+                        }
                     };
-                    let p = nb.pos;
-                    let mut triggered = false;
-                    let mut m = nb.matched;
-                    while m != 0 {
-                        let d = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        if activity[nb.ptr[d]] & NEIGHBOUR_TRIGGER[d] != 0 {
-                            triggered = true;
-                            break;
-                        }
-                    }
-                    keep[p - start] = triggered;
-                    if !triggered {
-                        // Algorithm 3 lines 11-18: tell the neighbours what the tile was.
-                        let inside = activity[p] & INSIDE != 0;
-                        let mut m = nb.matched & !(1 << MID);
-                        while m != 0 {
-                            let d = m.trailing_zeros() as usize;
-                            m &= m - 1;
-                            let bit = 1u32 << reverse(d);
-                            let b = &border_new[nb.ptr[d]];
-                            if inside {
-                                b.fetch_or(bit, Ordering::Relaxed);
-                            } else {
-                                b.fetch_and(!bit, Ordering::Relaxed);
-                            }
-                        }
-                    }
-                    let a = activity[p];
-                    if a & ACTIVE_MASK != 0 {
-                        let mut absent = !nb.matched & BORDER_MASK;
-                        while absent != 0 {
-                            let e = absent.trailing_zeros() as usize;
-                            absent &= absent - 1;
-                            if a & NEIGHBOUR_TRIGGER[reverse(e)] != 0 {
-                                created.push(nb.coord.wrapping_add(NEIGHBOURHOOD[e]));
-                            }
-                        }
-                    }
                 }
                 created
             })
@@ -253,9 +228,10 @@ impl TileGrid {
     }
 
     /// Phase 3: the new list in list order (coordinates, values, border and activity
-    /// flags), its values written into `new_arena` (one tile per entry of the new list). Each chunk merges its kept tiles with the created tiles of its
-    /// coordinate range; a prefix sum over the chunks' counts places every chunk's output,
-    /// written in parallel.
+    /// flags), its values written into `new_arena` (one tile per entry of the new list),
+    /// and where each tile went ([`ListMoves`]). Each chunk merges its kept tiles with the
+    /// created tiles of its coordinate range; a prefix sum over the chunks' counts places
+    /// every chunk's output, written in parallel.
     #[allow(clippy::type_complexity)] // the four arrays of a list
     fn compact(
         &self,
@@ -264,7 +240,7 @@ impl TileGrid {
         created: &[Coord],
         created_inside: &[bool],
         mut new_arena: Vec<Tile>,
-    ) -> (Vec<Coord>, Vec<Tile>, Vec<u32>, Vec<u32>) {
+    ) -> ((Vec<Coord>, Vec<Tile>, Vec<u32>, Vec<u32>), ListMoves) {
         let total = new_arena.len();
         let (coords, arena, activity) = (&self.coords[..], &self.arena[..], &self.activity[..]);
         let n = coords.len();
@@ -285,13 +261,25 @@ impl TileGrid {
         let mut new_coords = filled(total, Coord::default());
         let mut new_border = filled(total, 0u32);
         let mut new_activity = filled(total, 0u32);
+        let mut moves = ListMoves { to: filled(n, NONE), from: filled(total, NONE) };
+        // Each chunk's first new position.
+        let bases: Vec<usize> = lens
+            .iter()
+            .scan(0, |b, &l| {
+                *b += l;
+                Some(*b - l)
+            })
+            .collect();
         split_by(&mut new_coords, &lens)
             .into_par_iter()
             .zip(split_by(&mut new_arena, &lens))
             .zip(split_by(&mut new_border, &lens))
             .zip(split_by(&mut new_activity, &lens))
+            .zip(split_by(&mut moves.from, &lens))
+            .zip(moves.to.par_chunks_mut(CHUNK))
             .enumerate()
-            .for_each(|(c, (((oc, oa), ob), of))| {
+            .for_each(|(c, (((((oc, oa), ob), of), from), to))| {
+                let base = bases[c];
                 let (mut p, end) = (c * CHUNK, ((c + 1) * CHUNK).min(n));
                 let (mut q, qend) = (cuts[c], cuts[c + 1]);
                 let mut o = 0;
@@ -310,6 +298,9 @@ impl TileGrid {
                         oa[o] = arena[p];
                         ob[o] = border_new[p].load(Ordering::Relaxed);
                         of[o] = activity[p];
+                        // Positions fit in u32: `check_list_len` refused longer lists.
+                        from[o] = p as u32;
+                        to[p - c * CHUNK] = (base + o) as u32;
                         p += 1;
                     } else {
                         oc[o] = created[q];
@@ -320,6 +311,62 @@ impl TileGrid {
                 }
                 debug_assert_eq!(o, oc.len());
             });
-        (new_coords, new_arena, new_border, new_activity)
+        ((new_coords, new_arena, new_border, new_activity), moves)
+    }
+}
+
+/// Tile management's decision for one tile of the list (Algorithm 3).
+struct Classify<'a> {
+    p: usize,
+    coord: Coord,
+    activity: &'a [u32],
+    border_new: &'a [AtomicU32],
+}
+
+impl Classify<'_> {
+    /// Whether the tile stays, from the activity of its neighbours `matched` (at list
+    /// positions `ptr(d)`). A tile that goes writes its classification into the border
+    /// flags its neighbours hold towards it (lines 11–18); an active tile pushes the absent
+    /// neighbours it triggers onto `created`.
+    #[inline(always)]
+    fn run(&self, matched: u32, ptr: impl Fn(usize) -> usize, created: &mut Vec<Coord>) -> bool {
+        let Classify { p, coord, activity, border_new } = *self;
+        let mut triggered = false;
+        let mut m = matched;
+        while m != 0 {
+            let d = m.trailing_zeros() as usize;
+            m &= m - 1;
+            if activity[ptr(d)] & NEIGHBOUR_TRIGGER[d] != 0 {
+                triggered = true;
+                break;
+            }
+        }
+        if !triggered {
+            let inside = activity[p] & INSIDE != 0;
+            let mut m = matched & !(1 << MID);
+            while m != 0 {
+                let d = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let bit = 1u32 << reverse(d);
+                let b = &border_new[ptr(d)];
+                if inside {
+                    b.fetch_or(bit, Ordering::Relaxed);
+                } else {
+                    b.fetch_and(!bit, Ordering::Relaxed);
+                }
+            }
+        }
+        let a = activity[p];
+        if a & ACTIVE_MASK != 0 {
+            let mut absent = !matched & BORDER_MASK;
+            while absent != 0 {
+                let e = absent.trailing_zeros() as usize;
+                absent &= absent - 1;
+                if a & NEIGHBOUR_TRIGGER[reverse(e)] != 0 {
+                    created.push(coord.wrapping_add(NEIGHBOURHOOD[e]));
+                }
+            }
+        }
+        triggered
     }
 }

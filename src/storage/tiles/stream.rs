@@ -2,7 +2,7 @@
 //! (van der Laan et al. 2011, Algorithm 1) and the streaming dilation of a sorted list
 //! (Algorithm 2).
 
-use crate::coord::{Coord, MID, NEIGHBOURHOOD};
+use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 
 /// The neighbours of one list entry: bit `d` of `matched` is set when the tile at offset
 /// [`NEIGHBOURHOOD`]`[d]` exists, and then `ptr[d]` is its list position.
@@ -63,11 +63,17 @@ impl<'a> NeighbourCursor<'a> {
     /// # Panics
     /// If `start > end` or `end > coords.len()`.
     pub fn new(coords: &'a [Coord], start: usize, end: usize) -> Self {
-        assert!(start <= end && end <= coords.len(), "cursor range {start}..{end} out of bounds");
         debug_assert!(
             coords.iter().all(|&c| super::tile_in_range(c)),
             "tile coordinates out of range"
         );
+        Self::over(coords, start, end)
+    }
+
+    /// [`NeighbourCursor::new`] without the debug builds' check of every coordinate (for
+    /// a caller that made them, or checked them once for many cursors).
+    fn over(coords: &'a [Coord], start: usize, end: usize) -> Self {
+        assert!(start <= end && end <= coords.len(), "cursor range {start}..{end} out of bounds");
         let mut row = [start; 9];
         if start < end {
             let cur = coords[start];
@@ -123,21 +129,52 @@ impl Iterator for NeighbourCursor<'_> {
     }
 }
 
-/// The neighbours of one tile in compact form (list positions as `u32`, 112 bytes): a row
-/// of a [`NeighbourTable`].
+/// The neighbours of one tile in compact form (40 bytes): a row of a [`NeighbourTable`].
+///
+/// The three neighbours of a tile at `dx = -1, 0, +1` in one neighbour line `(dy, dz)`
+/// follow each other in the list where present, so a row keeps, per line, the list
+/// position of the first one present, and the others are the next positions: 9 positions
+/// and the bit field instead of 27 positions (112 bytes), which is less to read in every
+/// sweep, to write in every rebuild and to hold next to the tiles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct NeighbourRow {
     /// Bit field of the neighbours that exist, as [`Neighbours::matched`].
     pub matched: u32,
-    /// Their list positions; valid where `matched` has the bit.
-    pub ptr: [u32; 27],
+    /// Per neighbour line `r = (dy + 1) + 3 (dz + 1)`: the list position of the first of
+    /// its neighbours present (directions `3r`, `3r + 1`, `3r + 2` in that order), 0 when
+    /// none is.
+    first: [u32; 9],
 }
 
 impl NeighbourRow {
-    /// The row as the [`Neighbours`] of list entry `pos` at `coord`.
+    /// A row without neighbours.
+    pub const EMPTY: NeighbourRow = NeighbourRow { matched: 0, first: [0; 9] };
+
+    /// The row of neighbours at list positions `ptr[d]` where `matched` has bit `d`; the
+    /// present neighbours of each line must follow each other in the list (as they do in
+    /// a sorted tile list; checked in debug builds).
+    pub fn new(matched: u32, ptr: &[usize; 27]) -> NeighbourRow {
+        let mut first = [0u32; 9];
+        for (r, f) in first.iter_mut().enumerate() {
+            let mut next = None;
+            for (d, &p) in ptr.iter().enumerate().skip(3 * r).take(3) {
+                if matched & (1 << d) != 0 {
+                    debug_assert!(next.is_none_or(|n| n == p), "line {r} not consecutive");
+                    if next.is_none() {
+                        *f = u32::try_from(p).expect("list positions fit in u32");
+                    }
+                    next = Some(p + 1);
+                }
+            }
+        }
+        NeighbourRow { matched, first }
+    }
+
+    /// The row as the [`Neighbours`] of list entry `pos` at `coord` (positions of absent
+    /// neighbours are 0).
     #[inline]
     pub fn neighbours(&self, pos: usize, coord: Coord) -> Neighbours {
-        let ptr = std::array::from_fn(|d| self.ptr[d] as usize);
+        let ptr = std::array::from_fn(|d| self.get(d).unwrap_or(0));
         Neighbours { pos, coord, matched: self.matched, ptr }
     }
 
@@ -145,17 +182,60 @@ impl NeighbourRow {
     #[inline(always)]
     pub fn get(&self, d: usize) -> Option<usize> {
         if self.matched & (1 << d) != 0 {
-            Some(self.ptr[d] as usize)
+            Some(self.position(d))
         } else {
             None
         }
+    }
+
+    /// The row after its tile `d` (absent before) was inserted at list position `q`.
+    #[inline]
+    fn insert(&mut self, d: usize, q: u32) {
+        let (r, k) = (d / 3, d % 3);
+        if (self.matched >> (3 * r)) & ((1 << k) - 1) == 0 {
+            self.first[r] = q;
+        }
+        self.matched |= 1 << d;
+    }
+
+    /// The row with every present neighbour at `to[p]` instead of `p`, and without those
+    /// whose `to` is [`NONE`] (removed).
+    #[inline]
+    fn moved(&self, to: &[u32]) -> NeighbourRow {
+        let mut out = NeighbourRow::EMPTY;
+        for r in 0..9 {
+            let line = (self.matched >> (3 * r)) & 7;
+            let mut p = self.first[r] as usize;
+            for k in 0..3 {
+                if line & (1 << k) != 0 {
+                    let q = to[p];
+                    p += 1;
+                    if q != NONE {
+                        if (out.matched >> (3 * r)) & 7 == 0 {
+                            out.first[r] = q;
+                        }
+                        out.matched |= 1 << (3 * r + k);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// List position the neighbour in direction `d` has if it exists: the first present
+    /// neighbour of its line plus those present before it in that line.
+    #[inline(always)]
+    pub(crate) fn position(&self, d: usize) -> usize {
+        let (r, k) = (d / 3, d % 3);
+        let before = (self.matched >> (3 * r)) & ((1 << k) - 1);
+        self.first[r] as usize + before.count_ones() as usize
     }
 }
 
 /// The 26-neighbour positions of every tile of a sorted list, computed once by
 /// [`NeighbourCursor`] walks over chunks of the list (each seeded by binary search,
 /// Sec. 5.8) and then read by every sweep over the same list: a Runge–Kutta step with
-/// volume conservation walks the list six times, and reading 112 bytes per tile is
+/// volume conservation walks the list six times, and reading 40 bytes per tile is
 /// cheaper than advancing the nine row pointers again.
 ///
 /// # Invariants
@@ -179,7 +259,7 @@ impl NeighbourTable {
     pub fn rebuild(&mut self, coords: &[Coord]) {
         use rayon::prelude::*;
         assert!(coords.len() < u32::MAX as usize, "tile list too long for a neighbour table");
-        let empty = NeighbourRow { matched: 0, ptr: [0; 27] };
+        let empty = NeighbourRow::EMPTY;
         // The rows needed and a band's headroom (`grown_capacity`), not a doubling.
         if coords.len() > self.rows.capacity() {
             let want = crate::memory::grown_capacity(coords.len());
@@ -191,6 +271,55 @@ impl NeighbourTable {
         self.rows.par_chunks_mut(Self::CHUNK).enumerate().for_each(|(c, rows)| {
             fill_rows(coords, c * Self::CHUNK, rows);
         });
+    }
+
+    /// Makes the table, built for a list that tile management has since changed into
+    /// `coords`, that of `coords`: the same rows as [`NeighbourTable::rebuild`] gives.
+    /// `moves` says where each tile of the old list went. A kept tile's row is its old row
+    /// renumbered (removed neighbours dropped); a created tile's row is searched in
+    /// `coords` (Sec. 5.8's binary searches), and each created tile is then entered into
+    /// the rows of its kept neighbours. A step changes a few tiles of a band, so this
+    /// reads each row once instead of walking the list's lines again.
+    ///
+    /// # Panics
+    /// If `moves` does not fit the table and `coords` (checked in debug builds).
+    pub(crate) fn follow(&mut self, coords: &[Coord], moves: &ListMoves) {
+        use rayon::prelude::*;
+        let ListMoves { to, from } = moves;
+        debug_assert!(to.len() == self.rows.len() && from.len() == coords.len());
+        let old = &self.rows;
+        let mut rows = Vec::with_capacity(crate::memory::grown_capacity(coords.len()));
+        rows.par_extend(from.par_iter().enumerate().with_min_len(Self::CHUNK).map(|(q, &p)| {
+            if p != NONE {
+                old[p as usize].moved(to)
+            } else {
+                let nb = NeighbourCursor::over(coords, q, q + 1)
+                    .next()
+                    .expect("a cursor over one entry yields it");
+                NeighbourRow::new(nb.matched, &nb.ptr)
+            }
+        }));
+        // The created tiles in their kept neighbours' rows (those of created neighbours
+        // found them already); one tile per neighbour and direction, so the order of the
+        // writes does not matter.
+        for (q, _) in from.iter().enumerate().filter(|(_, &p)| p == NONE) {
+            let row = rows[q];
+            let mut m = row.matched & !(1 << MID);
+            while m != 0 {
+                let d = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let e = row.position(d);
+                if from[e] != NONE {
+                    rows[e].insert(reverse(d), q as u32);
+                }
+            }
+        }
+        self.rows = rows;
+    }
+
+    /// Bytes [`NeighbourTable::follow`] allocates for a list of `len` tiles.
+    pub fn follow_bytes(len: usize) -> usize {
+        crate::memory::grown_capacity(len) * std::mem::size_of::<NeighbourRow>()
     }
 
     /// The neighbours of list entry `pos`.
@@ -222,6 +351,17 @@ impl NeighbourTable {
         (crate::memory::grown_capacity(len) - self.rows.capacity())
             * std::mem::size_of::<NeighbourRow>()
     }
+}
+
+/// A list position that does not exist ([`ListMoves`]).
+pub(crate) const NONE: u32 = u32::MAX;
+
+/// Where the tiles of a list went when tile management changed it.
+pub(crate) struct ListMoves {
+    /// Per entry of the old list: its position in the new list, [`NONE`] if removed.
+    pub to: Vec<u32>,
+    /// Per entry of the new list: its position in the old list, [`NONE`] if created.
+    pub from: Vec<u32>,
 }
 
 /// The line of a tile coordinate, `(z, y)`, as one key ordered as the list orders lines.
@@ -284,7 +424,7 @@ fn fill_rows(coords: &[Coord], start: usize, rows: &mut [NeighbourRow]) {
         for i in pos..line_end {
             let x = coords[i].x;
             let mut matched = 0u32;
-            let mut ptr = [0u32; 27];
+            let mut first = [0u32; 9];
             for r in 0..9 {
                 let mut q = at[r];
                 while q < hi[r] && coords[q].x < x - 1 {
@@ -292,15 +432,18 @@ fn fill_rows(coords: &[Coord], start: usize, rows: &mut [NeighbourRow]) {
                 }
                 at[r] = q;
                 // Tiles x - 1, x, x + 1 of the line follow each other where present.
+                first[r] = q as u32;
                 for k in 0..3 {
                     if q < hi[r] && coords[q].x == x - 1 + k as i32 {
                         matched |= 1 << (3 * r + k);
-                        ptr[3 * r + k] = q as u32;
                         q += 1;
                     }
                 }
+                if matched >> (3 * r) & 7 == 0 {
+                    first[r] = 0;
+                }
             }
-            rows[i - start] = NeighbourRow { matched, ptr };
+            rows[i - start] = NeighbourRow { matched, first };
         }
         pos = line_end;
     }

@@ -424,7 +424,8 @@ fn management_admission_and_undo_restore_the_grid() {
 }
 
 /// The parallel management equals the paper's streamed Algorithms 2 + 3 in every list,
-/// value and flag, for any number of threads.
+/// value and flag, for any number of threads, and the neighbour table it is given follows
+/// the list to the rows a rebuild gives.
 #[test]
 fn parallel_management_equals_streamed() {
     let mut rng = fastrand::Rng::with_seed(7);
@@ -450,15 +451,25 @@ fn parallel_management_equals_streamed() {
                 } else {
                     Vec::new()
                 };
+                let mut followed = table.clone();
                 let (stats, prev) = pool
                     .install(|| {
                         got.manage_tiles_checked(
-                            with_table.then_some(&table),
+                            with_table.then_some(&mut followed),
                             |_| Ok(()),
                             &mut spare,
                         )
                     })
                     .unwrap();
+                if with_table {
+                    // The table followed the list: the rows a rebuild gives.
+                    let mut rebuilt = NeighbourTable::default();
+                    rebuilt.rebuild(got.tile_coords());
+                    assert_eq!(followed.len(), rebuilt.len());
+                    for p in 0..got.len() {
+                        assert_eq!(followed.row(p), rebuilt.row(p), "row {p}");
+                    }
+                }
                 if let Some(prev) = prev {
                     // Recycled: the new values live in the spare's memory, and the previous
                     // grid's values (the list's before) were lent to it.
