@@ -68,14 +68,14 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
-        self.gather_with(grid, nb.pos, |d| nb.get(d));
+        self.gather_parts::<false>(grid, nb.pos, ByDirection(|d| nb.get(d)));
     }
 
     /// Fills the block for the tile at list position `pos`, whose neighbours are `row`
     /// (from a [`super::NeighbourTable`] of `grid`'s list).
     #[inline]
     pub fn gather_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_with(grid, pos, |d| row.get(d));
+        self.gather_parts::<false>(grid, pos, row);
     }
 
     /// Fills the rows of the block that the kernels' [`levelset_kernels::TileWindow`]
@@ -87,7 +87,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// instruction-set level (wider copies there).
     #[inline(always)]
     pub fn gather_star_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<true>(grid, pos, |d| row.get(d));
+        self.gather_parts::<true>(grid, pos, row);
     }
 
     /// Asks the CPU to bring into cache the neighbour tiles that a gather for the tile at
@@ -107,11 +107,6 @@ impl<const R: usize> PaddedBlock<R> {
                 prefetch_tile(grid.tile(p));
             }
         }
-    }
-
-    #[inline(always)]
-    fn gather_with(&mut self, grid: &TileGrid, pos: usize, get: impl Fn(usize) -> Option<usize>) {
-        self.gather_parts::<false>(grid, pos, get);
     }
 
     /// min |φ| over the 3×3×3 box of every voxel of the tile, in tile order: the band
@@ -156,7 +151,7 @@ impl<const R: usize> PaddedBlock<R> {
 
     /// Fills the whole block (`STAR`: only the rows a [`levelset_kernels::TileWindow`]
     /// reads, see [`PaddedBlock::gather_star_row`]) from the tile at list position `pos`,
-    /// whose neighbour in direction `d` is at `get(d)`.
+    /// whose neighbours `nb` names.
     ///
     /// Padded row by padded row: a box row (`y, z` in `-1..5`) is the same x-row of three
     /// neighbouring parts, three 4-value copies; a star row outside the box is the tile
@@ -166,12 +161,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// of that, the unchecked copies (instead of indexing with bounds checks) gave about two
     /// fifths.
     #[inline(always)]
-    fn gather_parts<const STAR: bool>(
-        &mut self,
-        grid: &TileGrid,
-        pos: usize,
-        get: impl Fn(usize) -> Option<usize>,
-    ) {
+    fn gather_parts<const STAR: bool>(&mut self, grid: &TileGrid, pos: usize, nb: impl Parts) {
         let values = grid.values();
         let border = grid.border_flags(pos);
         let gamma = grid.gamma();
@@ -179,24 +169,9 @@ impl<const R: usize> PaddedBlock<R> {
             self.dummy = [Tile::splat(gamma), Tile::splat(-gamma)];
             self.dummy_gamma = gamma;
         }
-        let dummy = &self.dummy;
         // Each of the 27 parts is a neighbour tile or a "dummy tile" of ±γ chosen by the
-        // border flag (set: the absent neighbour is inside). Both are computed and one is
-        // selected, which compiles without branches.
-        // `array::from_fn`, though its closure stays out of line (compiled for the build's
-        // baseline: it only picks pointers): a plain loop filling the array in place made
-        // the spiral's sweeps about 5 % slower (`levelset run spiral --steps 300
-        // --threads 1`, five alternated runs, 2-core AMD EPYC, 2026-11-27).
-        let part: [&[f32; 64]; 27] = std::array::from_fn(|d| {
-            let found = get(d);
-            let tile = &values[found.unwrap_or(pos)].0;
-            let dummy = &dummy[((border >> d) & 1) as usize].0;
-            if found.is_some() {
-                tile
-            } else {
-                dummy
-            }
-        });
+        // border flag (set: the absent neighbour is inside).
+        let part = nb.parts(values, pos, border, &self.dummy);
         let data: &mut [f32] = &mut self.data;
         let (r, w) = (R, Self::W);
         // A padded y or z coordinate `v` (in `0..W`, the local coordinate `v - R`): the
@@ -227,6 +202,74 @@ impl<const R: usize> PaddedBlock<R> {
                 }
             }
         }
+    }
+}
+
+/// The neighbours of a tile, as the 27 parts of its padded block.
+pub(super) trait Parts {
+    /// Part `d`: the neighbour tile in direction `d` of the tile at list position `pos`
+    /// among `values`, or where it is absent the dummy tile `dummy[1]` (−γ) if bit `d` of
+    /// `border` is set (the absent neighbour is inside) and `dummy[0]` (+γ) if not.
+    fn parts<'g>(
+        &self,
+        values: &'g [Tile],
+        pos: usize,
+        border: u32,
+        dummy: &'g [Tile; 2],
+    ) -> [&'g [f32; 64]; 27];
+}
+
+/// Neighbours given by a function of the direction.
+struct ByDirection<F>(F);
+
+impl<F: Fn(usize) -> Option<usize>> Parts for ByDirection<F> {
+    #[inline(always)]
+    fn parts<'g>(
+        &self,
+        values: &'g [Tile],
+        pos: usize,
+        border: u32,
+        dummy: &'g [Tile; 2],
+    ) -> [&'g [f32; 64]; 27] {
+        std::array::from_fn(|d| {
+            let found = (self.0)(d);
+            let tile = &values[found.unwrap_or(pos)].0;
+            let dummy = &dummy[((border >> d) & 1) as usize].0;
+            if found.is_some() {
+                tile
+            } else {
+                dummy
+            }
+        })
+    }
+}
+
+impl Parts for &NeighbourRow {
+    /// Line by line: a line's present neighbours are consecutive list positions from its
+    /// first, so each part's position is a running count, and every part is selected
+    /// without a branch. (A plain loop, inlined into the sweep: the `array::from_fn` of
+    /// [`ByDirection`] kept its closure out of line.)
+    #[inline(always)]
+    fn parts<'g>(
+        &self,
+        values: &'g [Tile],
+        pos: usize,
+        border: u32,
+        dummy: &'g [Tile; 2],
+    ) -> [&'g [f32; 64]; 27] {
+        let mut part = [&dummy[0].0; 27];
+        for r in 0..9 {
+            let mut p = self.first(r);
+            for k in 0..3 {
+                let d = 3 * r + k;
+                let present = (self.matched >> d) & 1 != 0;
+                let tile = &values[if present { p } else { pos }].0;
+                let absent = &dummy[((border >> d) & 1) as usize].0;
+                part[d] = if present { tile } else { absent };
+                p += usize::from(present);
+            }
+        }
+        part
     }
 }
 

@@ -222,6 +222,12 @@ impl NeighbourRow {
         out
     }
 
+    /// The list position of the first present neighbour of line `r` (0 when none is).
+    #[inline(always)]
+    pub(crate) fn first(&self, r: usize) -> usize {
+        self.first[r] as usize
+    }
+
     /// List position the neighbour in direction `d` has if it exists: the first present
     /// neighbour of its line plus those present before it in that line.
     #[inline(always)]
