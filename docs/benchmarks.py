@@ -99,8 +99,19 @@ def collect():
         if name == "info-sphere.json":
             (DATA / name).write_text(out)
     first = json.loads((DATA / "speedup-1.json").read_text())
+    today = datetime.date.today().isoformat()
+    # The day each file was made: today for those run now, as before for the others.
+    try:
+        old = json.loads((DATA / "meta.json").read_text())
+    except FileNotFoundError:
+        old = {}
+    dates = {name: old.get("dates", {}).get(name, old.get("date", today)) for name, _ in RUNS}
+    for name, _ in RUNS:
+        if not only or name in only:
+            dates[name] = today
     meta = {
-        "date": datetime.date.today().isoformat(),
+        "date": today,
+        "dates": dates,
         "cpu": first["cpu"],
         "target_features": first["target_features"],
         "level": first.get("level", "baseline"),
@@ -611,6 +622,16 @@ def distributed_section(meta):
     ]
 
 
+def run_days(meta):
+    """When the files were made: one day, or each day with its files."""
+    dates = meta.get("dates") or {name: meta["date"] for name in meta["commands"]}
+    days = sorted(set(dates.values()))
+    if len(days) == 1:
+        return f"on {days[0]}"
+    groups = [f"{d} ({', '.join(sorted(n for n, x in dates.items() if x == d))})" for d in days]
+    return "on these days, by the files in `docs/data/`: " + "; ".join(groups)
+
+
 def write():
     meta = load("meta.json")
     parts = [
@@ -618,7 +639,7 @@ def write():
         "",
         "Written by `python3 docs/benchmarks.py write` from the JSON files in `docs/data/`,"
         " which `python3 docs/benchmarks.py collect` made by running the commands named in"
-        f" each section on {meta['date']}: CPU {meta['cpu']}, {meta['threads']} cores,"
+        f" each section {run_days(meta)}: CPU {meta['cpu']}, {meta['threads']} cores,"
         f" vector width {vector_width(meta)}. A JSON file that records a `level` comes from"
         " a release build for the x86-64 baseline that ran at that instruction-set level,"
         " chosen at run time; one without comes from a release build with"

@@ -125,9 +125,8 @@ const READING_SHARE: f64 = 0.25;
 /// Reading the limit means reading up to five files of `/proc` and `/sys`. A request that,
 /// with those admitted since, stays within a quarter of a reading less than a second old
 /// is admitted on that reading; any other request reads the limit again. (An evolving
-/// band admits its new tile list at every step that changes it: reading each time was
-/// about 5 % of `levelset run sphere --renormalize coupled --rescale 1 --cfl 0.5 --steps
-/// 100 --threads 1`; see docs/decisions/0036.)
+/// band admits its new tile list at every step that changes it; see
+/// docs/decisions/0036.)
 pub fn check(bytes: f64, what: &str) -> Result<(), GridError> {
     let valid = bytes.is_finite() && bytes >= 0.0;
     // A poisoned lock only means another thread panicked while holding it: the reading
