@@ -153,6 +153,10 @@ impl NeighbourRow {
     /// The row of neighbours at list positions `ptr[d]` where `matched` has bit `d`; the
     /// present neighbours of each line must follow each other in the list (as they do in
     /// a sorted tile list; checked in debug builds).
+    ///
+    /// # Panics
+    /// If a present neighbour's position does not fit in `u32` (a tile list has fewer
+    /// than 2³² entries).
     pub fn new(matched: u32, ptr: &[usize; 27]) -> NeighbourRow {
         let mut first = [0u32; 9];
         for (r, f) in first.iter_mut().enumerate() {
@@ -324,7 +328,7 @@ impl NeighbourTable {
     }
 
     /// Bytes [`NeighbourTable::follow`] allocates for a list of `len` tiles.
-    pub fn follow_bytes(len: usize) -> usize {
+    pub(crate) fn follow_bytes(len: usize) -> usize {
         crate::memory::grown_capacity(len) * std::mem::size_of::<NeighbourRow>()
     }
 
