@@ -311,8 +311,15 @@ impl NeighbourTable {
         }));
         // The created tiles in their kept neighbours' rows (those of created neighbours
         // found them already); one tile per neighbour and direction, so the order of the
-        // writes does not matter.
-        for (q, _) in from.iter().enumerate().filter(|(_, &p)| p == NONE) {
+        // writes does not matter. The created tiles are found on the pool: a step creates
+        // a few, and a scan of the whole list on one thread would grow with the band.
+        let created: Vec<usize> = from
+            .par_iter()
+            .enumerate()
+            .with_min_len(Self::CHUNK)
+            .filter_map(|(q, &p)| (p == NONE).then_some(q))
+            .collect();
+        for q in created {
             let row = rows[q];
             let mut m = row.matched & !(1 << MID);
             while m != 0 {
