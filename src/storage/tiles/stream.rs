@@ -158,20 +158,12 @@ impl NeighbourRow {
     /// If a present neighbour's position does not fit in `u32` (a tile list has fewer
     /// than 2³² entries).
     pub fn new(matched: u32, ptr: &[usize; 27]) -> NeighbourRow {
-        let mut first = [0u32; 9];
-        for (r, f) in first.iter_mut().enumerate() {
-            let mut next = None;
-            for (d, &p) in ptr.iter().enumerate().skip(3 * r).take(3) {
-                if matched & (1 << d) != 0 {
-                    debug_assert!(next.is_none_or(|n| n == p), "line {r} not consecutive");
-                    if next.is_none() {
-                        *f = u32::try_from(p).expect("list positions fit in u32");
-                    }
-                    next = Some(p + 1);
-                }
-            }
+        let mut row = NeighbourRow::EMPTY;
+        for (d, &p) in ptr.iter().enumerate().filter(|&(d, _)| matched & (1 << d) != 0) {
+            row.insert(d, u32::try_from(p).expect("list positions fit in u32"));
+            debug_assert_eq!(row.position(d), p, "line {} not consecutive", d / 3);
         }
-        NeighbourRow { matched, first }
+        row
     }
 
     /// The row as the [`Neighbours`] of list entry `pos` at `coord` (positions of absent
@@ -192,14 +184,21 @@ impl NeighbourRow {
         }
     }
 
-    /// The row after its tile `d` (absent before) was inserted at list position `q`.
+    /// The row after its neighbour `d` (absent before) was entered at list position `q`:
+    /// the first of its line if none before it in the line is present.
     #[inline]
     fn insert(&mut self, d: usize, q: u32) {
-        let (r, k) = (d / 3, d % 3);
-        if (self.matched >> (3 * r)) & ((1 << k) - 1) == 0 {
-            self.first[r] = q;
+        if self.before(d) == 0 {
+            self.first[d / 3] = q;
         }
         self.matched |= 1 << d;
+    }
+
+    /// The present neighbours of `d`'s line before it, as bits.
+    #[inline(always)]
+    fn before(&self, d: usize) -> u32 {
+        let (r, k) = (d / 3, d % 3);
+        (self.matched >> (3 * r)) & ((1 << k) - 1)
     }
 
     /// The row with every present neighbour at `to[p]` instead of `p`, and without those
@@ -207,20 +206,13 @@ impl NeighbourRow {
     #[inline]
     fn moved(&self, to: &[u32]) -> NeighbourRow {
         let mut out = NeighbourRow::EMPTY;
-        for r in 0..9 {
-            let line = (self.matched >> (3 * r)) & 7;
-            let mut p = self.first[r] as usize;
-            for k in 0..3 {
-                if line & (1 << k) != 0 {
-                    let q = to[p];
-                    p += 1;
-                    if q != NONE {
-                        if (out.matched >> (3 * r)) & 7 == 0 {
-                            out.first[r] = q;
-                        }
-                        out.matched |= 1 << (3 * r + k);
-                    }
-                }
+        let mut m = self.matched;
+        while m != 0 {
+            let d = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let q = to[self.position(d)];
+            if q != NONE {
+                out.insert(d, q);
             }
         }
         out
@@ -236,9 +228,7 @@ impl NeighbourRow {
     /// neighbour of its line plus those present before it in that line.
     #[inline(always)]
     pub(crate) fn position(&self, d: usize) -> usize {
-        let (r, k) = (d / 3, d % 3);
-        let before = (self.matched >> (3 * r)) & ((1 << k) - 1);
-        self.first[r] as usize + before.count_ones() as usize
+        self.first[d / 3] as usize + self.before(d).count_ones() as usize
     }
 }
 
@@ -440,8 +430,7 @@ fn fill_rows(coords: &[Coord], start: usize, rows: &mut [NeighbourRow]) {
         let mut at = lo;
         for i in pos..line_end {
             let x = coords[i].x;
-            let mut matched = 0u32;
-            let mut first = [0u32; 9];
+            let mut row = NeighbourRow::EMPTY;
             for r in 0..9 {
                 let mut q = at[r];
                 while q < hi[r] && coords[q].x < x - 1 {
@@ -449,18 +438,14 @@ fn fill_rows(coords: &[Coord], start: usize, rows: &mut [NeighbourRow]) {
                 }
                 at[r] = q;
                 // Tiles x - 1, x, x + 1 of the line follow each other where present.
-                first[r] = q as u32;
                 for k in 0..3 {
                     if q < hi[r] && coords[q].x == x - 1 + k as i32 {
-                        matched |= 1 << (3 * r + k);
+                        row.insert(3 * r + k, q as u32);
                         q += 1;
                     }
                 }
-                if matched >> (3 * r) & 7 == 0 {
-                    first[r] = 0;
-                }
             }
-            rows[i - start] = NeighbourRow { matched, first };
+            rows[i - start] = row;
         }
         pos = line_end;
     }
