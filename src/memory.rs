@@ -171,6 +171,32 @@ pub(crate) const fn grown_capacity(n: usize) -> usize {
     n.saturating_add(n / 16)
 }
 
+/// Asks Linux to back the 2 MiB-aligned interior of a fresh output buffer with
+/// transparent huge pages (`madvise(MADV_HUGEPAGE)`, honoured when THP is `madvise` or
+/// `always`), before anything touches it: the first write then faults once per 2 MiB
+/// instead of once per 4 KiB. The mesh of the r = 100 sphere writes 34 MB; where the
+/// allocator hands out fresh pages (glibc's mmap threshold fixed at 128 KiB) one thread
+/// spent 49 ms of CPU with 4 KiB pages and 38.5 ms with this (three alternated runs of
+/// 15, minima; 2-core AMD EPYC); where it reuses pages, nothing changes. A hint only:
+/// the contents and the result are the same either way, and elsewhere it is a no-op.
+pub(crate) fn advise_huge_pages<T>(v: &mut Vec<T>) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let bytes = v.capacity() * std::mem::size_of::<T>();
+        let p = v.as_mut_ptr() as usize;
+        let (start, end) = (p.next_multiple_of(HUGE), (p + bytes) & !(HUGE - 1));
+        if end > start {
+            // SAFETY: the range lies inside the buffer's own allocation; MADV_HUGEPAGE
+            // changes how pages are backed, never their contents, and a failure (THP
+            // off, old kernel) only leaves the default.
+            unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

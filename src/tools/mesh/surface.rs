@@ -69,7 +69,7 @@
 //! merged by a parallel sort on the edge key) and OpenVDB 10's `volumeToMesh` at 59 ms
 //! and 31 ms on the same band. Of the 41 ms, about 28 ms is the meshing itself (CPU time
 //! where the allocator reuses memory); the rest is the 34 MB of fresh output paging in
-//! and out (see [`advise_huge_pages`]). Measured and dropped: computing the signs of
+//! and out (see [`crate::memory::advise_huge_pages`]). Measured and dropped: computing the signs of
 //! pass 1 while gathering only the rows it reads (no gain); a block gather driven by a
 //! table of rows (the compiler turned it into AVX-512 gathers, 25 % slower); chunks of
 //! 128 tiles instead of 64 (within noise).
@@ -910,9 +910,9 @@ fn fill<S: Source, const F32: bool>(
     let mut positions: Vec<[f64; 3]> = Vec::with_capacity(verts);
     let mut normals: Vec<[f32; 3]> = Vec::with_capacity(verts);
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(tris);
-    advise_huge_pages(&mut positions);
-    advise_huge_pages(&mut normals);
-    advise_huge_pages(&mut triangles);
+    crate::memory::advise_huge_pages(&mut positions);
+    crate::memory::advise_huge_pages(&mut normals);
+    crate::memory::advise_huge_pages(&mut triangles);
     let (slot_pos, orphan_pos) = positions.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let (slot_nrm, orphan_nrm) = normals.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let vstart = |s: usize| if s < n { info[s].base[0] as usize } else { slot_verts };
@@ -1061,32 +1061,6 @@ fn cell_range(values: &[f32; BLOCK], x: usize, y: usize, z: usize) -> f32 {
         hi = hi.max(v);
     }
     (hi as f64 - lo as f64) as f32
-}
-
-/// Asks Linux to back the 2 MiB-aligned interior of a fresh output buffer with
-/// transparent huge pages (`madvise(MADV_HUGEPAGE)`, honoured when THP is `madvise` or
-/// `always`), before anything touches it: the first write then faults once per 2 MiB
-/// instead of once per 4 KiB. The mesh of the r = 100 sphere writes 34 MB; where the
-/// allocator hands out fresh pages (glibc's mmap threshold fixed at 128 KiB) one thread
-/// spent 49 ms of CPU with 4 KiB pages and 38.5 ms with this (three alternated runs of
-/// 15, minima; 2-core AMD EPYC); where it reuses pages, nothing changes. A hint only:
-/// the contents and the result are the same either way, and elsewhere it is a no-op.
-fn advise_huge_pages<T>(v: &mut Vec<T>) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        let bytes = v.capacity() * std::mem::size_of::<T>();
-        let p = v.as_mut_ptr() as usize;
-        let (start, end) = (p.next_multiple_of(HUGE), (p + bytes) & !(HUGE - 1));
-        if end > start {
-            // SAFETY: the range lies inside the buffer's own allocation; MADV_HUGEPAGE
-            // changes how pages are backed, never their contents, and a failure (THP
-            // off, old kernel) only leaves the default.
-            unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = v;
 }
 
 /// Floating-point precision of a mesh's positions (see the module docs, "Precision").

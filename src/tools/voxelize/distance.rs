@@ -163,6 +163,7 @@ impl Tri {
 /// A triangle in f32 with its vertices relative to a tile's first voxel: the search pass
 /// of [`LocalTri::search_tile`], which only has to find each voxel's nearest triangle (the
 /// distance itself is then taken in f64 from that triangle, [`Tri::dist2`]).
+#[derive(Clone, Copy, Debug)]
 pub(super) struct LocalTri {
     a: [f32; 3],
     ab: [f32; 3],
@@ -179,14 +180,26 @@ impl Tri {
     /// are taken in f64 and rounded once, the products computed from those.
     #[inline(always)]
     pub(super) fn local(&self, base: [f64; 3]) -> LocalTri {
+        self.shape().at(self.local_a(base))
+    }
+
+    /// The first vertex relative to `base`, rounded to f32 once: the only part of
+    /// [`Tri::local`] that depends on the base.
+    #[inline(always)]
+    pub(super) fn local_a(&self, base: [f64; 3]) -> [f32; 3] {
+        sub(self.a, base).map(|x| x as f32)
+    }
+
+    /// [`Tri::local`] without its first vertex (set to 0): the edges, normal and factors in
+    /// f32, made once per triangle and moved to each tile by [`Tri::local_a`].
+    pub(super) fn shape(&self) -> LocalTri {
         let f = |v: [f64; 3]| v.map(|x| x as f32);
-        let a = f(sub(self.a, base));
         // A sliver whose 1/|n|² exceeds f32 is its edges to f32 precision (a degenerate
         // triangle, as in `Tri::new`).
         let inv_n2 = self.inv_n2 as f32;
         let solid = inv_n2.is_finite();
         LocalTri {
-            a,
+            a: [0.0; 3],
             ab: f(self.ab),
             ac: f(self.ac),
             bc: f(self.bc),
@@ -199,6 +212,12 @@ impl Tri {
 }
 
 impl LocalTri {
+    /// This shape with its first vertex at `a` ([`Tri::local_a`]).
+    #[inline(always)]
+    pub(super) fn at(&self, a: [f32; 3]) -> LocalTri {
+        LocalTri { a, ..*self }
+    }
+
     /// Folds this triangle (`id`) into the 64 voxels' nearest triangles: where its
     /// squared distance (f32, without branches: the plane's distance where the
     /// voxel projects inside the triangle, on the inner side of all three edges, else the

@@ -78,7 +78,7 @@ use crate::grid::{GridError, GridSpec};
 use crate::progress::{Cancelled, Progress};
 use crate::storage::tiles::{tile_in_range, Tile, TileGrid, TILE_LEN, TILE_MAX, TILE_MIN};
 use crate::tools::mesh::TriangleMesh;
-use distance::Tri;
+use distance::{LocalTri, Tri};
 use rayon::prelude::*;
 use sign::{Rays, Votes};
 
@@ -269,14 +269,20 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
         let p = mesh.positions[i as usize];
         [(p[0] - o[0]) / hf, (p[1] - o[1]) / hf, (p[2] - o[2]) / hf]
     };
-    let tris: Vec<Tri> = mesh
-        .triangles
-        .par_iter()
-        .map(|t| Tri::new(to_voxels(t[0]), to_voxels(t[1]), to_voxels(t[2])))
-        .collect();
+    // The triangles (and their f32 shapes below) fill fresh memory: huge pages first.
+    let mut tris: Vec<Tri> = Vec::with_capacity(mesh.triangles.len());
+    crate::memory::advise_huge_pages(&mut tris);
+    tris.par_extend(
+        mesh.triangles
+            .par_iter()
+            .map(|t| Tri::new(to_voxels(t[0]), to_voxels(t[1]), to_voxels(t[2]))),
+    );
     let gamma_v = spec.half_width as f64;
     let rays = Rays::new(&tris, votes);
     let pairs = bin_triangles(&tris, gamma_v);
+    let mut shapes: Vec<LocalTri> = Vec::with_capacity(tris.len());
+    crate::memory::advise_huge_pages(&mut shapes);
+    shapes.par_extend(tris.par_iter().map(Tri::shape));
 
     // Runs of pairs with one tile.
     let mut runs: Vec<(usize, usize)> = Vec::new();
@@ -291,7 +297,8 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
     let chunks: Vec<Result<Vec<TileOut>, Cancelled>> = runs
         .par_chunks(64)
         .map(|chunk| {
-            let tiles = TileChunk { tris: &tris, pairs: &pairs, runs: chunk, gamma_v, hf, g };
+            let (tris, shapes) = (&tris[..], &shapes[..]);
+            let tiles = TileChunk { tris, shapes, pairs: &pairs, runs: chunk, gamma_v, hf, g };
             let mut out = levelset_kernels::dispatch_one(tiles);
             // Signs of the tiles with band voxels (a tile without stays absent; its signs
             // come later, if a band tile neighbours it).
@@ -487,7 +494,9 @@ pub(super) fn counting_sort<T: Copy + Default>(
         start[i] += start[i - 1];
     }
     let mut next = start.clone();
-    let mut out = vec![T::default(); n];
+    let mut out = Vec::with_capacity(n);
+    crate::memory::advise_huge_pages(&mut out);
+    out.resize(n, T::default());
     for p in chunks.iter().flatten() {
         let k = &mut next[cell(p)];
         out[*k] = *p;
@@ -520,6 +529,8 @@ fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
 /// band voxels, run at the CPU's instruction-set level ([`levelset_kernels::dispatch_one`]).
 struct TileChunk<'a> {
     tris: &'a [Tri],
+    /// [`Tri::shape`] of each triangle.
+    shapes: &'a [LocalTri],
     pairs: &'a [(Coord, u32)],
     runs: &'a [(usize, usize)],
     gamma_v: f64,
@@ -531,11 +542,11 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
     type Output = Vec<TileOut>;
     #[inline(always)]
     fn call<L: levelset_kernels::Lane>(self) -> Vec<TileOut> {
-        let TileChunk { tris, pairs, runs, gamma_v, hf, g } = self;
+        let TileChunk { tris, shapes, pairs, runs, gamma_v, hf, g } = self;
         let mut out = Vec::with_capacity(runs.len());
         for &(s, e) in runs {
             let t = pairs[s].0;
-            let d2 = tile_distances(tris, &pairs[s..e], t, gamma_v);
+            let d2 = tile_distances(tris, shapes, &pairs[s..e], t, gamma_v);
             let mut values = [0f32; 64];
             let mut far = 0u64;
             for (l, v) in values.iter_mut().enumerate() {
@@ -552,7 +563,8 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 
 /// Squared distances (voxel units) of the 64 voxels of tile `t` to the nearest of the
 /// triangles of `pairs`, capped at γ². Two passes: every triangle against all 64 voxels
-/// in f32, relative to the tile ([`Tri::local`], [`LocalTri::search_tile`]), which finds
+/// in f32, relative to the tile ([`Tri::local`], from the triangle's `shape` moved to the
+/// tile; [`LocalTri::search_tile`]), which finds
 /// each voxel's nearest triangle; then that triangle's distance in f64 ([`Tri::dist2`]).
 /// Where triangles tie within the f32 rounding at a shared edge or vertex, either gives
 /// the same distance; two triangles whose nearest points differ but whose distances
@@ -560,13 +572,21 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 /// either order, an error of that rounding: below 10⁻⁶ × the distance from the tile to
 /// the triangle's first vertex (10⁻⁵ voxel for triangles ten voxels across).
 #[inline(always)]
-fn tile_distances(tris: &[Tri], pairs: &[(Coord, u32)], t: Coord, gamma: f64) -> [f64; 64] {
+fn tile_distances(
+    tris: &[Tri],
+    shapes: &[LocalTri],
+    pairs: &[(Coord, u32)],
+    t: Coord,
+    gamma: f64,
+) -> [f64; 64] {
     let base = [4.0 * t.x as f64, 4.0 * t.y as f64, 4.0 * t.z as f64];
     // Candidates a little beyond γ in f32, so that none within γ in f64 is lost.
     let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_LEN];
     let mut arg = [u32::MAX; TILE_LEN];
     for &(_, i) in pairs {
-        tris[i as usize].local(base).search_tile(i, &mut best, &mut arg);
+        let i = i as usize;
+        let local = shapes[i].at(tris[i].local_a(base));
+        local.search_tile(i as u32, &mut best, &mut arg);
     }
     let mut d2 = [gamma * gamma; 64];
     for (l, (d, &i)) in d2.iter_mut().zip(&arg).enumerate() {
