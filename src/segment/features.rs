@@ -517,30 +517,48 @@ pub fn sigmoid(
 /// the values sorted ascending as `x₀ ≤ … ≤ x_{n−1}` and `h = q (n − 1)`, the result is
 /// `x_⌊h⌋ + (h − ⌊h⌋)(x_⌊h⌋+1 − x_⌊h⌋)`, computed in `f64` and rounded. So `q = 0` is the
 /// minimum, `q = 1` the maximum, `q = 0.5` the median (the mean of the middle two for an
-/// even count). Exact order statistics from two parallel counting passes (linear time, no
-/// copy): the result depends on the multiset of values only.
+/// even count). Exact order statistics from three parallel counting passes (linear time,
+/// no copy): the result depends on the multiset of values only.
 ///
 /// Fails with [`GridError::InvalidParameter`] when `values` is empty or holds a value that
 /// is not finite, or `q` is outside `[0, 1]`.
 pub fn percentile(values: &[f32], q: f64) -> Result<f32, GridError> {
+    let parts: Vec<&[f32]> = values.chunks(PERCENTILE_CHUNK).collect();
+    percentile_of_parts(&parts, q)
+}
+
+/// Values per part of [`percentile`]'s checks and counts.
+const PERCENTILE_CHUNK: usize = 1 << 16;
+
+/// [`percentile`] of the values of all `parts` together (in order: an error names the
+/// first value that is not finite by its index in the concatenation).
+pub(crate) fn percentile_of_parts(parts: &[&[f32]], q: f64) -> Result<f32, GridError> {
     if !(0.0..=1.0).contains(&q) {
         return Err(GridError::InvalidParameter(format!(
             "percentile: the quantile must be in [0, 1], got {q}"
         )));
     }
-    if values.is_empty() {
+    let len: usize = parts.iter().map(|p| p.len()).sum();
+    if len == 0 {
         return Err(GridError::InvalidParameter("percentile of no values".to_string()));
     }
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        return Err(GridError::InvalidParameter(format!(
-            "percentile: value {i} is {}, not a finite number",
-            values[i]
-        )));
+    let bad: Vec<Option<usize>> =
+        parts.par_iter().map(|p| p.iter().position(|v| !v.is_finite())).collect();
+    let mut before = 0;
+    for (p, bad) in parts.iter().zip(bad) {
+        if let Some(i) = bad {
+            return Err(GridError::InvalidParameter(format!(
+                "percentile: value {} is {}, not a finite number",
+                before + i,
+                p[i]
+            )));
+        }
+        before += p.len();
     }
-    let h = q * (values.len() - 1) as f64;
-    let k = (h.floor() as usize).min(values.len() - 1);
+    let h = q * (len - 1) as f64;
+    let k = (h.floor() as usize).min(len - 1);
     let frac = h - k as f64;
-    let [lo, hi] = super::stats::order_statistics(values, [k, k + 1]);
+    let [lo, hi] = super::stats::order_statistics_of_parts(parts, [k, k + 1]);
     if frac == 0.0 {
         return Ok(lo);
     }
