@@ -10,6 +10,7 @@ use crate::evolve::{
     Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
     Velocity,
 };
+use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
 use crate::storage::convert::tiles_from_dense;
@@ -1107,9 +1108,9 @@ fn sum_of_flows(flows: Vec<Flow>) -> Flow {
 /// the tile, and φⁿ.
 type Near = (Coord, u8, f32);
 
-/// Tiles per part of [`change_since`]: fixed, so that the parts' partial sums, added in
-/// list order, do not depend on the thread count.
-const CHANGE_CHUNK: usize = 256;
+/// Tiles per part of [`change_since`]: small, for load balance (its sum is exact, so the
+/// split does not change it).
+const CHANGE_CHUNK: usize = 32;
 
 /// The segmentation's tile grid (it always runs on tiles).
 fn tiles_of(sim: &Simulation) -> &TileGrid {
@@ -1122,6 +1123,10 @@ fn tiles_of(sim: &Simulation) -> &TileGrid {
 /// `near`). The old and new lists are merged tile by tile in parts of the new list, in
 /// parallel; a part takes the old voxels from its first tile up to the next part's
 /// (before the first part: all from the start), so every old voxel is met once.
+///
+/// The sum is exact ([`ExactSum`]: each term ((φⁿ⁺¹ − φⁿ)/h)², in voxels of `h`, rounded
+/// once to f32 and to the sum's fixed point, then scaled by (h/Δt)²), so it is the same
+/// whatever the parts and the thread count, as the engine's reductions are.
 fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize, Vec<Near>) {
     let coords = grid.tile_coords();
     let values = grid.values();
@@ -1132,15 +1137,16 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
         _ if part * CHANGE_CHUNK >= coords.len() => near.len(),
         _ => near.partition_point(|e| e.0 < coords[part * CHANGE_CHUNK]),
     };
-    let results: Vec<(f64, usize, Vec<Near>)> = (0..parts)
+    let inv_h = 1.0 / h;
+    let results: Vec<(ExactSum, usize, Vec<Near>)> = (0..parts)
         .into_par_iter()
         .map(|part| {
             let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
             let old = &near[start_of(part)..start_of(part + 1)];
-            let (mut sq, mut band, mut next, mut k) = (0.0f64, 0usize, Vec::new(), 0usize);
+            let (mut sq, mut band, mut next, mut k) = (ExactSum::default(), 0usize, Vec::new(), 0);
             let mut diff = |old: f32, new: f32| {
-                let d = (new - old) as f64 / dt;
-                sq += d * d;
+                let d = (new - old) as f64 * inv_h;
+                sq.add((d * d) as f32);
             };
             for p in tiles {
                 let tc = coords[p];
@@ -1166,13 +1172,13 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
             (sq, band, next)
         })
         .collect();
-    let mut total = (0.0, 0, Vec::with_capacity(near.len()));
-    for (sq, band, next) in results {
-        total.0 += sq;
-        total.1 += band;
-        total.2.extend(next);
+    let (mut sq, mut band, mut next) = (ExactSum::default(), 0, Vec::with_capacity(near.len()));
+    for (s, b, n) in results {
+        sq = sq.merge(s);
+        band += b;
+        next.extend(n);
     }
-    total
+    (sq.value() * (h / dt) * (h / dt), band, next)
 }
 
 /// The value of a voxel that left the band in a step, whose value before was `old`: the
