@@ -517,18 +517,21 @@ pub fn sigmoid(
 /// the values sorted ascending as `x₀ ≤ … ≤ x_{n−1}` and `h = q (n − 1)`, the result is
 /// `x_⌊h⌋ + (h − ⌊h⌋)(x_⌊h⌋+1 − x_⌊h⌋)`, computed in `f64` and rounded. So `q = 0` is the
 /// minimum, `q = 1` the maximum, `q = 0.5` the median (the mean of the middle two for an
-/// even count). Exact order statistics from three parallel counting passes (linear time,
-/// no copy): the result depends on the multiset of values only.
+/// even count). Exact order statistics from two parallel counting passes (linear time, no
+/// copy): the result depends on the multiset of values only.
 ///
 /// Fails with [`GridError::InvalidParameter`] when `values` is empty or holds a value that
 /// is not finite, or `q` is outside `[0, 1]`.
 pub fn percentile(values: &[f32], q: f64) -> Result<f32, GridError> {
-    let parts: Vec<&[f32]> = values.chunks(PERCENTILE_CHUNK).collect();
+    let parts: Vec<&[f32]> = values.chunks(part_len(values.len())).collect();
     percentile_of_parts(&parts, q)
 }
 
-/// Values per part of [`percentile`]'s checks and counts.
-const PERCENTILE_CHUNK: usize = 1 << 16;
+/// Values per part of `len` values for the counting passes: one part per thread (each
+/// part costs a histogram of 512 kB per pass), of at least 2¹⁶ values.
+pub(crate) fn part_len(len: usize) -> usize {
+    (1usize << 16).max(len.div_ceil(rayon::current_num_threads()))
+}
 
 /// [`percentile`] of the values of all `parts` together (in order: an error names the
 /// first value that is not finite by its index in the concatenation).

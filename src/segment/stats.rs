@@ -42,11 +42,6 @@ fn from_order_key(k: u32) -> f32 {
 /// Values per parallel task of [`order_statistics`].
 const ORDER_CHUNK: usize = 1 << 16;
 
-/// Bits of the order key each counting pass resolves, from the most significant: small
-/// histograms (at most 2¹¹ counts per wanted prefix), so that a part costs no more than a
-/// pass over its values and parts can be as many as load balance wants.
-const LEVELS: [u32; 3] = [11, 11, 10];
-
 /// The bucket of `counts` (counts per bucket, in order) that holds rank `k` (0-based),
 /// and `k`'s rank within it.
 fn bucket_of(counts: &[u64], mut k: u64) -> (usize, u64) {
@@ -59,67 +54,68 @@ fn bucket_of(counts: &[u64], mut k: u64) -> (usize, u64) {
 }
 
 /// The `k`-th smallest values (0-based, each `k` clamped to the last) of `v` (not empty)
-/// in [`f32::total_cmp`]'s order: [`order_statistics_of_parts`] over parts of
-/// [`ORDER_CHUNK`] values, with no copy of `v`.
+/// in [`f32::total_cmp`]'s order: [`order_statistics_of_parts`] over one part per thread
+/// (at least [`ORDER_CHUNK`] values each), with no copy of `v`.
 pub(crate) fn order_statistics<const N: usize>(v: &[f32], ks: [usize; N]) -> [f32; N] {
-    let parts: Vec<&[f32]> = v.chunks(ORDER_CHUNK).collect();
+    let chunk = ORDER_CHUNK.max(v.len().div_ceil(rayon::current_num_threads()));
+    let parts: Vec<&[f32]> = v.chunks(chunk).collect();
     order_statistics_of_parts(&parts, ks)
 }
 
 /// The `k`-th smallest values (0-based, each `k` clamped to the last) of the values of all
-/// `parts` together (not all empty), in [`f32::total_cmp`]'s order: exact, from three
-/// parallel counting passes over the values' order keys ([`LEVELS`]: the top 11 bits,
-/// then the next 11 within each prefix a wanted rank falls in, then the last 10), one
-/// histogram per part and wanted prefix. Counts are integers, added part by part, so the
-/// result depends neither on the parts nor on the thread count.
+/// `parts` together (not all empty), in [`f32::total_cmp`]'s order: exact, from two
+/// parallel counting passes over the values' order keys (the high 16 bits, then the low
+/// 16 bits within each high part a wanted rank falls in, counted once however many ranks
+/// fall in it), a histogram per part. Counts are integers, so the result depends neither
+/// on the parts nor on the thread count. Callers give about one part per thread: each
+/// part zeroes a histogram of 512 kB per pass and wanted high part, whatever its length.
+/// The parts' histograms are added into the first one's (not reduced from fresh zeroed
+/// ones, whose first touch cost more than the counting on two threads).
 pub(crate) fn order_statistics_of_parts<const N: usize>(
     parts: &[&[f32]],
     ks: [usize; N],
 ) -> [f32; N] {
+    type Counts = Vec<u64>;
     let len: usize = parts.iter().map(|p| p.len()).sum();
-    // Per wanted rank: the key's bits resolved so far, and the rank among the values
-    // that share them.
-    let mut prefix = [0u32; N];
-    let mut rank: [u64; N] = ks.map(|k| k.min(len - 1) as u64);
-    let mut resolved = 0u32;
-    for bits in LEVELS {
-        let shift = 32 - resolved - bits;
-        let width = 1usize << bits;
-        let digit = (width - 1) as u32;
-        let mut wanted: Vec<u32> = prefix.to_vec();
-        wanted.sort_unstable();
-        wanted.dedup();
-        let wanted = &wanted;
-        let counts: Vec<Vec<u64>> = parts
-            .par_iter()
-            .map(|c| {
-                let mut h = vec![0u64; wanted.len() * width];
-                if resolved == 0 {
-                    c.iter().for_each(|&x| h[(order_key(x) >> shift) as usize] += 1);
-                } else {
-                    for &x in c.iter() {
-                        let key = order_key(x);
-                        let high = key >> (32 - resolved);
-                        if let Some(j) = wanted.iter().position(|&w| w == high) {
-                            h[j * width + ((key >> shift) & digit) as usize] += 1;
-                        }
-                    }
+    let add = |a: &mut Counts, b: &Counts| a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+    let zero = || vec![0u64; 1 << 16];
+    let mut high: Vec<Counts> = parts
+        .par_iter()
+        .map(|c| {
+            let mut h = zero();
+            c.iter().for_each(|&x| h[(order_key(x) >> 16) as usize] += 1);
+            h
+        })
+        .collect::<Vec<Counts>>();
+    // The parts' counts added into the first part's (integers: in any order).
+    let (high, rest) = high.split_first_mut().expect("at least one part");
+    rest.iter().for_each(|h| add(high, h));
+    // (high part, rank within it) of every wanted rank, and the distinct high parts.
+    let places = ks.map(|k| bucket_of(high, k.min(len - 1) as u64));
+    let mut wanted: Vec<u32> = places.iter().map(|&(b, _)| b as u32).collect();
+    wanted.sort_unstable();
+    wanted.dedup();
+    let zeros = || wanted.iter().map(|_| zero()).collect::<Vec<Counts>>();
+    let mut low: Vec<Vec<Counts>> = parts
+        .par_iter()
+        .map(|c| {
+            let mut h = zeros();
+            for &x in c.iter() {
+                let key = order_key(x);
+                if let Some(j) = wanted.iter().position(|&b| key >> 16 == b) {
+                    h[j][(key & 0xffff) as usize] += 1;
                 }
-                h
-            })
-            .collect();
-        let mut total = vec![0u64; wanted.len() * width];
-        for h in &counts {
-            total.iter_mut().zip(h).for_each(|(t, &c)| *t += c);
-        }
-        for (p, r) in prefix.iter_mut().zip(&mut rank) {
-            let j = wanted.iter().position(|&w| w == *p).expect("a wanted prefix");
-            let (b, k) = bucket_of(&total[j * width..(j + 1) * width], *r);
-            (*p, *r) = (*p << bits | b as u32, k);
-        }
-        resolved += bits;
-    }
-    prefix.map(from_order_key)
+            }
+            h
+        })
+        .collect();
+    let (low, rest) = low.split_first_mut().expect("at least one part");
+    rest.iter().for_each(|h| low.iter_mut().zip(h).for_each(|(a, b)| add(a, b)));
+    places.map(|(b, k)| {
+        let j = wanted.iter().position(|&p| p == b as u32).expect("a wanted part");
+        let (l, _) = bucket_of(&low[j], k);
+        from_order_key((b as u32) << 16 | l as u32)
+    })
 }
 
 impl Normalization {
