@@ -805,7 +805,15 @@ fn prepare(
     };
     resolved.sigma = if planar { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
     let sigma_max = resolved.sigma.iter().fold(0.0f64, |m, &v| m.max(v));
-    let smoothed = if sigma_max > 0.0 {
+    // The pilot's Ĩ when it ran at the smoothing chosen (the same call: the same bits).
+    let piloted = pilot.as_mut().map(|p| {
+        let (dims, spacing, to_world) = (p.0.dims, p.0.spacing, p.0.to_world);
+        let empty = Image { dims, spacing, data: Vec::new(), to_world };
+        std::mem::replace(&mut p.0, empty)
+    });
+    let smoothed = if let Some(s) = piloted {
+        s
+    } else if sigma_max > 0.0 {
         features::gaussian(&normed, resolved.sigma)?
     } else {
         par_clone(&normed)
@@ -1011,11 +1019,13 @@ fn sigmoid_from_edges(
 /// when the region holds no image voxel.
 fn inside_quantile(values: &Image, initial: &DenseField, q: f64) -> Result<f64, GridError> {
     let n = values.data.len();
-    // The inside values part by part, in parallel; the quantile is exact, whatever the parts.
+    // The inside values part by part (one per thread), in parallel; the quantile is exact,
+    // whatever the parts.
+    let part = features::part_len(n);
     let parts: Vec<Vec<f32>> = values
         .data
-        .par_chunks(PART_VOXELS)
-        .zip(initial.data()[..n].par_chunks(PART_VOXELS))
+        .par_chunks(part)
+        .zip(initial.data()[..n].par_chunks(part))
         .map(|(v, phi)| v.iter().zip(phi).filter(|(_, &p)| p <= 0.0).map(|(&v, _)| v).collect())
         .collect();
     let parts: Vec<&[f32]> = parts.iter().map(Vec::as_slice).filter(|p| !p.is_empty()).collect();
@@ -1037,9 +1047,9 @@ fn par_clone(image: &Image) -> Image {
     Image { dims, spacing, data: par_copy(&image.data), to_world }
 }
 
-/// The voxels of a mask (nonzero), counted in parallel (an integer: any split).
+/// The voxels of a 0/1 mask, counted in parallel (an integer: any split).
 fn par_count(mask: &[u8]) -> u64 {
-    mask.par_chunks(PART_VOXELS).map(|c| c.iter().map(|&v| (v != 0) as u64).sum::<u64>()).sum()
+    mask.par_chunks(PART_VOXELS).map(|c| c.iter().map(|&v| v as u64).sum::<u64>()).sum()
 }
 
 /// Why a run leaked, if it did: the region covers at least [`LEAK_FACE_FRACTION`] of a
@@ -1110,7 +1120,7 @@ type Near = (Coord, u8, f32);
 
 /// Tiles per part of [`change_since`]: small, for load balance (its sum is exact, so the
 /// split does not change it).
-const CHANGE_CHUNK: usize = 32;
+const CHANGE_CHUNK: usize = 64;
 
 /// The segmentation's tile grid (it always runs on tiles).
 fn tiles_of(sim: &Simulation) -> &TileGrid {
@@ -1143,10 +1153,18 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
         .map(|part| {
             let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
             let old = &near[start_of(part)..start_of(part + 1)];
-            let (mut sq, mut band, mut next, mut k) = (ExactSum::default(), 0usize, Vec::new(), 0);
+            let (mut band, mut next, mut k) = (0usize, Vec::new(), 0);
+            // Terms gathered in blocks for the sum's vectorised addition.
+            let mut sq = ExactSum::default();
+            let (mut terms, mut held) = ([0.0f32; 64], 0);
             let mut diff = |old: f32, new: f32| {
                 let d = (new - old) as f64 * inv_h;
-                sq.add((d * d) as f32);
+                terms[held] = (d * d) as f32;
+                held += 1;
+                if held == terms.len() {
+                    sq.add_all(&terms);
+                    held = 0;
+                }
             };
             for p in tiles {
                 let tc = coords[p];
@@ -1169,6 +1187,7 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
             for &(_, _, o) in &old[k..] {
                 diff(o, sim_value_left(o, gamma));
             }
+            sq.add_all(&terms[..held]);
             (sq, band, next)
         })
         .collect();
@@ -1312,10 +1331,7 @@ fn mask_faces(mask: &[u8], dims: [usize; 3]) -> (u64, [u64; 6]) {
             }
             (count, faces)
         })
-        .reduce(
-            || (0, [0; 6]),
-            |a, b| (a.0 + b.0, std::array::from_fn(|i| a.1[i] + b.1[i])),
-        )
+        .reduce(|| (0, [0; 6]), |a, b| (a.0 + b.0, std::array::from_fn(|i| a.1[i] + b.1[i])))
 }
 
 /// The fast start's region ([`Params::fast_start`], [`super::start`]), when it applies:
@@ -1386,7 +1402,8 @@ fn initial_field(
     let s = image.spacing;
     let slice = nx * ny;
     // Filled in parallel: the first touch of the buffer's pages is most of the cost.
-    let mut phi: Vec<f32> = (0..slice * layers).into_par_iter().map(|_| gamma).collect();
+    let mut phi = vec![0.0f32; slice * layers];
+    phi.par_chunks_mut(PART_VOXELS).for_each(|c| c.fill(gamma));
     match init {
         Init::Seeds { seeds, world } => {
             let h_min = lattice.min_spacing() as f64;
