@@ -10,6 +10,7 @@ use crate::evolve::{
     Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
     Velocity,
 };
+use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
 use crate::storage::convert::tiles_from_dense;
@@ -374,7 +375,7 @@ fn segment_in_pool(
     let (seed_voxels, seed_faces) = mask_faces(&seeds, image.dims);
     let field = match start_region(image, init, params, &inputs, &seeds, &resolved, &norm) {
         Some(start) => {
-            resolved.start_voxels = Some(start.iter().map(|&v| v as u64).sum());
+            resolved.start_voxels = Some(par_count(&start));
             initial_field(image, &Init::Mask(start), &lattice, spec.gamma())?
         }
         None => field,
@@ -483,7 +484,7 @@ fn segment_in_pool(
     };
     let seconds_evolution = evolution.elapsed().as_secs_f64();
     let mask = mask_of(&sim, image.dims)?;
-    let voxels = mask.iter().map(|&m| m as u64).sum::<u64>();
+    let voxels = par_count(&mask);
     let weak_contrast = means.and_then(|[c1, c2]| weak_contrast(c1, c2, resolved.noise_smoothed));
     let report = Report {
         params: resolved,
@@ -602,7 +603,7 @@ fn method_flow(
                 c.par_iter_mut().for_each(|v| *v *= -alpha);
                 Arc::new(c)
             });
-            let z = VoxelField { lookup, data: Arc::new(g.data.clone()), outside: 1.0 };
+            let z = VoxelField { lookup, data: Arc::new(par_copy(&g.data)), outside: 1.0 };
             let f = VoxelField { lookup, data: Arc::new(speed), outside };
             let mut flow = Flow::normal_speed(Speed::Field(Arc::new(f)))
                 .with_curvature_field(weight * resolved.curvature, Arc::new(z));
@@ -618,7 +619,7 @@ fn method_flow(
             resolved.curvature = params.curvature.unwrap_or(0.2 * h_min as f32);
             let force = Arc::new(RegionForce::new(
                 lookup,
-                Arc::new(smoothed.data.clone()),
+                Arc::new(par_copy(&smoothed.data)),
                 [lambda1 * beta, lambda2 * beta, nu],
                 weight,
             ));
@@ -719,7 +720,7 @@ fn prepare(
     let planar = image.is_2d();
     let smooth = |v: f64| -> Result<Image, GridError> {
         if v <= 0.0 {
-            return Ok(normed.clone());
+            return Ok(par_clone(&normed));
         }
         let mut s = image.spacing.map(|h| v * h);
         if planar {
@@ -804,8 +805,19 @@ fn prepare(
     };
     resolved.sigma = if planar { [sigmas[0], sigmas[1], 0.0] } else { sigmas };
     let sigma_max = resolved.sigma.iter().fold(0.0f64, |m, &v| m.max(v));
-    let smoothed =
-        if sigma_max > 0.0 { features::gaussian(&normed, resolved.sigma)? } else { normed.clone() };
+    // The pilot's Ĩ when it ran at the smoothing chosen (the same call: the same bits).
+    let piloted = pilot.as_mut().map(|p| {
+        let (dims, spacing, to_world) = (p.0.dims, p.0.spacing, p.0.to_world);
+        let empty = Image { dims, spacing, data: Vec::new(), to_world };
+        std::mem::replace(&mut p.0, empty)
+    });
+    let smoothed = if let Some(s) = piloted {
+        s
+    } else if sigma_max > 0.0 {
+        features::gaussian(&normed, resolved.sigma)?
+    } else {
+        par_clone(&normed)
+    };
     // The noise left after smoothing.
     resolved.noise_smoothed = noise * resolved_factor(&resolved, image, axes) * norm.scale;
     // The rays' edges through Ĩ as smoothed (the pilot's when it ran at this smoothing),
@@ -1007,14 +1019,37 @@ fn sigmoid_from_edges(
 /// when the region holds no image voxel.
 fn inside_quantile(values: &Image, initial: &DenseField, q: f64) -> Result<f64, GridError> {
     let n = values.data.len();
-    let inside: Vec<f32> = values
+    // The inside values part by part (one per thread), in parallel; the quantile is exact,
+    // whatever the parts.
+    let part = features::part_len(n);
+    let parts: Vec<Vec<f32>> = values
         .data
-        .iter()
-        .zip(&initial.data()[..n])
-        .filter(|(_, &phi)| phi <= 0.0)
-        .map(|(&v, _)| v)
+        .par_chunks(part)
+        .zip(initial.data()[..n].par_chunks(part))
+        .map(|(v, phi)| v.iter().zip(phi).filter(|(_, &p)| p <= 0.0).map(|(&v, _)| v).collect())
         .collect();
-    Ok(if inside.is_empty() { 0.0 } else { features::percentile(&inside, q)? as f64 })
+    let parts: Vec<&[f32]> = parts.iter().map(Vec::as_slice).filter(|p| !p.is_empty()).collect();
+    Ok(if parts.is_empty() { 0.0 } else { features::percentile_of_parts(&parts, q)? as f64 })
+}
+
+/// Image voxels per parallel part of the whole-image passes (masks, counts, copies).
+const PART_VOXELS: usize = 1 << 16;
+
+/// A copy of `data`, made in parallel (the first touch of a fresh image-sized buffer is
+/// the cost, not the copy).
+fn par_copy(data: &[f32]) -> Vec<f32> {
+    data.par_iter().copied().collect()
+}
+
+/// A copy of `image`, its data copied in parallel ([`par_copy`]).
+fn par_clone(image: &Image) -> Image {
+    let (dims, spacing, to_world) = (image.dims, image.spacing, image.to_world);
+    Image { dims, spacing, data: par_copy(&image.data), to_world }
+}
+
+/// The voxels of a 0/1 mask, counted in parallel (an integer: any split).
+fn par_count(mask: &[u8]) -> u64 {
+    mask.par_chunks(PART_VOXELS).map(|c| c.iter().map(|&v| v as u64).sum::<u64>()).sum()
 }
 
 /// Why a run leaked, if it did: the region covers at least [`LEAK_FACE_FRACTION`] of a
@@ -1083,9 +1118,9 @@ fn sum_of_flows(flows: Vec<Flow>) -> Flow {
 /// the tile, and φⁿ.
 type Near = (Coord, u8, f32);
 
-/// Tiles per part of [`change_since`]: fixed, so that the parts' partial sums, added in
-/// list order, do not depend on the thread count.
-const CHANGE_CHUNK: usize = 256;
+/// Tiles per part of [`change_since`]: small, for load balance (its sum is exact, so the
+/// split does not change it).
+const CHANGE_CHUNK: usize = 64;
 
 /// The segmentation's tile grid (it always runs on tiles).
 fn tiles_of(sim: &Simulation) -> &TileGrid {
@@ -1098,6 +1133,10 @@ fn tiles_of(sim: &Simulation) -> &TileGrid {
 /// `near`). The old and new lists are merged tile by tile in parts of the new list, in
 /// parallel; a part takes the old voxels from its first tile up to the next part's
 /// (before the first part: all from the start), so every old voxel is met once.
+///
+/// The sum is exact ([`ExactSum`]: each term ((φⁿ⁺¹ − φⁿ)/h)², in voxels of `h`, rounded
+/// once to f32 and to the sum's fixed point, then scaled by (h/Δt)²), so it is the same
+/// whatever the parts and the thread count, as the engine's reductions are.
 fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize, Vec<Near>) {
     let coords = grid.tile_coords();
     let values = grid.values();
@@ -1108,15 +1147,24 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
         _ if part * CHANGE_CHUNK >= coords.len() => near.len(),
         _ => near.partition_point(|e| e.0 < coords[part * CHANGE_CHUNK]),
     };
-    let results: Vec<(f64, usize, Vec<Near>)> = (0..parts)
+    let inv_h = 1.0 / h;
+    let results: Vec<(ExactSum, usize, Vec<Near>)> = (0..parts)
         .into_par_iter()
         .map(|part| {
             let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
             let old = &near[start_of(part)..start_of(part + 1)];
-            let (mut sq, mut band, mut next, mut k) = (0.0f64, 0usize, Vec::new(), 0usize);
+            let (mut band, mut next, mut k) = (0usize, Vec::new(), 0);
+            // Terms gathered in blocks for the sum's vectorised addition.
+            let mut sq = ExactSum::default();
+            let (mut terms, mut held) = ([0.0f32; 64], 0);
             let mut diff = |old: f32, new: f32| {
-                let d = (new - old) as f64 / dt;
-                sq += d * d;
+                let d = (new - old) as f64 * inv_h;
+                terms[held] = (d * d) as f32;
+                held += 1;
+                if held == terms.len() {
+                    sq.add_all(&terms);
+                    held = 0;
+                }
             };
             for p in tiles {
                 let tc = coords[p];
@@ -1139,16 +1187,17 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
             for &(_, _, o) in &old[k..] {
                 diff(o, sim_value_left(o, gamma));
             }
+            sq.add_all(&terms[..held]);
             (sq, band, next)
         })
         .collect();
-    let mut total = (0.0, 0, Vec::with_capacity(near.len()));
-    for (sq, band, next) in results {
-        total.0 += sq;
-        total.1 += band;
-        total.2.extend(next);
+    let (mut sq, mut band, mut next) = (ExactSum::default(), 0, Vec::with_capacity(near.len()));
+    for (s, b, n) in results {
+        sq = sq.merge(s);
+        band += b;
+        next.extend(n);
     }
-    total
+    (sq.value() * (h / dt) * (h / dt), band, next)
 }
 
 /// The value of a voxel that left the band in a step, whose value before was `old`: the
@@ -1173,8 +1222,13 @@ struct FixedPoint {
 
 impl FixedPoint {
     fn new(data: &[f32]) -> FixedPoint {
-        let (lo, hi) =
-            data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        // Least and greatest values (in any order: ±0 compare equal and give the same q).
+        let (lo, hi) = data
+            .par_chunks(PART_VOXELS)
+            .map(|c| {
+                c.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+            })
+            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
         let range = (hi - lo) as f64;
         let scale = if range > 0.0 { ((1u64 << 31) - 1) as f64 / range } else { 0.0 };
         let min = lo as f64;
@@ -1252,24 +1306,32 @@ fn add_run_faces(faces: &mut [u64; 6], x0: usize, x1: usize, y: usize, z: usize,
 /// image, as [`inside`] counts a simulation's.
 fn mask_faces(mask: &[u8], dims: [usize; 3]) -> (u64, [u64; 6]) {
     let nx = dims[0];
-    let (mut count, mut faces) = (0u64, [0u64; 6]);
-    for (row, line) in mask.chunks(nx).enumerate() {
-        let (y, z) = (row % dims[1], row / dims[1]);
-        let mut x = 0;
-        while x < nx {
-            if line[x] == 0 {
-                x += 1;
-                continue;
+    let rows = (PART_VOXELS / nx).max(1);
+    // Integer counts per part of rows, added in any order: the same in any split.
+    mask.par_chunks(nx * rows)
+        .enumerate()
+        .map(|(part, lines)| {
+            let (mut count, mut faces) = (0u64, [0u64; 6]);
+            for (r, line) in lines.chunks(nx).enumerate() {
+                let row = part * rows + r;
+                let (y, z) = (row % dims[1], row / dims[1]);
+                let mut x = 0;
+                while x < nx {
+                    if line[x] == 0 {
+                        x += 1;
+                        continue;
+                    }
+                    let x0 = x;
+                    while x < nx && line[x] != 0 {
+                        x += 1;
+                    }
+                    count += (x - x0) as u64;
+                    add_run_faces(&mut faces, x0, x, y, z, dims);
+                }
             }
-            let x0 = x;
-            while x < nx && line[x] != 0 {
-                x += 1;
-            }
-            count += (x - x0) as u64;
-            add_run_faces(&mut faces, x0, x, y, z, dims);
-        }
-    }
-    (count, faces)
+            (count, faces)
+        })
+        .reduce(|| (0, [0; 6]), |a, b| (a.0 + b.0, std::array::from_fn(|i| a.1[i] + b.1[i])))
 }
 
 /// The fast start's region ([`Params::fast_start`], [`super::start`]), when it applies:
@@ -1339,7 +1401,9 @@ fn initial_field(
     let layers = if image.is_2d() { 4 } else { nz };
     let s = image.spacing;
     let slice = nx * ny;
-    let mut phi = vec![gamma; slice * layers];
+    // Filled in parallel: the first touch of the buffer's pages is most of the cost.
+    let mut phi = vec![0.0f32; slice * layers];
+    phi.par_chunks_mut(PART_VOXELS).for_each(|c| c.fill(gamma));
     match init {
         Init::Seeds { seeds, world } => {
             let h_min = lattice.min_spacing() as f64;
@@ -1410,7 +1474,7 @@ fn initial_field(
         let (first, rest) = phi.split_at_mut(slice);
         rest.par_chunks_mut(slice).for_each(|c| c.copy_from_slice(first));
     }
-    if !phi.iter().any(|&v| v <= 0.0) {
+    if !phi.par_iter().any(|&v| v <= 0.0) {
         return Err(SegmentError::Init(
             "the initial region is empty (nothing inside the image)".into(),
         ));

@@ -49,13 +49,13 @@ enum Op {
 /// Erosion (minimum) or dilation (maximum) over the cube of radius `r` voxels, one axis
 /// after another; beyond the image a voxel counts as 0.
 fn morph(src: &[u8], dims: [usize; 3], r: usize, op: Op) -> Vec<u8> {
-    let mut cur = src.to_vec();
+    let mut cur: Option<Vec<u8>> = None;
     for axis in 0..3 {
         if dims[axis] > 1 {
-            cur = along(&cur, dims, r, axis, op);
+            cur = Some(along(cur.as_deref().unwrap_or(src), dims, r, axis, op));
         }
     }
-    cur
+    cur.unwrap_or_else(|| src.to_vec())
 }
 
 fn along(src: &[u8], dims: [usize; 3], r: usize, axis: usize, op: Op) -> Vec<u8> {
@@ -123,13 +123,18 @@ fn along_by(
 /// The voxels of `set` 6-connected within it to a voxel of `seeds`.
 fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3]) -> Vec<u8> {
     let mut out = vec![0u8; set.len()];
-    let mut queue: VecDeque<usize> = VecDeque::new();
-    for (i, (&s, &m)) in seeds.iter().zip(set).enumerate() {
-        if s != 0 && m != 0 {
-            out[i] = 1;
-            queue.push_back(i);
-        }
+    // The seeds in the set, found in parallel (in index order).
+    let first: Vec<usize> = seeds
+        .par_iter()
+        .zip(set)
+        .enumerate()
+        .filter(|(_, (&s, &m))| s != 0 && m != 0)
+        .map(|(i, _)| i)
+        .collect();
+    for &i in &first {
+        out[i] = 1;
     }
+    let mut queue: VecDeque<usize> = first.into();
     while let Some(i) = queue.pop_front() {
         for j in face_neighbours(i, dims) {
             if set[j] != 0 && out[j] == 0 {
