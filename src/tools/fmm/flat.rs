@@ -369,26 +369,22 @@ pub(super) fn distance(
                     }
                     let v = phi[i];
                     let inside = v < 0.0;
-                    // `interface_distance` answers `None` unless an open 6-neighbour lies
-                    // on the other side: that test alone first, so that the voxels away
-                    // from the interface (nearly all of them) build no star.
-                    let other = |ok: bool, j: usize| ok && (phi[j] < 0.0) != inside && open(j);
-                    let crosses = other(x > 0, i.wrapping_sub(1))
-                        || other(x + 1 < nx, i + 1)
-                        || other(y > 0, i.wrapping_sub(nx))
-                        || other(y + 1 < ny, i + nx)
-                        || other(z > 0, i.wrapping_sub(nx * ny))
-                        || other(z + 1 < nz, i + nx * ny);
+                    // The six neighbours: (in the array, index).
+                    let six = [
+                        (x > 0, i.wrapping_sub(1)),
+                        (x + 1 < nx, i + 1),
+                        (y > 0, i.wrapping_sub(nx)),
+                        (y + 1 < ny, i + nx),
+                        (z > 0, i.wrapping_sub(nx * ny)),
+                        (z + 1 < nz, i + nx * ny),
+                    ];
+                    // `interface_distance` answers `None` unless an open neighbour lies on
+                    // the other side: that test alone first, so that the voxels away from
+                    // the interface (nearly all of them) build no star.
+                    let crosses =
+                        six.iter().any(|&(ok, j)| ok && (phi[j] < 0.0) != inside && open(j));
                     let d = if crosses {
-                        let nb = |ok: bool, j: usize| (ok && open(j)).then(|| phi[j]);
-                        let star = [
-                            nb(x > 0, i.wrapping_sub(1)),
-                            nb(x + 1 < nx, i + 1),
-                            nb(y > 0, i.wrapping_sub(nx)),
-                            nb(y + 1 < ny, i + nx),
-                            nb(z > 0, i.wrapping_sub(nx * ny)),
-                            nb(z + 1 < nz, i + nx * ny),
-                        ];
+                        let star = six.map(|(ok, j)| (ok && open(j)).then(|| phi[j]));
                         interface_distance(v, &star, f32::INFINITY, lattice.ratios)
                     } else {
                         None
