@@ -415,7 +415,7 @@ pub(crate) use rep::TILE_GRID_BYTES;
 /// The peak a run's memory check assumes, against a band's estimated bytes
 /// ([`crate::storage::convert::band_bytes`]).
 pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormalization) -> f64 {
-    let (keeps_phi_n, anchors) = step_keeps(integrator, renorm);
+    let keeps = step_keeps(integrator, renorm);
     let mut fields = 0u64;
     if matches!(flow.velocity, Some(Velocity::Field(_))) {
         fields += 6;
@@ -427,17 +427,31 @@ pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormaliza
         fields += 1;
     }
     let tile_values = std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
-    let bytes = rep::step_bytes_per_tile(keeps_phi_n, anchors) + fields * tile_values;
+    let bytes = rep::step_bytes_per_tile(keeps) + fields * tile_values;
     bytes as f64 / TILE_GRID_BYTES as f64
 }
 
-/// What a step keeps besides the double buffer: φⁿ (TVD-RK3, or a renormalisation in the
-/// step) and the renormalisation's anchors (more than one sweep). The one rule of the
-/// memory budget and of [`tile_step_copies`].
-pub(crate) fn step_keeps(integrator: Integrator, renorm: Renormalization) -> (bool, bool) {
+/// What a step keeps besides the double buffer, for the memory estimates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct StepKeeps {
+    /// φⁿ beside the double buffer (TVD-RK3, or a renormalisation in the step).
+    pub phi_n: bool,
+    /// The renormalisation's anchors (more than one sweep:
+    /// [`dispatch::anchors_stored`]).
+    pub anchors: bool,
+    /// TVD-RK3 (whose later stages need the double buffer and φⁿ at once).
+    pub rk3: bool,
+}
+
+/// What a step with `integrator` and `renorm` keeps: the one rule of the memory budget and
+/// of [`tile_step_copies`].
+pub(crate) fn step_keeps(integrator: Integrator, renorm: Renormalization) -> StepKeeps {
+    let rk3 = integrator == Integrator::Rk3;
     match renorm {
-        Renormalization::Sweeps(s) => (true, dispatch::anchors_stored(s.sweeps)),
-        _ => (integrator == Integrator::Rk3, false),
+        Renormalization::Sweeps(s) => {
+            StepKeeps { phi_n: true, anchors: dispatch::anchors_stored(s.sweeps), rk3 }
+        }
+        _ => StepKeeps { phi_n: rk3, anchors: false, rk3 },
     }
 }
 

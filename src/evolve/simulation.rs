@@ -247,12 +247,9 @@ impl Simulation {
 
     /// The memory budget of [`Settings::memory_limit`].
     fn budget(&self) -> MemoryBudget {
-        let (keeps_phi_n, anchors) =
-            super::step_keeps(self.settings.integrator, self.settings.renormalization);
         MemoryBudget {
             limit: self.settings.memory_limit,
-            keeps_phi_n,
-            anchors,
+            keeps: super::step_keeps(self.settings.integrator, self.settings.renormalization),
             held: self.inputs.bytes() as u64,
         }
     }
@@ -298,13 +295,11 @@ impl Simulation {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
         }
         let anchors = anchors_stored(sweeps.sweeps);
-        let budget = MemoryBudget { keeps_phi_n: true, anchors, ..self.budget() };
+        let keeps = super::StepKeeps { phi_n: true, anchors, rk3: false };
+        let budget = MemoryBudget { keeps, ..self.budget() };
         let rep = self.rep.get();
-        let admitted = budget.admit(
-            rep.step_bytes(true, anchors),
-            self.rep_bytes(),
-            "the renormalisation's buffers",
-        );
+        let admitted =
+            budget.admit(rep.step_bytes(keeps), self.rep_bytes(), "the renormalisation's buffers");
         self.agree(admitted.map_err(EvolveError::from))?;
         let p = self.renorm_params(sweeps);
         let pool = self.settings.pool.clone();
@@ -692,8 +687,8 @@ impl Simulation {
         // collective themselves, so no rank may skip them).
         let rep = self.rep.get();
         let budget = self.budget();
-        let needed = rep.step_bytes(budget.keeps_phi_n, budget.anchors)
-            + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
+        let needed =
+            rep.step_bytes(budget.keeps) + self.inputs.growth_bytes(rep.flat().len(), &self.flow);
         let admitted = budget.admit(needed, self.rep_bytes(), "the step's buffers");
         self.agree(admitted.map_err(EvolveError::from))?;
         let rep = self.rep.get();

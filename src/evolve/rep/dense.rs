@@ -7,7 +7,7 @@ use crate::evolve::dispatch::{
     dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
 };
 use crate::evolve::field::{ScalarFn, VectorFn};
-use crate::evolve::{EvolveError, SpatialScheme};
+use crate::evolve::{EvolveError, SpatialScheme, StepKeeps};
 use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dense::DenseField;
@@ -270,7 +270,8 @@ impl Representation for DenseRep {
             + vec_bytes(&self.padded)
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64 {
+    fn step_bytes(&self, keeps: StepKeeps) -> u64 {
+        let StepKeeps { phi_n: keeps_phi_n, anchors, .. } = keeps;
         // The double buffer, the band mask, φⁿ and the padded copy (3-voxel halo, the
         // reach of HJ-WENO5).
         let n = self.field.data().len();

@@ -11,7 +11,7 @@ use crate::evolve::dispatch::{
     StageParams, Sweep,
 };
 use crate::evolve::field::{ScalarFn, VectorFn};
-use crate::evolve::{EvolveError, SpatialScheme};
+use crate::evolve::{EvolveError, SpatialScheme, StepKeeps};
 use crate::exact::ExactSum;
 use crate::grid::GridSpec;
 use crate::storage::dtgrid::{DtGrid, Stencil, StencilIter};
@@ -338,8 +338,8 @@ impl Representation for DtRep {
             + self.next.memory().total()
     }
 
-    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64 {
+    fn step_bytes(&self, keeps: StepKeeps) -> u64 {
         (self.bytes() + self.work_bytes()) as u64
-            + self.buffer_growth(self.grid.len(), keeps_phi_n, anchors)
+            + self.buffer_growth(self.grid.len(), keeps.phi_n, keeps.anchors)
     }
 }

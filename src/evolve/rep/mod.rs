@@ -27,7 +27,7 @@ pub(crate) use tiles::{step_bytes_per_tile, TilesRep, TILE_GRID_BYTES};
 
 use super::dispatch::{RenormParams, StageParams};
 use super::field::{ScalarFn, VectorFn};
-use super::{EvolveError, SpatialScheme};
+use super::{EvolveError, SpatialScheme, StepKeeps};
 use crate::coord::Coord;
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
@@ -139,10 +139,10 @@ pub(crate) trait Representation: Send + Sync {
     fn work_bytes(&self) -> usize;
     /// Bytes of the representation and its buffers (as [`Representation::bytes`] +
     /// [`Representation::work_bytes`]) once a step's buffers hold the current band
-    /// (`keeps_phi_n`: with a φⁿ buffer of its own, TVD-RK3 or a renormalisation;
+    /// (`keeps`: with a φⁿ buffer of its own, TVD-RK3 or a renormalisation;
     /// `anchors`: with the stored anchors of a renormalisation): what its first stage may
     /// allocate.
-    fn step_bytes(&self, keeps_phi_n: bool, anchors: bool) -> u64;
+    fn step_bytes(&self, keeps: StepKeeps) -> u64;
 }
 
 /// The representation a simulation runs on.
@@ -179,12 +179,8 @@ pub(crate) struct MemoryBudget {
     /// The most bytes the simulation may take; `None`: what the machine can give
     /// ([`crate::memory::limit`]) bounds each growth instead.
     pub limit: Option<u64>,
-    /// Whether steps keep φⁿ in a buffer of its own (TVD-RK3, or a renormalisation in the
-    /// step), for the estimates.
-    pub keeps_phi_n: bool,
-    /// Whether steps' renormalisations store their anchors (an anchor buffer, more than
-    /// one sweep: [`super::dispatch::anchors_stored`]), for the estimates.
-    pub anchors: bool,
+    /// What steps keep besides the double buffer, for the estimates.
+    pub keeps: StepKeeps,
     /// Bytes the simulation holds besides the representation (the per-voxel inputs),
     /// counted against the limit.
     pub held: u64,

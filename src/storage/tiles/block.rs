@@ -4,6 +4,134 @@
 //! by the border flag where the neighbour is absent).
 
 use super::{NeighbourRow, Neighbours, Tile, TileGrid, TILE_DIM};
+use std::marker::PhantomData;
+
+/// Where a gather reads its tiles: a grid, or a grid that a sweep is overwriting behind
+/// itself ([`InPlaceTiles`]).
+pub trait TileSource {
+    /// The values of the tile at list position `p` (in range).
+    fn part(&self, p: usize) -> &[f32; 64];
+    /// Border flags of the tile at list position `pos` (see [`super::flags`]).
+    fn border(&self, pos: usize) -> u32;
+    /// Activity flags of the tile at list position `pos`.
+    fn activity(&self, pos: usize) -> u32;
+    /// The band's half-width γ (the dummy tiles' value).
+    fn gamma(&self) -> f32;
+}
+
+impl TileSource for TileGrid {
+    #[inline(always)]
+    fn part(&self, p: usize) -> &[f32; 64] {
+        &self.values()[p].0
+    }
+    #[inline(always)]
+    fn border(&self, pos: usize) -> u32 {
+        self.border_flags(pos)
+    }
+    #[inline(always)]
+    fn activity(&self, pos: usize) -> u32 {
+        self.activity_flags(pos)
+    }
+    #[inline(always)]
+    fn gamma(&self) -> f32 {
+        TileGrid::gamma(self)
+    }
+}
+
+/// A grid's tiles for a sweep that writes each result back into the arena once no tile
+/// left to compute reads the old values (see `TilesRep`'s in-place renormalisation): reads
+/// and writes go through a raw pointer, so that tiles can be read on every thread while
+/// others are written. Borrows the grid exclusively for its lifetime; the border and
+/// activity flags are only read.
+///
+/// # Invariants
+/// `ptr` points to `len` initialised tiles that nothing else accesses while this exists.
+pub struct InPlaceTiles<'g> {
+    ptr: *mut Tile,
+    len: usize,
+    border: &'g [u32],
+    activity: &'g [u32],
+    gamma: f32,
+    _arena: PhantomData<&'g mut [Tile]>,
+}
+
+// SAFETY: the view only hands out tiles by position; `write`'s contract keeps a tile from
+// being read while it is written (on any thread), so sharing it is sharing `&[Tile]`.
+unsafe impl Send for InPlaceTiles<'_> {}
+// SAFETY: as above.
+unsafe impl Sync for InPlaceTiles<'_> {}
+
+impl<'g> InPlaceTiles<'g> {
+    /// The view of `arena` with the list's flags and half-width.
+    pub(super) fn new(
+        arena: &'g mut [Tile],
+        border: &'g [u32],
+        activity: &'g [u32],
+        gamma: f32,
+    ) -> Self {
+        debug_assert!(border.len() == arena.len() && activity.len() == arena.len());
+        InPlaceTiles {
+            ptr: arena.as_mut_ptr(),
+            len: arena.len(),
+            border,
+            activity,
+            gamma,
+            _arena: PhantomData,
+        }
+    }
+
+    /// Number of tiles.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether there are no tiles.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Overwrites the tile at list position `pos` with `t` (finite values in [-γ, γ], as
+    /// the time-step kernels give).
+    ///
+    /// # Safety
+    /// No reference to tile `pos` that [`TileSource::part`] gave is alive, and none is
+    /// taken on any thread until this returns: every gather that reads tile `pos` has
+    /// finished, and none starts later.
+    #[inline(always)]
+    pub unsafe fn write(&self, pos: usize, t: &Tile) {
+        assert!(pos < self.len, "tile {pos} of {}", self.len);
+        // SAFETY: in bounds (checked); no reader by the caller's guarantee, and the view
+        // borrows the arena exclusively, so no one else holds it.
+        let dst = unsafe { &mut (*self.ptr.add(pos)).0 };
+        // Cache line by cache line: a plain copy of the 256 bytes became a call to
+        // `memmove`, whose start-up cost showed in the sweep's profile.
+        for (d, s) in dst.chunks_exact_mut(16).zip(t.0.chunks_exact(16)) {
+            d.copy_from_slice(s);
+        }
+    }
+}
+
+impl TileSource for InPlaceTiles<'_> {
+    #[inline(always)]
+    fn part(&self, p: usize) -> &[f32; 64] {
+        assert!(p < self.len, "tile {p} of {}", self.len);
+        // SAFETY: in bounds (checked) and initialised (the invariant); a tile is only
+        // written when no reference to it lives (`write`'s contract).
+        unsafe { &(*self.ptr.add(p)).0 }
+    }
+    #[inline(always)]
+    fn border(&self, pos: usize) -> u32 {
+        self.border[pos]
+    }
+    #[inline(always)]
+    fn activity(&self, pos: usize) -> u32 {
+        self.activity[pos]
+    }
+    #[inline(always)]
+    fn gamma(&self) -> f32 {
+        self.gamma
+    }
+}
 
 /// The values of a tile and its halo, in the layout of the kernels'
 /// [`levelset_kernels::TileBlock`]: `R` voxels along y and z, a whole tile row along x,
@@ -68,14 +196,14 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
-        self.gather_parts::<false>(grid, nb.pos, &NeighbourRow::new(nb.matched, &nb.ptr));
+        self.gather_parts::<false, TileGrid>(grid, nb.pos, &NeighbourRow::new(nb.matched, &nb.ptr));
     }
 
     /// Fills the block for the tile at list position `pos`, whose neighbours are `row`
     /// (from a [`super::NeighbourTable`] of `grid`'s list).
     #[inline]
     pub fn gather_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<false>(grid, pos, row);
+        self.gather_parts::<false, TileGrid>(grid, pos, row);
     }
 
     /// Fills the rows of the block that the kernels' [`levelset_kernels::TileWindow`]
@@ -86,8 +214,8 @@ impl<const R: usize> PaddedBlock<R> {
     /// Always inlined: into the tile sweeps' functions compiled for the CPU's
     /// instruction-set level (wider copies there).
     #[inline(always)]
-    pub fn gather_star_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<true>(grid, pos, row);
+    pub fn gather_star_row<S: TileSource>(&mut self, grid: &S, pos: usize, row: &NeighbourRow) {
+        self.gather_parts::<true, S>(grid, pos, row);
     }
 
     /// Asks the CPU to bring into cache the neighbour tiles that a gather for the tile at
@@ -100,11 +228,11 @@ impl<const R: usize> PaddedBlock<R> {
     /// --threads 1`, 2-core AMD EPYC, 2026-11-24, five alternated runs: 1.47–1.80 s, mean
     /// 1.61, → 1.37–1.51 s, mean 1.45; `levelset run enright --threads 1` 3–4 % faster).
     #[inline(always)]
-    pub fn prefetch(grid: &TileGrid, row: &NeighbourRow) {
+    pub fn prefetch<S: TileSource>(grid: &S, row: &NeighbourRow) {
         // Directions with offset +1 along x (d = (ox + 1) + 3 (oy + 1) + 9 (oz + 1)).
         for d in [2, 5, 8, 11, 14, 17, 20, 23, 26] {
             if let Some(p) = row.get(d) {
-                prefetch_tile(grid.tile(p));
+                prefetch_tile(grid.part(p));
             }
         }
     }
@@ -161,9 +289,13 @@ impl<const R: usize> PaddedBlock<R> {
     /// of that, the unchecked copies (instead of indexing with bounds checks) gave about two
     /// fifths.
     #[inline(always)]
-    fn gather_parts<const STAR: bool>(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        let values = grid.values();
-        let border = grid.border_flags(pos);
+    fn gather_parts<const STAR: bool, S: TileSource>(
+        &mut self,
+        grid: &S,
+        pos: usize,
+        row: &NeighbourRow,
+    ) {
+        let border = grid.border(pos);
         let gamma = grid.gamma();
         if gamma.to_bits() != self.dummy_gamma.to_bits() {
             self.dummy = [Tile::splat(gamma), Tile::splat(-gamma)];
@@ -171,7 +303,7 @@ impl<const R: usize> PaddedBlock<R> {
         }
         // Each of the 27 parts is a neighbour tile or a "dummy tile" of ±γ chosen by the
         // border flag (set: the absent neighbour is inside).
-        let part = parts(row, values, pos, border, &self.dummy);
+        let part = parts(row, grid, pos, border, &self.dummy);
         let data: &mut [f32] = &mut self.data;
         let (r, w) = (R, Self::W);
         // A padded y or z coordinate `v` (in `0..W`, the local coordinate `v - R`): the
@@ -216,9 +348,9 @@ impl<const R: usize> PaddedBlock<R> {
 /// closure out of line (6–7 % of `levelset run sphere --renormalize coupled --rescale 1
 /// --cfl 0.5 --steps 100 --threads 1` in `perf record`, 2-core AMD EPYC, 2026-11-28).
 #[inline(always)]
-fn parts<'g>(
+fn parts<'g, S: TileSource>(
     row: &NeighbourRow,
-    values: &'g [Tile],
+    values: &'g S,
     pos: usize,
     border: u32,
     dummy: &'g [Tile; 2],
@@ -229,7 +361,7 @@ fn parts<'g>(
         for k in 0..3 {
             let d = 3 * r + k;
             let present = (row.matched >> d) & 1 != 0;
-            let tile = &values[if present { p } else { pos }].0;
+            let tile = values.part(if present { p } else { pos });
             let absent = &dummy[((border >> d) & 1) as usize].0;
             part[d] = if present { tile } else { absent };
             p += usize::from(present);
@@ -255,11 +387,11 @@ unsafe fn copy_row(data: &mut [f32], dst: usize, part: &[f32; 64], src: usize) {
 
 /// Prefetches the four cache lines of `tile` into every cache level.
 #[inline(always)]
-fn prefetch_tile(tile: &Tile) {
+fn prefetch_tile(tile: &[f32; 64]) {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = tile.0.as_ptr().cast::<i8>();
+        let p = tile.as_ptr().cast::<i8>();
         for line in 0..4 {
             // SAFETY: a prefetch is a hint that never faults, whatever the address (this
             // one is inside `tile`); SSE is part of every x86_64 target.

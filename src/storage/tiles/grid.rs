@@ -57,6 +57,15 @@ pub(super) fn check_list_len(n: usize) -> Result<(), GridError> {
 }
 const MINUS_X: usize = direction_index(-1, 0, 0);
 
+/// Activity flags as the grid keeps them: bits within [`ACTIVE_MASK`] | [`INSIDE`], and
+/// [`INSIDE`] only without a region bit.
+fn normalise_activity(activity: &mut [u32]) {
+    for a in activity.iter_mut() {
+        let f = *a & (ACTIVE_MASK | INSIDE);
+        *a = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
+    }
+}
+
 impl TileGrid {
     /// An empty grid.
     pub fn new(spec: GridSpec) -> TileGrid {
@@ -134,11 +143,33 @@ impl TileGrid {
                 activity.len()
             )));
         }
-        for a in activity.iter_mut() {
-            let f = *a & (ACTIVE_MASK | INSIDE);
-            *a = if f & ACTIVE_MASK != 0 { f & ACTIVE_MASK } else { f };
-        }
+        normalise_activity(activity);
         std::mem::swap(&mut self.arena, values);
+        std::mem::swap(&mut self.activity, activity);
+        self.debug_check();
+        Ok(())
+    }
+
+    /// The tiles as a sweep reads them while it writes its results back into the arena
+    /// ([`super::InPlaceTiles`]); the sweep's activity flags follow with
+    /// [`TileGrid::swap_activity`].
+    pub(crate) fn in_place(&mut self) -> super::InPlaceTiles<'_> {
+        let gamma = self.gamma();
+        super::InPlaceTiles::new(&mut self.arena, &self.border, &self.activity, gamma)
+    }
+
+    /// [`TileGrid::swap_values`] for the activity flags alone, after a sweep wrote its
+    /// values into the arena ([`TileGrid::in_place`]): `activity` then holds the previous
+    /// flags. A length mismatch is an error and leaves the grid as it was.
+    pub(crate) fn swap_activity(&mut self, activity: &mut Vec<u32>) -> Result<(), GridError> {
+        let n = self.coords.len();
+        if activity.len() != n {
+            return Err(GridError::InvalidParameter(format!(
+                "{} activity flags for a list of {n}",
+                activity.len()
+            )));
+        }
+        normalise_activity(activity);
         std::mem::swap(&mut self.activity, activity);
         self.debug_check();
         Ok(())

@@ -20,7 +20,7 @@ mod grid;
 mod manage;
 mod stream;
 
-pub use block::PaddedBlock;
+pub use block::{InPlaceTiles, PaddedBlock, TileSource};
 pub use flags::{
     compute_activity, region_of_local, ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER,
 };

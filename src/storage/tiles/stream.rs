@@ -224,6 +224,24 @@ impl NeighbourRow {
         self.first[r] as usize
     }
 
+    /// The least and the greatest list position among the present neighbours of the tile
+    /// at `pos` and `pos` itself: the tiles whose gathers read it. The lines follow each
+    /// other in list order (z, then y), so the least is the first of the first line with a
+    /// neighbour, the greatest the last of the last one.
+    #[inline]
+    pub fn extent(&self, pos: usize) -> (usize, usize) {
+        let (mut lo, mut hi) = (pos, pos);
+        for r in 0..9 {
+            let bits = (self.matched >> (3 * r)) & 7;
+            if bits != 0 {
+                let first = self.first[r] as usize;
+                lo = lo.min(first);
+                hi = hi.max(first + bits.count_ones() as usize - 1);
+            }
+        }
+        (lo, hi)
+    }
+
     /// List position the neighbour in direction `d` has if it exists: the first present
     /// neighbour of its line plus those present before it in that line.
     #[inline(always)]
