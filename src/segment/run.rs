@@ -912,7 +912,7 @@ fn edge_departure(noise_left: f64) -> f64 {
 /// an edge as one between two pixels; in world units it would read 2.5× weaker and the
 /// front would leak through the poles of a thick-sliced volume.
 fn voxel_gradient(smoothed: &Image) -> Result<Image, GridError> {
-    features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })
+    features::voxel_gradient_magnitude(smoothed)
 }
 
 /// GAC's pilot: Ĩ at `v` voxels, its gradient and the rays' edges.
