@@ -114,20 +114,28 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
     let g = spec.gamma();
     let (tlo, _) = tile_of(field.origin());
     let (thi, _) = tile_of(field.max_coord());
-    if let Some((i, _)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
-        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
-    let slabs: Vec<Vec<(Coord, Tile)>> = (tlo.z..=thi.z)
+    // Per slab: its band tiles, and the index of its first NaN. The tiles cover the field,
+    // so every value passes through one slab, and the first of the slabs' NaNs in the
+    // field's index order is the error, whatever the thread count (it was a scan of its
+    // own before the slabs, on one thread).
+    type Slab = (Vec<(Coord, Tile)>, Option<usize>);
+    let slabs: Vec<Slab> = (tlo.z..=thi.z)
         .into_par_iter()
         .map(|tz| {
             let mut out = Vec::new();
+            let mut nan: Option<usize> = None;
             for ty in tlo.y..=thi.y {
                 for tx in tlo.x..=thi.x {
                     let t = Coord::new(tx, ty, tz);
                     let mut tile = Tile::splat(0.0);
                     let mut band = false;
                     for (l, v) in tile.0.iter_mut().enumerate() {
-                        *v = dense_value(field, voxel_of(t, l), g);
+                        let c = voxel_of(t, l);
+                        *v = dense_value(field, c, g);
+                        if v.is_nan() {
+                            let i = field.index(c).expect("only values of the field are NaN");
+                            nan = Some(nan.map_or(i, |n| n.min(i)));
+                        }
                         band |= v.abs() < g;
                     }
                     if band {
@@ -135,10 +143,13 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
                     }
                 }
             }
-            out
+            (out, nan)
         })
         .collect();
-    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flatten(), |t| {
+    if let Some(i) = slabs.iter().filter_map(|s| s.1).min() {
+        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flat_map(|s| s.0), |t| {
         dense_value(field, voxel_of(t, 0), g) < 0.0
     })
 }
@@ -374,6 +385,25 @@ pub fn band_bytes(shape: &Shape, spec: &GridSpec) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The first NaN in the field's index order is the error, on any thread count, also
+    /// when a later slab or a later tile of the same slab meets its own NaN first.
+    #[test]
+    fn dense_nan_is_the_first_in_index_order() {
+        let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+        let mut field = DenseField::new(Coord::new(-3, -2, -5), [13, 9, 14], 1.0).unwrap();
+        // (5, 1, 0) comes first in index order but lies in a later tile of its slab than
+        // (-2, -2, 1), and in an earlier slab than (-3, -2, 4).
+        for c in [Coord::new(-3, -2, 4), Coord::new(-2, -2, 1), Coord::new(5, 1, 0)] {
+            field.set(c, f32::NAN).unwrap();
+        }
+        let want = GridError::NaN { coord: Coord::new(5, 1, 0) };
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let got = pool.install(|| tiles_from_dense(&field, spec)).unwrap_err();
+            assert_eq!(got, want, "{threads} threads");
+        }
+    }
 
     /// The areas and the estimate against bands built from the shapes: a band of half
     /// width w holds about 2w voxels per voxel of area (fewer along a box's edges, where
