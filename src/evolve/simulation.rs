@@ -412,7 +412,11 @@ impl Simulation {
 
     /// The current values as a dense field over `origin .. origin + dims`.
     pub fn to_dense(&self, origin: Coord, dims: [usize; 3]) -> Result<DenseField, GridError> {
-        DenseField::from_fn(origin, dims, |c| self.value(c))
+        match self.tiles() {
+            // Row by row on tiles (the same values, one tile search per row).
+            Some(grid) => crate::storage::convert::to_dense(grid, origin, dims),
+            None => DenseField::from_fn(origin, dims, |c| self.value(c)),
+        }
     }
 
     /// Band voxels (|φ| < γ); the whole band's when distributed (collective).

@@ -407,8 +407,25 @@ pub fn gradient(image: &Image) -> Result<[Image; 3], GridError> {
 /// Fails with [`GridError::InvalidParameter`] on a malformed image.
 pub fn gradient_magnitude(image: &Image) -> Result<Image, GridError> {
     check_image(image, "gradient magnitude")?;
+    Ok(with_data(image, gradient_magnitude_data(image, image.spacing)))
+}
+
+/// [`gradient_magnitude`] per voxel step: the differences taken over unit spacing, the
+/// result carrying spacing 1 (what the gradient magnitude of a copy of the image with
+/// spacing 1 gives, without that copy: a serial pass over the image's memory).
+///
+/// Fails with [`GridError::InvalidParameter`] on a malformed image.
+pub(crate) fn voxel_gradient_magnitude(image: &Image) -> Result<Image, GridError> {
+    check_image(image, "gradient magnitude")?;
+    let data = gradient_magnitude_data(image, [1.0; 3]);
+    Ok(Image { dims: image.dims, spacing: [1.0; 3], data, to_world: image.to_world })
+}
+
+/// The values of [`gradient_magnitude`], with the differences over `spacing` (the image
+/// checked by the caller).
+fn gradient_magnitude_data(image: &Image, spacing: [f64; 3]) -> Vec<f32> {
     let [nx, ny, nz] = image.dims;
-    let [sx, sy, sz] = image.spacing;
+    let [sx, sy, sz] = spacing;
     let src = &image.data;
     let mut out = vec![0.0f32; image.len()];
     let rows = rows_per_task(nx);
@@ -444,7 +461,7 @@ pub fn gradient_magnitude(image: &Image) -> Result<Image, GridError> {
             }
         }
     });
-    Ok(with_data(image, out))
+    out
 }
 
 /// Applies `f` to every intensity in `f64`, in parallel, rounding once.

@@ -13,7 +13,7 @@ use crate::evolve::{
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
-use crate::storage::convert::tiles_from_dense;
+use crate::storage::convert::{tile_row_values, tiles_from_dense};
 use crate::storage::dense::DenseField;
 use crate::storage::tiles::TileGrid;
 use rayon::prelude::*;
@@ -912,7 +912,7 @@ fn edge_departure(noise_left: f64) -> f64 {
 /// an edge as one between two pixels; in world units it would read 2.5× weaker and the
 /// front would leak through the poles of a thick-sliced volume.
 fn voxel_gradient(smoothed: &Image) -> Result<Image, GridError> {
-    features::gradient_magnitude(&Image { spacing: [1.0; 3], ..smoothed.clone() })
+    features::voxel_gradient_magnitude(smoothed)
 }
 
 /// GAC's pilot: Ĩ at `v` voxels, its gradient and the rays' edges.
@@ -1384,9 +1384,26 @@ fn start_region(
 }
 
 /// The mask φ ≤ 0 at the image's voxels.
+///
+/// Read row by row from the tile grid ([`tile_row_values`]), each task through a row of
+/// its own, rather than through a dense copy of φ (an image-sized buffer of `f32` more to
+/// fault in and fill; see [`tile_row_values`] for the times).
 fn mask_of(sim: &Simulation, dims: [usize; 3]) -> Result<Vec<u8>, SegmentError> {
-    let phi = sim.to_dense(Coord::new(0, 0, 0), dims)?;
-    Ok(phi.data().par_iter().map(|&v| (v <= 0.0) as u8).collect())
+    let grid = tiles_of(sim);
+    let [nx, ny, nz] = dims;
+    let len = nx * ny * nz;
+    crate::memory::check(crate::memory::bytes_of(len as u128, 1), "the mask")?;
+    let mut mask = vec![0u8; len];
+    mask.par_chunks_mut(nx * ny).enumerate().for_each_init(
+        || vec![0.0f32; nx],
+        |row, (z, slice)| {
+            for (y, out) in slice.chunks_exact_mut(nx).enumerate() {
+                tile_row_values(grid, Coord::new(0, y as i32, z as i32), row);
+                out.iter_mut().zip(row.iter()).for_each(|(m, &v)| *m = (v <= 0.0) as u8);
+            }
+        },
+    );
+    Ok(mask)
 }
 
 /// The initial level set as a dense field over the image (a 2D image's over z = 0..3),

@@ -114,20 +114,28 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
     let g = spec.gamma();
     let (tlo, _) = tile_of(field.origin());
     let (thi, _) = tile_of(field.max_coord());
-    if let Some((i, _)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
-        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
-    }
-    let slabs: Vec<Vec<(Coord, Tile)>> = (tlo.z..=thi.z)
+    // Per slab: its band tiles, and the index of its first NaN. The tiles cover the field,
+    // so every value passes through one slab, and the first of the slabs' NaNs in the
+    // field's index order is the error, whatever the thread count (it was a scan of its
+    // own before the slabs, on one thread).
+    type Slab = (Vec<(Coord, Tile)>, Option<usize>);
+    let slabs: Vec<Slab> = (tlo.z..=thi.z)
         .into_par_iter()
         .map(|tz| {
             let mut out = Vec::new();
+            let mut nan: Option<usize> = None;
             for ty in tlo.y..=thi.y {
                 for tx in tlo.x..=thi.x {
                     let t = Coord::new(tx, ty, tz);
                     let mut tile = Tile::splat(0.0);
                     let mut band = false;
                     for (l, v) in tile.0.iter_mut().enumerate() {
-                        *v = dense_value(field, voxel_of(t, l), g);
+                        let c = voxel_of(t, l);
+                        *v = dense_value(field, c, g);
+                        if v.is_nan() {
+                            let i = field.index(c).expect("only values of the field are NaN");
+                            nan = Some(nan.map_or(i, |n| n.min(i)));
+                        }
                         band |= v.abs() < g;
                     }
                     if band {
@@ -135,10 +143,13 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
                     }
                 }
             }
-            out
+            (out, nan)
         })
         .collect();
-    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flatten(), |t| {
+    if let Some(i) = slabs.iter().filter_map(|s| s.1).min() {
+        return Err(GridError::NaN { coord: field.coord_of(i).expect("index in range") });
+    }
+    TileGrid::from_sorted_tiles(spec, slabs.into_iter().flat_map(|s| s.0), |t| {
         dense_value(field, voxel_of(t, 0), g) < 0.0
     })
 }
@@ -249,7 +260,53 @@ pub fn to_dense<G: LevelSet + ?Sized>(
 ) -> Result<DenseField, GridError> {
     let n = dims.iter().map(|&d| d as u128).product::<u128>();
     crate::memory::check(crate::memory::bytes_of(n, 4), "the dense box")?;
+    if let Some(tiles) = TileGrid::of(grid) {
+        // Row by row ([`tile_row_values`]): the same values, a tile search per voxel row
+        // instead of one per voxel.
+        let mut field = DenseField::new(origin, dims, 0.0)?;
+        let [nx, ny, _] = dims;
+        field.data_mut().par_chunks_mut(nx * ny).enumerate().for_each(|(k, slice)| {
+            // In range: the field's box lies in the i32 range.
+            let z = (origin.z as i64 + k as i64) as i32;
+            for (j, row) in slice.chunks_exact_mut(nx).enumerate() {
+                let y = (origin.y as i64 + j as i64) as i32;
+                tile_row_values(tiles, Coord::new(origin.x, y, z), row);
+            }
+        });
+        return Ok(field);
+    }
     DenseField::from_fn(origin, dims, |c| grid.value(c))
+}
+
+/// The values of `grid` along the voxel row from `first` towards +x, one per entry of
+/// `out` (the row's voxels must lie in the i32 range): [`TileGrid::value`] at each voxel,
+/// with one tile search for the row, the row's tiles then met in list order. A present
+/// tile gives its stored values; an absent one, the ±γ `value` reads at its voxels.
+///
+/// A segmentation's mask of a 128³ image read this way took 5.3 ms on one thread and 2.9 ms
+/// on two, against 11.6 and 6.5 ms through a dense copy of φ filled by `value` per voxel
+/// (`levelset segment` of the snr2 blobs phantom, threshold method, with `--threads 1`
+/// and `2`; phase timers, minima of three runs; 2-core AMD EPYC, 2026-11-28).
+pub(crate) fn tile_row_values(grid: &TileGrid, first: Coord, out: &mut [f32]) {
+    let coords = grid.tile_coords();
+    let mut p = crate::storage::tiles::lower_bound(coords, tile_of(first).0);
+    let mut i = 0;
+    while i < out.len() {
+        // In range: a voxel of the row.
+        let c = Coord::new((first.x as i64 + i as i64) as i32, first.y, first.z);
+        let (t, l) = tile_of(c);
+        while p < coords.len() && coords[p] < t {
+            p += 1;
+        }
+        // The row's voxels in this tile: up to its +x face.
+        let n = ((4 - (c.x & 3)) as usize).min(out.len() - i);
+        if coords.get(p) == Some(&t) {
+            out[i..i + n].copy_from_slice(&grid.tile(p).0[l..l + n]);
+        } else {
+            out[i..i + n].fill(grid.value(c));
+        }
+        i += n;
+    }
 }
 
 /// The dense box around a level set's band voxels grown by `margin` voxels on every side
@@ -374,6 +431,44 @@ pub fn band_bytes(shape: &Shape, spec: &GridSpec) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The first NaN in the field's index order is the error, on any thread count, also
+    /// when a later slab or a later tile of the same slab meets its own NaN first.
+    #[test]
+    fn dense_nan_is_the_first_in_index_order() {
+        let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+        let mut field = DenseField::new(Coord::new(-3, -2, -5), [13, 9, 14], 1.0).unwrap();
+        // (5, 1, 0) comes first in index order but lies in a later tile of its slab than
+        // (-2, -2, 1), and in an earlier slab than (-3, -2, 4).
+        for c in [Coord::new(-3, -2, 4), Coord::new(-2, -2, 1), Coord::new(5, 1, 0)] {
+            field.set(c, f32::NAN).unwrap();
+        }
+        let want = GridError::NaN { coord: Coord::new(5, 1, 0) };
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let got = pool.install(|| tiles_from_dense(&field, spec)).unwrap_err();
+            assert_eq!(got, want, "{threads} threads");
+        }
+    }
+
+    /// A tile grid's dense box, read row by row, holds `value` at every voxel: in present
+    /// tiles, in absent ones inside and outside, beyond the tiles, with rows that start and
+    /// end inside a tile.
+    #[test]
+    fn dense_box_of_tiles_reads_value() {
+        let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+        let grid = tiles_from_shape(&Shape::Sphere { center: [1.5, -2.0, 0.5], radius: 9.0 }, spec)
+            .unwrap();
+        for (origin, dims) in
+            [(Coord::new(-15, -17, -13), [31, 30, 29]), (Coord::new(-3, -1, 2), [5, 1, 3])]
+        {
+            let dense = to_dense(&grid, origin, dims).unwrap();
+            let want = DenseField::from_fn(origin, dims, |c| grid.value(c)).unwrap();
+            let bits = |f: &DenseField| f.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&dense), bits(&want), "box at {origin}");
+            assert!(dense.data().iter().any(|&v| v == -spec.gamma()), "an absent tile inside");
+        }
+    }
 
     /// The areas and the estimate against bands built from the shapes: a band of half
     /// width w holds about 2w voxels per voxel of area (fewer along a box's edges, where
