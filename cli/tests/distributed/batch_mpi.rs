@@ -8,17 +8,11 @@ use crate::common;
 
 use crate::common::{box_obj, levelset, stderr, stdout, tmp};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// `mpirun -n 2 --oversubscribe levelset ARGS` (as root too, in containers).
+/// `mpirun -n 2 levelset ARGS` ([`crate::mpirun`]).
 fn mpirun(args: &[&str]) -> Output {
-    Command::new("mpirun")
-        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_levelset")])
-        .args(args)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .output()
-        .expect("mpirun runs (OpenMPI installed)")
+    crate::mpirun(2).args(args).output().expect("mpirun runs (OpenMPI installed)")
 }
 
 fn summary(dir: &Path) -> serde_json::Value {

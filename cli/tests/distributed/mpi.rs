@@ -13,18 +13,9 @@ fn launch(ranks: Option<usize>) -> Command {
     let bin = env!("CARGO_BIN_EXE_levelset");
     match ranks {
         None => Command::new(bin),
-        Some(n) => {
-            let mut c = Command::new("mpirun");
-            // OpenMPI refuses root unless told; CI runs as root. More ranks than cores need
-            // --oversubscribe.
-            c.env("OMPI_ALLOW_RUN_AS_ROOT", "1").env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1").args([
-                "-n",
-                &n.to_string(),
-                "--oversubscribe",
-                bin,
-            ]);
-            c
-        }
+        // OpenMPI refuses root unless told (CI runs as root); more ranks than cores need
+        // --oversubscribe: both in `crate::mpirun`.
+        Some(n) => crate::mpirun(n),
     }
 }
 
@@ -105,20 +96,14 @@ fn enright_on_2_and_3_ranks_matches_one_process() {
 #[test]
 fn what_needs_the_whole_band_is_refused_under_mpirun() {
     let dir = tmp("mpi-refused");
-    let out = Command::new("mpirun")
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_levelset")])
+    let out = crate::mpirun(2)
         .args(["run", "sphere", "--size", "32", "--steps", "2", "--export-npy", "--out"])
         .arg(&dir)
         .output()
         .expect("mpirun runs");
     assert!(!out.status.success());
     assert!(stderr(&out).contains("--export-npy"), "{}", stderr(&out));
-    let dt = Command::new("mpirun")
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_levelset")])
+    let dt = crate::mpirun(2)
         .args(["run", "sphere", "--size", "32", "--steps", "2", "--grid", "dtgrid", "--out"])
         .arg(&dir)
         .output()
