@@ -351,9 +351,10 @@ impl TilesRep {
 }
 
 struct TileSweep<'a> {
-    target: Target<'a>,
+    grid: &'a TileGrid,
     table: &'a NeighbourTable,
     lanes: Lanes,
+    out: &'a mut [Tile],
     band: &'a mut [u64],
     /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
     compute_mask: bool,
@@ -361,14 +362,6 @@ struct TileSweep<'a> {
     /// The list positions to compute (this rank's tiles when distributed): the others
     /// (ghost tiles, which the exchange after the sweep overwrites) keep their values.
     owned: Range<usize>,
-}
-
-/// Where a sweep reads and writes.
-enum Target<'a> {
-    /// From the grid into `out` (the double buffer, swapped in afterwards).
-    Double { grid: &'a TileGrid, out: &'a mut [Tile] },
-    /// From the grid into itself ([`in_place`]).
-    InPlace(InPlaceTiles<'a>),
 }
 
 impl Sweep for TileSweep<'_> {
@@ -379,22 +372,7 @@ impl Sweep for TileSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let TileSweep { target, table, band, compute_mask, activity, owned, .. } = self;
-        let (grid, out) = match target {
-            Target::Double { grid, out } => (grid, out),
-            Target::InPlace(grid) => {
-                return in_place::<K, M, R>(
-                    simd,
-                    grid,
-                    table,
-                    band,
-                    compute_mask,
-                    activity,
-                    &owned,
-                    &make,
-                )
-            }
-        };
+        let TileSweep { grid, table, out, band, compute_mask, activity, owned, .. } = self;
         let shared = Shared { grid, table, compute_mask, owned: &owned, make: &make };
         out.par_chunks_mut(TILE_CHUNK)
             .zip(band.par_chunks_mut(TILE_CHUNK))
@@ -512,7 +490,7 @@ where
 
 /// Parallel tasks per thread of an in-place sweep: a task's first and last z-slabs of
 /// tiles are read by its neighbours' tasks and wait for the end of the sweep (see
-/// [`in_place`]), so fewer, longer tasks hold fewer tiles aside.
+/// [`InPlaceSweep`]), so fewer, longer tasks hold fewer tiles aside.
 const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 
 /// A sweep that writes its results into the grid it reads (van der Laan et al. 2011,
@@ -523,51 +501,55 @@ const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 /// cut into a few long tasks; a tile read by another task's tiles (within a tile of the
 /// cut) is written after all tasks end. Every tile is computed from the values before the
 /// sweep, so the result is bit for bit the double-buffered sweep's, on any number of
-/// threads and tasks. Fills the band mask and the activity flags as the double-buffered
-/// sweep does; the caller swaps the flags in ([`TileGrid::swap_activity`]). A failure
+/// threads and tasks. Holds the band mask and the activity flags as [`TileSweep`] does;
+/// the activity flags are swapped in afterwards ([`TileGrid::swap_activity`]). A failure
 /// part-way leaves the grid part-written: only for a step that holds φⁿ to undo it.
-#[allow(clippy::too_many_arguments)] // a sweep's parts, as `TileSweep` holds them
-fn in_place<K, M, const R: usize>(
-    simd: bool,
-    grid: InPlaceTiles<'_>,
-    table: &NeighbourTable,
-    band: &mut [u64],
+struct InPlaceSweep<'a> {
+    grid: InPlaceTiles<'a>,
+    table: &'a NeighbourTable,
+    lanes: Lanes,
+    band: &'a mut [u64],
     compute_mask: bool,
-    activity: &mut [u32],
-    owned: &Range<usize>,
-    make: &M,
-) -> Result<(), EvolveError>
-where
-    K: VoxelKernel,
-    M: Fn(Range<usize>) -> K + Sync,
-{
-    let n = grid.len();
-    let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
-    let len = n.div_ceil(tasks).max(TILE_CHUNK);
-    let shared = Shared { grid: &grid, table, compute_mask, owned, make };
-    let held: Vec<Vec<(usize, Tile)>> = band
-        .par_chunks_mut(len)
-        .zip(activity.par_chunks_mut(len))
-        .enumerate()
-        .map(|(c, (mask, act))| {
-            let start = c * len;
-            let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act };
-            levelset_kernels::dispatch_default(simd, chunk)
-        })
-        .collect::<Result<_, _>>()?;
-    held.par_iter().for_each(|tiles| {
-        for (pos, t) in tiles {
-            // SAFETY: every task has ended, so no gather reads any tile; each position
-            // is held by one task only.
-            unsafe { grid.write(*pos, t) };
-        }
-    });
-    Ok(())
+    activity: &'a mut [u32],
+    owned: Range<usize>,
 }
 
-/// One task of an in-place sweep ([`in_place`]): the tiles from list position `start`.
-/// Returns the new values of its tiles that other tasks read, to be written after every
-/// task ends.
+impl Sweep for InPlaceSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: crate::evolve::dispatch::Reach,
+    {
+        let simd = self.lanes == Lanes::Simd;
+        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, .. } = self;
+        let n = grid.len();
+        let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
+        let len = n.div_ceil(tasks).max(TILE_CHUNK);
+        let shared = Shared { grid: &grid, table, compute_mask, owned: &owned, make: &make };
+        let held: Vec<Vec<(usize, Tile)>> = band
+            .par_chunks_mut(len)
+            .zip(activity.par_chunks_mut(len))
+            .enumerate()
+            .map(|(c, (mask, act))| {
+                let start = c * len;
+                let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act };
+                levelset_kernels::dispatch_default(simd, chunk)
+            })
+            .collect::<Result<_, _>>()?;
+        held.par_iter().for_each(|tiles| {
+            for (pos, t) in tiles {
+                // SAFETY: every task has ended, so no gather reads any tile; each position
+                // is held by one task only.
+                unsafe { grid.write(*pos, t) };
+            }
+        });
+        Ok(())
+    }
+}
+
+/// One task of an [`InPlaceSweep`]: the tiles from list position `start`. Returns the
+/// new values of its tiles that other tasks read, to be written after every task ends.
 struct InPlaceChunk<'a, 'c, M, const R: usize> {
     shared: &'a Shared<'a, M, InPlaceTiles<'a>>,
     start: usize,
@@ -866,9 +848,10 @@ impl Representation for TilesRep {
         let owned = self.owned();
         let sweep = TileSweep {
             owned,
-            target: Target::Double { grid: &self.grid, out: &mut self.buf.out },
+            grid: &self.grid,
             table: &self.table,
             lanes: self.lanes,
+            out: &mut self.buf.out,
             band: &mut self.buf.band,
             compute_mask: p.stage == 1,
             activity: &mut self.buf.activity,
@@ -903,9 +886,10 @@ impl Representation for TilesRep {
             // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
             let sweep = TileSweep {
                 owned: owned.clone(),
-                target: Target::Double { grid: &self.grid, out: anchor },
+                grid: &self.grid,
                 table: &self.table,
                 lanes: self.lanes,
+                out: anchor,
                 band,
                 compute_mask: fresh,
                 activity,
@@ -923,9 +907,10 @@ impl Representation for TilesRep {
                 let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
                 let sweep = TileSweep {
                     owned: owned.clone(),
-                    target: Target::Double { grid: &self.grid, out },
+                    grid: &self.grid,
                     table: &self.table,
                     lanes: self.lanes,
+                    out,
                     band,
                     compute_mask,
                     activity,
@@ -941,9 +926,9 @@ impl Representation for TilesRep {
                 // (docs/decisions/0033).
                 self.buf.resize_flags(n);
                 let Buffers { band, activity, anchor, .. } = &mut self.buf;
-                let sweep = TileSweep {
+                let sweep = InPlaceSweep {
                     owned: owned.clone(),
-                    target: Target::InPlace(self.grid.in_place()),
+                    grid: self.grid.in_place(),
                     table: &self.table,
                     lanes: self.lanes,
                     band,
