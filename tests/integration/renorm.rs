@@ -176,25 +176,30 @@ fn renormalization_agrees_everywhere() {
     }
 }
 
+/// The checksum of a torus under mean curvature flow after `steps` steps on `kind` with
+/// `settings`, in a pool of `threads` threads.
+fn torus_checksum(kind: GridKind, settings: &Settings, threads: usize, steps: usize) -> u64 {
+    let shape = Shape::Torus { center: [0.3, -0.1, 0.2], major_radius: 16.0, minor_radius: 6.0 };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let settings = Settings { pool: Some(std::sync::Arc::new(pool)), ..settings.clone() };
+    let mut sim = Simulation::from_shape(
+        kind,
+        &shape,
+        GridSpec::default(),
+        Flow::mean_curvature(1.0),
+        settings,
+    )
+    .unwrap();
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    sim.checksum()
+}
+
 #[test]
 fn the_same_bits_on_any_number_of_threads() {
-    let shape = Shape::Torus { center: [0.3, -0.1, 0.2], major_radius: 16.0, minor_radius: 6.0 };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let settings = Settings { pool: Some(std::sync::Arc::new(pool)), ..Settings::default() };
-        let mut sim = Simulation::from_shape(
-            GridKind::Tiles(Lanes::Simd),
-            &shape,
-            GridSpec::default(),
-            Flow::mean_curvature(1.0),
-            settings,
-        )
-        .unwrap();
-        for _ in 0..15 {
-            sim.step().unwrap();
-        }
-        sim.checksum()
-    };
+    let run =
+        |threads| torus_checksum(GridKind::Tiles(Lanes::Simd), &Settings::default(), threads, 15);
     assert_eq!(run(1), run(2));
     assert_eq!(run(1), run(3));
 }
@@ -206,35 +211,16 @@ fn the_same_bits_on_any_number_of_threads() {
 /// the same as the DT-Grid's.
 #[test]
 fn in_place_sweeps_give_the_same_bits_on_any_number_of_threads() {
-    let shape = Shape::Torus { center: [0.3, -0.1, 0.2], major_radius: 16.0, minor_radius: 6.0 };
     for sweeps in [1, 2] {
-        let settings = Settings::upwind1_euler();
-        let renorm = Renormalization::Sweeps(Sweeps { sweeps, ..Sweeps::default() });
-        let run = |kind: GridKind, threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let settings = Settings {
-                pool: Some(std::sync::Arc::new(pool)),
-                renormalization: renorm,
-                ..settings.clone()
-            };
-            let mut sim = Simulation::from_shape(
-                kind,
-                &shape,
-                GridSpec::default(),
-                Flow::mean_curvature(1.0),
-                settings,
-            )
-            .unwrap();
-            for _ in 0..12 {
-                sim.step().unwrap();
-            }
-            sim.checksum()
-        };
-        let one = run(GridKind::Tiles(Lanes::Simd), 1);
+        let renormalization = Renormalization::Sweeps(Sweeps { sweeps, ..Sweeps::default() });
+        let settings = Settings { renormalization, ..Settings::upwind1_euler() };
+        let one = torus_checksum(GridKind::Tiles(Lanes::Simd), &settings, 1, 12);
         for threads in [2, 7, 16] {
-            assert_eq!(one, run(GridKind::Tiles(Lanes::Simd), threads), "{sweeps} sweeps");
+            let other = torus_checksum(GridKind::Tiles(Lanes::Simd), &settings, threads, 12);
+            assert_eq!(one, other, "{sweeps} sweeps, {threads} threads");
         }
-        assert_eq!(one, run(GridKind::DtGrid, 1), "{sweeps} sweeps against the DT-Grid");
+        let dt = torus_checksum(GridKind::DtGrid, &settings, 1, 12);
+        assert_eq!(one, dt, "{sweeps} sweeps against the DT-Grid");
     }
 }
 

@@ -37,21 +37,33 @@ pub(crate) const TILE_GRID_BYTES: u64 =
 /// value array when the steps keep φⁿ (see [`Buffers`]). Tile management builds the new
 /// list's values in a step buffer, so it adds only the list's small arrays.
 ///
-/// The renormalisation's sweeps write in place while a step is in progress, so φⁿ stays
-/// in the double buffer, and the anchors, when stored, are the third array (and tile
-/// management's spare): a fourth only with TVD-RK3, whose stages hold φⁿ beside the
-/// double buffer.
+/// With forward Euler the renormalisation's sweeps write in place, so φⁿ stays in the
+/// double buffer, and the anchors, when stored, are the third array (and tile
+/// management's spare); a fourth only with TVD-RK3, whose stages hold φⁿ beside the
+/// double buffer ([`value_arrays`]).
 pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
     let tile = std::mem::size_of::<Tile>() as u64;
     let row = std::mem::size_of::<crate::storage::tiles::NeighbourRow>() as u64;
     let mut b = TILE_GRID_BYTES + (tile + 4) + 8 + row;
-    if keeps.phi_n {
+    let (phi_n, anchors) = value_arrays(keeps);
+    if phi_n {
         b += tile + 4;
     }
-    if keeps.anchors && keeps.rk3 {
+    if anchors {
         b += tile;
     }
     b
+}
+
+/// Which of the φⁿ buffer (with its flags) and the anchors' the engine allocates besides
+/// the double buffer: forward Euler keeps φⁿ in `out` (its sweeps write in place), so
+/// with stored anchors those are its third array; otherwise as `keeps` says.
+fn value_arrays(keeps: StepKeeps) -> (bool, bool) {
+    if keeps.anchors && !keeps.rk3 {
+        (false, true)
+    } else {
+        (keeps.phi_n, keeps.anchors)
+    }
 }
 
 /// The tile engine: the grid holds the current values; `out` is the double buffer the
@@ -102,11 +114,7 @@ impl Buffers {
         let mut b = growth_bytes(&self.out, tiles)
             + growth_bytes(&self.band, tiles)
             + growth_bytes(&self.activity, tiles);
-        // Forward Euler keeps φⁿ in `out`; the third array is the anchors', when stored.
-        let (phi_n, anchors) = match (keeps.rk3, keeps.anchors) {
-            (false, true) => (false, true),
-            _ => (keeps.phi_n, keeps.anchors),
-        };
+        let (phi_n, anchors) = value_arrays(keeps);
         if phi_n {
             b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
         }
