@@ -583,10 +583,11 @@ fn tile_distances(
     // Candidates a little beyond γ in f32, so that none within γ in f64 is lost.
     let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_LEN];
     let mut arg = [u32::MAX; TILE_LEN];
+    let mut layer_max = [best[0]; 4];
     for &(_, i) in pairs {
         let i = i as usize;
         let local = shapes[i].at(tris[i].local_a(base));
-        local.search_tile(i as u32, &mut best, &mut arg);
+        local.search_tile(i as u32, &mut best, &mut arg, &mut layer_max);
     }
     let mut d2 = [gamma * gamma; 64];
     for (l, (d, &i)) in d2.iter_mut().zip(&arg).enumerate() {
