@@ -279,26 +279,19 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
     );
     let gamma_v = spec.half_width as f64;
     let rays = Rays::new(&tris, votes);
-    let pairs = bin_triangles(&tris, gamma_v);
+    let bins = bin_triangles(&tris, gamma_v);
     let mut shapes: Vec<LocalTri> = Vec::with_capacity(tris.len());
     crate::memory::advise_huge_pages(&mut shapes);
     shapes.par_extend(tris.par_iter().map(Tri::shape));
 
-    // Runs of pairs with one tile.
-    let mut runs: Vec<(usize, usize)> = Vec::new();
-    for (i, p) in pairs.iter().enumerate() {
-        match runs.last_mut() {
-            Some(r) if pairs[r.0].0 == p.0 => r.1 = i + 1,
-            _ => runs.push((i, i + 1)),
-        }
-    }
-    let ticker = opts.progress.start(runs.len() as u64);
+    let ticker = opts.progress.start(bins.tiles.len() as u64);
     let g = spec.gamma();
-    let chunks: Vec<Result<Vec<TileOut>, Cancelled>> = runs
+    let chunks: Vec<Result<Vec<TileOut>, Cancelled>> = bins
+        .tiles
         .par_chunks(64)
         .map(|chunk| {
             let (tris, shapes) = (&tris[..], &shapes[..]);
-            let tiles = TileChunk { tris, shapes, pairs: &pairs, runs: chunk, gamma_v, hf, g };
+            let tiles = TileChunk { tris, shapes, bins: &bins.tris, runs: chunk, gamma_v, hf, g };
             let mut out = levelset_kernels::dispatch_one(tiles);
             // Signs of the tiles with band voxels (a tile without stays absent; its signs
             // come later, if a band tile neighbours it).
@@ -314,7 +307,7 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
             Ok(out)
         })
         .collect();
-    drop(pairs);
+    drop(bins);
     let mut present = Vec::new();
     for c in chunks {
         present.extend(c?);
@@ -358,16 +351,24 @@ fn check_memory(
     let band = area * 2.0 * half_width;
     let axes = if votes == Votes::Majority { 3.0 } else { 1.0 };
     let bytes = band * 4.0 * 2.5 // tiles, about 40 % of their voxels in the band
-        + pairs * 40.0 // (tile, triangle) pairs, twice while sorted, and the sort's counts
+        + pairs * 28.0 // (tile, triangle) pairs, then their triangles by tile and the counts
         + axes * (area + perimeter) * 2.0 * 24.0 // crossings, twice while sorted
         + mesh.triangles.len() as f64 * (std::mem::size_of::<Tri>() as f64 + 24.0);
     crate::memory::check(bytes, "voxelizing the mesh (band tiles, triangle bins, ray crossings)")
 }
 
+/// The triangles binned to each tile: the tiles in [`Coord`] order, each with the run of
+/// its triangles (in triangle order) in `tris`.
+struct Bins {
+    tris: Vec<u32>,
+    /// A tile and the start and end of its run.
+    tiles: Vec<(Coord, usize, usize)>,
+}
+
 /// Every (tile, triangle) pair whose tile centre lies within γ + [`TILE_RADIUS`] of the
-/// triangle (so that any voxel of the tile within γ is found), sorted by tile in
-/// [`Coord`] order, then triangle.
-fn bin_triangles(tris: &[Tri], gamma: f64) -> Vec<(Coord, u32)> {
+/// triangle (so that any voxel of the tile within γ is found), by tile in [`Coord`]
+/// order, then triangle.
+fn bin_triangles(tris: &[Tri], gamma: f64) -> Bins {
     let chunks: Vec<Vec<(Coord, u32)>> = tris
         .par_chunks(1024)
         .enumerate()
@@ -477,50 +478,69 @@ impl levelset_kernels::LaneFn for BinChunk<'_> {
     }
 }
 
-/// The items of `chunks`, in order, sorted stably by `cell(item)` (each below `cells`):
-/// the sorted items and the start of each cell's run (`cells + 1` offsets). Linear in
-/// the items and cells, one pass to count and one to place.
-pub(super) fn counting_sort<T: Copy + Default>(
+/// The items of `chunks`, in order, sorted stably by `cell(item)` (each below `cells`)
+/// and kept as `keep(item)`: the sorted items and the start of each cell's run (`cells +
+/// 1` offsets). Linear in the items and cells, one pass to count and one to place; at
+/// most `u32::MAX` items (the caller's check), so the offsets are 32-bit, the counts
+/// doubling as the cursors of the placing pass.
+pub(super) fn counting_sort<T, U: Copy + Default>(
     chunks: &[Vec<T>],
     cells: usize,
     cell: impl Fn(&T) -> usize,
-) -> (Vec<T>, Vec<usize>) {
-    let n = chunks.iter().map(Vec::len).sum();
-    let mut start = vec![0usize; cells + 1];
+    keep: impl Fn(&T) -> U,
+) -> (Vec<U>, Vec<u32>) {
+    let n: usize = chunks.iter().map(Vec::len).sum();
+    debug_assert!(n <= u32::MAX as usize, "{n} items");
+    let mut start = vec![0u32; cells + 1];
     for p in chunks.iter().flatten() {
         start[cell(p) + 1] += 1;
     }
     for i in 1..start.len() {
         start[i] += start[i - 1];
     }
-    let mut next = start.clone();
     let mut out = Vec::with_capacity(n);
     crate::memory::advise_huge_pages(&mut out);
-    out.resize(n, T::default());
+    out.resize(n, U::default());
+    // Each cell's start is its cursor: after placing, it holds the next cell's start.
     for p in chunks.iter().flatten() {
-        let k = &mut next[cell(p)];
-        out[*k] = *p;
+        let k = &mut start[cell(p)];
+        out[*k as usize] = keep(p);
         *k += 1;
     }
+    start.copy_within(0..cells, 1);
+    start[0] = 0;
     (out, start)
 }
 
-/// The pairs of `chunks` (each in triangle order, the chunks in triangle order) sorted by
-/// tile in [`Coord`] order, then triangle. Where the tiles' bounding box has at most two
-/// cells per pair (a surface's bins), a counting sort by cell, stable, so the triangle
-/// order within a tile is kept; else a comparison sort.
-fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Vec<(Coord, u32)> {
+/// The pairs of `chunks` (each in triangle order, the chunks in triangle order) as the
+/// triangles of each tile, tiles in [`Coord`] order. Where the tiles' bounding box has at
+/// most two cells per pair (a surface's bins), a counting sort by cell, stable, so the
+/// triangle order within a tile is kept; else a comparison sort.
+fn sort_pairs(chunks: Vec<Vec<(Coord, u32)>>) -> Bins {
     let n: usize = chunks.iter().map(Vec::len).sum();
     let b = CoordBox::of(chunks.iter().flatten().map(|p| p.0));
     match b.cells() {
-        Some(cells) if cells <= 2 * n as u64 => {
+        Some(cells) if cells <= 2 * n as u64 && n <= u32::MAX as usize => {
             let cell = |p: &(Coord, u32)| b.cell_of(p.0).expect("in the box");
-            counting_sort(&chunks, cells as usize, cell).0
+            let (tris, start) = counting_sort(&chunks, cells as usize, cell, |p| p.1);
+            drop(chunks);
+            let tiles = (0..cells as usize)
+                .filter(|&c| start[c] < start[c + 1])
+                .map(|c| (b.coord_of(c), start[c] as usize, start[c + 1] as usize))
+                .collect();
+            Bins { tris, tiles }
         }
         _ => {
             let mut pairs: Vec<(Coord, u32)> = chunks.into_iter().flatten().collect();
             pairs.par_sort_unstable_by_key(|p| (p.0.key(), p.1));
-            pairs
+            let mut tiles: Vec<(Coord, usize, usize)> = Vec::new();
+            for (i, p) in pairs.iter().enumerate() {
+                match tiles.last_mut() {
+                    Some(t) if t.0 == p.0 => t.2 = i + 1,
+                    _ => tiles.push((p.0, i, i + 1)),
+                }
+            }
+            Bins { tris: pairs.into_iter().map(|p| p.1).collect(), tiles }
         }
     }
 }
@@ -531,8 +551,9 @@ struct TileChunk<'a> {
     tris: &'a [Tri],
     /// [`Tri::shape`] of each triangle.
     shapes: &'a [LocalTri],
-    pairs: &'a [(Coord, u32)],
-    runs: &'a [(usize, usize)],
+    /// [`Bins::tris`], and a chunk of [`Bins::tiles`].
+    bins: &'a [u32],
+    runs: &'a [(Coord, usize, usize)],
     gamma_v: f64,
     hf: f64,
     g: f32,
@@ -542,11 +563,10 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
     type Output = Vec<TileOut>;
     #[inline(always)]
     fn call<L: levelset_kernels::Lane>(self) -> Vec<TileOut> {
-        let TileChunk { tris, shapes, pairs, runs, gamma_v, hf, g } = self;
+        let TileChunk { tris, shapes, bins, runs, gamma_v, hf, g } = self;
         let mut out = Vec::with_capacity(runs.len());
-        for &(s, e) in runs {
-            let t = pairs[s].0;
-            let d2 = tile_distances(tris, shapes, &pairs[s..e], t, gamma_v);
+        for &(t, s, e) in runs {
+            let d2 = tile_distances(tris, shapes, &bins[s..e], t, gamma_v);
             let mut values = [0f32; 64];
             let mut far = 0u64;
             for (l, v) in values.iter_mut().enumerate() {
@@ -562,7 +582,7 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 }
 
 /// Squared distances (voxel units) of the 64 voxels of tile `t` to the nearest of the
-/// triangles of `pairs`, capped at γ². Two passes: every triangle against all 64 voxels
+/// triangles `near`, capped at γ². Two passes: every triangle against all 64 voxels
 /// in f32, relative to the tile ([`Tri::local`], from the triangle's `shape` moved to the
 /// tile; [`LocalTri::search_tile`]), which finds
 /// each voxel's nearest triangle; then that triangle's distance in f64 ([`Tri::dist2`]).
@@ -575,7 +595,7 @@ impl levelset_kernels::LaneFn for TileChunk<'_> {
 fn tile_distances(
     tris: &[Tri],
     shapes: &[LocalTri],
-    pairs: &[(Coord, u32)],
+    near: &[u32],
     t: Coord,
     gamma: f64,
 ) -> [f64; 64] {
@@ -584,7 +604,7 @@ fn tile_distances(
     let mut best = [(gamma * gamma * (1.0 + 1e-4)) as f32; TILE_LEN];
     let mut arg = [u32::MAX; TILE_LEN];
     let mut layer_max = [best[0]; 4];
-    for &(_, i) in pairs {
+    for &i in near {
         let i = i as usize;
         let local = shapes[i].at(tris[i].local_a(base));
         local.search_tile(i as u32, &mut best, &mut arg, &mut layer_max);
@@ -638,6 +658,15 @@ impl CoordBox {
     /// Cells in the box, `None` on overflow.
     fn cells(&self) -> Option<u64> {
         self.dims.iter().try_fold(1u64, |p, &d| p.checked_mul(d))
+    }
+
+    /// The coordinate of cell `i` of the box (the inverse of [`CoordBox::cell_of`]).
+    fn coord_of(&self, i: usize) -> Coord {
+        let i = i as u64;
+        let (x, y, z) =
+            (i % self.dims[0], i / self.dims[0] % self.dims[1], i / self.dims[0] / self.dims[1]);
+        let c = [x as i64 + self.lo[0], y as i64 + self.lo[1], z as i64 + self.lo[2]];
+        Coord::new(c[0] as i32, c[1] as i32, c[2] as i32)
     }
 
     #[inline]

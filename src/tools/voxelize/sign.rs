@@ -247,18 +247,17 @@ fn sort_crossings(chunks: Vec<Vec<Crossing>>) -> (Vec<Crossing>, LineIndex) {
     }
     let dims = [(hi[0] - lo[0] + 1).max(0) as u64, (hi[1] - lo[1] + 1).max(0) as u64];
     match dims[0].checked_mul(dims[1]) {
-        Some(cells) if n > 0 && cells <= 4 * n as u64 => {
+        Some(cells) if n > 0 && cells <= 4 * n as u64 && n <= u32::MAX as usize => {
             let cell = |c: &Crossing| {
                 let (j, k) = jk(c.0);
                 ((k - lo[1]) as u64 * dims[0] + (j - lo[0]) as u64) as usize
             };
-            let (mut all, start) = super::counting_sort(&chunks, cells as usize, cell);
+            let (mut all, start) = super::counting_sort(&chunks, cells as usize, cell, |c| *c);
             for w in start.windows(2) {
                 if w[1] - w[0] > 1 {
-                    all[w[0]..w[1]].sort_unstable_by(|p, q| p.1.total_cmp(&q.1));
+                    all[w[0] as usize..w[1] as usize].sort_unstable_by(|p, q| p.1.total_cmp(&q.1));
                 }
             }
-            let start = start.into_iter().map(|x| x as u32).collect();
             (all, LineIndex::Dense { lo, dims, start })
         }
         _ => {
