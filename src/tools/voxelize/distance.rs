@@ -19,11 +19,6 @@ pub(super) struct Tri {
     abac: f64,
     /// 1 / |n|², or 0 for a degenerate triangle (see [`Tri::new`]).
     inv_n2: f64,
-    /// n × ab, n × bc, n × ca: a point p is on the inner side of edge ab when
-    /// (p − a)·(n × ab) ≥ 0 (and so on), all zero for a degenerate triangle.
-    side: [[f64; 3]; 3],
-    /// 1/|ab|², 1/|ac|², 1/|bc|² (0 for a zero-length edge).
-    inv_e2: [f64; 3],
 }
 
 #[inline(always)]
@@ -62,12 +57,6 @@ impl Tri {
         let n2 = dot(n, n);
         let degenerate =
             n2.is_nan() || n2 <= 1e-24 * ab2 * ac2 || ab2 == 0.0 || ac2 == 0.0 || bc2 == 0.0;
-        let inv = |e2: f64| if e2 > 0.0 { 1.0 / e2 } else { 0.0 };
-        let side = if degenerate {
-            [[0.0; 3]; 3]
-        } else {
-            [cross(n, ab), cross(n, bc), cross(n, [-ac[0], -ac[1], -ac[2]])]
-        };
         Tri {
             a,
             ab,
@@ -79,8 +68,6 @@ impl Tri {
             bc2,
             abac: dot(ab, ac),
             inv_n2: if degenerate { 0.0 } else { 1.0 / n2 },
-            side,
-            inv_e2: [inv(ab2), inv(ac2), inv(bc2)],
         }
     }
 
@@ -192,8 +179,21 @@ impl Tri {
 
     /// [`Tri::local`] without its first vertex (set to 0): the edges, normal and factors in
     /// f32, made once per triangle and moved to each tile by [`Tri::local_a`].
+    ///
+    /// The edges' inner sides (n × ab, n × bc, n × ca: a point p is on the inner side of
+    /// edge ab when (p − a)·(n × ab) ≥ 0, and so on; all zero for a degenerate triangle)
+    /// and the edges' 1/|e|² (0 for a zero-length edge) are made here, in f64, and
+    /// rounded once: the f64 triangle does not keep them.
     pub(super) fn shape(&self) -> LocalTri {
         let f = |v: [f64; 3]| v.map(|x| x as f32);
+        let (n, ab, ac, bc) = (self.n, self.ab, self.ac, self.bc);
+        let side = if self.inv_n2 == 0.0 {
+            [[0.0; 3]; 3]
+        } else {
+            [cross(n, ab), cross(n, bc), cross(n, [-ac[0], -ac[1], -ac[2]])]
+        };
+        let inv = |e2: f64| if e2 > 0.0 { 1.0 / e2 } else { 0.0 };
+        let inv_e2 = [inv(self.ab2), inv(self.ac2), inv(self.bc2)];
         // A sliver whose 1/|n|² exceeds f32 is its edges to f32 precision (a degenerate
         // triangle, as in `Tri::new`).
         let inv_n2 = self.inv_n2 as f32;
@@ -204,8 +204,8 @@ impl Tri {
             ac: f(self.ac),
             bc: f(self.bc),
             n: f(self.n),
-            side: if solid { self.side.map(f) } else { [[0.0; 3]; 3] },
-            inv_e2: self.inv_e2.map(|x| (x as f32).min(f32::MAX)),
+            side: if solid { side.map(f) } else { [[0.0; 3]; 3] },
+            inv_e2: inv_e2.map(|x| (x as f32).min(f32::MAX)),
             inv_n2: if solid { inv_n2 } else { 0.0 },
         }
     }

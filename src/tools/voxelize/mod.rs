@@ -308,7 +308,8 @@ pub fn voxelize(mesh: &TriangleMesh, opts: &VoxelizeOptions) -> Result<TileGrid,
         })
         .collect();
     drop(bins);
-    let mut present = Vec::new();
+    let mut present =
+        Vec::with_capacity(chunks.iter().map(|c| c.as_ref().map_or(0, Vec::len)).sum());
     for c in chunks {
         present.extend(c?);
     }
