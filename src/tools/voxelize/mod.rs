@@ -406,7 +406,9 @@ impl levelset_kernels::LaneFn for BinChunk<'_> {
     fn call<L: levelset_kernels::Lane>(self) -> Vec<(Coord, u32)> {
         let BinChunk { tris, first, gamma } = self;
         let reach = gamma + TILE_RADIUS;
-        let mut out = Vec::new();
+        // Room for a small triangle's pairs (about a dozen with the band's defaults), so
+        // that the list rarely moves while it grows.
+        let mut out = Vec::with_capacity(16 * tris.len());
         let mut cand: Vec<[i64; 3]> = Vec::new();
         for (k, tri) in tris.iter().enumerate() {
             let id = (first + k) as u32;

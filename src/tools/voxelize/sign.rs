@@ -165,20 +165,20 @@ impl Rays {
                         continue; // no crossing: zero votes on this line
                     };
                     let (ts, ss) = (&lines.t[s..e], &lines.s[s..e]);
-                    let total: i32 = ss.iter().map(|&v| v as i32).sum();
-                    for la in 0..4 {
-                        let x = (base[a] + la) as f64;
-                        let mut before = 0i32;
-                        let mut at_or_before = 0i32;
-                        for (&tk, &sk) in ts.iter().zip(ss) {
-                            if tk > x {
-                                break;
-                            }
-                            at_or_before += sk as i32;
-                            if tk < x {
-                                before += sk as i32;
-                            }
+                    // Per voxel of the line, the windings of the crossings before it and
+                    // at or before it, in one pass over the line's crossings.
+                    let x: [f64; 4] = std::array::from_fn(|la| (base[a] + la as i32) as f64);
+                    let (mut below, mut upto, mut total) = ([0i32; 4], [0i32; 4], 0i32);
+                    for (&tk, &sk) in ts.iter().zip(ss) {
+                        let sk = sk as i32;
+                        total += sk;
+                        for la in 0..4 {
+                            below[la] += if tk < x[la] { sk } else { 0 };
+                            upto[la] += if tk <= x[la] { sk } else { 0 };
                         }
+                    }
+                    for la in 0..4 {
+                        let (before, at_or_before) = (below[la], upto[la]);
                         let mut l = [0usize; 3];
                         (l[a], l[b], l[c]) = (la as usize, lb as usize, lc as usize);
                         let local = l[0] + 4 * l[1] + 16 * l[2];
