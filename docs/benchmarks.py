@@ -580,6 +580,40 @@ def voxelize_section(meta):
     return out
 
 
+def segment2d_section(meta):
+    """2-D images beside scikit-image's morphological snakes (docs/segment2d_bench.py)."""
+    runs = [load("segment2d-1.json"), load("segment2d-2.json")]
+    out = [
+        "## 2-D segmentation beside scikit-image's morphological snakes",
+        "",
+        "Two runs of `target/py-venv/bin/python docs/segment2d_bench.py --repeat 2 --json"
+        " docs/data/segment2d-N.json` (first / second; the fastest of 2 calls each, in one"
+        " process; ours on both cores). scikit-image's side is called as its gallery example"
+        " \"Morphological Snakes\" calls it; the references (Otsu's partition for `camera()`,"
+        " scikit-image's own watershed segmentation for `coins()`, the disk for the noisy disk)"
+        " and the starts are described in the script. The last column is scikit-image's time"
+        " for the same method (Chan–Vese or GAC) on the same image ÷ ours.",
+        "",
+        "| image | side | method and start | seconds | Dice | scikit-image's time ÷ ours | ours: iterations, stop |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r, b in zip(runs[0]["records"], runs[1]["records"]):
+        def ratio(rec, recs):
+            kind = "chan" if "chan" in rec["tool"] else "geodesic"
+            theirs = [t["seconds"] for t in recs if t["image"] == rec["image"]
+                      and t["side"] == "scikit-image" and kind in t["tool"]]
+            return theirs[0] / rec["seconds"]
+        ours = r["side"] == "ours"
+        out.append(
+            f"| {r['image']} | {r['side']} | {r['tool']} |"
+            f" {pair(r['seconds'], b['seconds'], lambda v: f'{v:.3f}')} |"
+            f" {pair(r['dice'], b['dice'], lambda v: f'{v:.4f}')} |"
+            f" {pair(ratio(r, runs[0]['records']), ratio(b, runs[1]['records']), lambda v: f'{v:.2f}') if ours else '—'} |"
+            f" {r['note'] if ours else '—'} |"
+        )
+    return out
+
+
 def distributed_section(meta):
     """Enright 256³: one process on two threads against two MPI ranks on one thread each."""
     one = [load(f"distributed/e1x2-{i}.json") for i in (1, 2)]
@@ -649,7 +683,7 @@ def write():
         "",
     ]
     sections = [speedup_section, segmentation_section, python_section, voxelize_section,
-                distributed_section,
+                segment2d_section, distributed_section,
                 solution_section, info_section, memory_table_section, storage_section,
                 stepping_memory_section, evolution_section]
     for section in sections:
