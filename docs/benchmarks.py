@@ -598,17 +598,12 @@ def segment2d_section(meta):
         "|---|---|---|---|---|---|---|",
     ]
     for r, b in zip(runs[0]["records"], runs[1]["records"]):
-        def ratio(rec, recs):
-            kind = "chan" if "chan" in rec["tool"] else "geodesic"
-            theirs = [t["seconds"] for t in recs if t["image"] == rec["image"]
-                      and t["side"] == "scikit-image" and kind in t["tool"]]
-            return theirs[0] / rec["seconds"]
         ours = r["side"] == "ours"
         out.append(
             f"| {r['image']} | {r['side']} | {r['tool']} |"
             f" {pair(r['seconds'], b['seconds'], lambda v: f'{v:.3f}')} |"
             f" {pair(r['dice'], b['dice'], lambda v: f'{v:.4f}')} |"
-            f" {pair(ratio(r, runs[0]['records']), ratio(b, runs[1]['records']), lambda v: f'{v:.2f}') if ours else '—'} |"
+            f" {pair(r['speed'], b['speed'], lambda v: f'{v:.2f}') if ours else '—'} |"
             f" {r['note'] if ours else '—'} |"
         )
     return out

@@ -13,7 +13,7 @@ use crate::evolve::{
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
-use crate::storage::convert::{tile_row_values, tiles_from_dense};
+use crate::storage::convert::{map_tile_rows, tiles_from_dense};
 use crate::storage::dense::DenseField;
 use crate::storage::tiles::TileGrid;
 use rayon::prelude::*;
@@ -1385,24 +1385,14 @@ fn start_region(
 
 /// The mask φ ≤ 0 at the image's voxels.
 ///
-/// Read row by row from the tile grid ([`tile_row_values`]), each task through a row of
-/// its own, rather than through a dense copy of φ (an image-sized buffer of `f32` more to
-/// fault in and fill; see [`tile_row_values`] for the times).
+/// Read row by row from the tile grid ([`map_tile_rows`]) rather than through a dense
+/// copy of φ (an image-sized buffer of `f32` more to fault in and fill; see
+/// [`crate::storage::convert::tile_row_values`] for the times).
 fn mask_of(sim: &Simulation, dims: [usize; 3]) -> Result<Vec<u8>, SegmentError> {
-    let grid = tiles_of(sim);
-    let [nx, ny, nz] = dims;
-    let len = nx * ny * nz;
+    let len = dims.iter().product::<usize>();
     crate::memory::check(crate::memory::bytes_of(len as u128, 1), "the mask")?;
     let mut mask = vec![0u8; len];
-    mask.par_chunks_mut(nx * ny).enumerate().for_each_init(
-        || vec![0.0f32; nx],
-        |row, (z, slice)| {
-            for (y, out) in slice.chunks_exact_mut(nx).enumerate() {
-                tile_row_values(grid, Coord::new(0, y as i32, z as i32), row);
-                out.iter_mut().zip(row.iter()).for_each(|(m, &v)| *m = (v <= 0.0) as u8);
-            }
-        },
-    );
+    map_tile_rows(tiles_of(sim), Coord::new(0, 0, 0), dims, &mut mask, |v| (v <= 0.0) as u8);
     Ok(mask)
 }
 

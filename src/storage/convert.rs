@@ -261,21 +261,39 @@ pub fn to_dense<G: LevelSet + ?Sized>(
     let n = dims.iter().map(|&d| d as u128).product::<u128>();
     crate::memory::check(crate::memory::bytes_of(n, 4), "the dense box")?;
     if let Some(tiles) = TileGrid::of(grid) {
-        // Row by row ([`tile_row_values`]): the same values, a tile search per voxel row
-        // instead of one per voxel.
+        // Row by row: the same values, a tile search per voxel row instead of one per voxel.
         let mut field = DenseField::new(origin, dims, 0.0)?;
-        let [nx, ny, _] = dims;
-        field.data_mut().par_chunks_mut(nx * ny).enumerate().for_each(|(k, slice)| {
-            // In range: the field's box lies in the i32 range.
-            let z = (origin.z as i64 + k as i64) as i32;
-            for (j, row) in slice.chunks_exact_mut(nx).enumerate() {
-                let y = (origin.y as i64 + j as i64) as i32;
-                tile_row_values(tiles, Coord::new(origin.x, y, z), row);
-            }
-        });
+        map_tile_rows(tiles, origin, dims, field.data_mut(), |v| v);
         return Ok(field);
     }
     DenseField::from_fn(origin, dims, |c| grid.value(c))
+}
+
+/// `out[i] = f(value)` at every voxel of the box `origin`, `dims` (x fastest; the box in
+/// the i32 range, `out` as long as the box), read row by row with [`tile_row_values`], a
+/// z-slice per task: what [`to_dense`] and a segmentation's mask read, without a dense
+/// copy of φ for the mask.
+pub(crate) fn map_tile_rows<T: Send>(
+    grid: &TileGrid,
+    origin: Coord,
+    dims: [usize; 3],
+    out: &mut [T],
+    f: impl Fn(f32) -> T + Sync,
+) {
+    let [nx, ny, _] = dims;
+    debug_assert_eq!(out.len(), dims.iter().product::<usize>(), "one entry per voxel");
+    out.par_chunks_mut(nx * ny).enumerate().for_each_init(
+        || vec![0.0f32; nx],
+        |row, (k, slice)| {
+            // In range: the box lies in the i32 range.
+            let z = (origin.z as i64 + k as i64) as i32;
+            for (j, o) in slice.chunks_exact_mut(nx).enumerate() {
+                let y = (origin.y as i64 + j as i64) as i32;
+                tile_row_values(grid, Coord::new(origin.x, y, z), row);
+                o.iter_mut().zip(row.iter()).for_each(|(o, &v)| *o = f(v));
+            }
+        },
+    );
 }
 
 /// The values of `grid` along the voxel row from `first` towards +x, one per entry of

@@ -178,12 +178,11 @@ impl Rays {
                         }
                     }
                     for la in 0..4 {
-                        let (before, at_or_before) = (below[la], upto[la]);
                         let mut l = [0usize; 3];
                         (l[a], l[b], l[c]) = (la, lb as usize, lc as usize);
                         let local = l[0] + 4 * l[1] + 16 * l[2];
-                        let w_minus = before;
-                        let w_plus = -(total - at_or_before);
+                        let w_minus = below[la];
+                        let w_plus = -(total - upto[la]);
                         votes[local] += match self.votes {
                             Votes::Majority => (w_minus != 0) as u8 + (w_plus != 0) as u8,
                             Votes::Single => (w_minus != 0) as u8,
