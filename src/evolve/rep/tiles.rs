@@ -444,7 +444,12 @@ where
     } else {
         let computes = *mask != 0;
         if computes {
-            block.gather_star_row(grid, pos, table.row(pos));
+            // A kernel without diagonal offsets reads the rows along the axes only.
+            if K::BOX_REACH == 0 {
+                block.gather_axes_row(grid, pos, table.row(pos));
+            } else {
+                block.gather_star_row(grid, pos, table.row(pos));
+            }
             band_minima(*mask, gamma, m);
         }
         computes

@@ -196,14 +196,18 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
-        self.gather_parts::<false, TileGrid>(grid, nb.pos, &NeighbourRow::new(nb.matched, &nb.ptr));
+        self.gather_parts::<false, true, TileGrid>(
+            grid,
+            nb.pos,
+            &NeighbourRow::new(nb.matched, &nb.ptr),
+        );
     }
 
     /// Fills the block for the tile at list position `pos`, whose neighbours are `row`
     /// (from a [`super::NeighbourTable`] of `grid`'s list).
     #[inline]
     pub fn gather_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<false, TileGrid>(grid, pos, row);
+        self.gather_parts::<false, true, TileGrid>(grid, pos, row);
     }
 
     /// Fills the rows of the block that the kernels' [`levelset_kernels::TileWindow`]
@@ -215,7 +219,19 @@ impl<const R: usize> PaddedBlock<R> {
     /// instruction-set level (wider copies there).
     #[inline(always)]
     pub fn gather_star_row<S: TileSource>(&mut self, grid: &S, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<true, S>(grid, pos, row);
+        self.gather_parts::<true, true, S>(grid, pos, row);
+    }
+
+    /// Fills the rows of the block that a kernel without diagonal offsets
+    /// (`VoxelKernel::BOX_REACH == 0`) reads: the tile's own rows with both x-neighbours,
+    /// and the rows beside it along y and z (up to `R`) with the tile column's piece alone.
+    /// For `R = 3` 96 of the 140 row copies of [`PaddedBlock::gather_star_row`]; for `R = 1`
+    /// 64 of 108. Other entries keep what they held (in debug builds they are set to NaN,
+    /// so that a kernel reading a diagonal offset it did not declare fails the tests'
+    /// comparisons instead of reading another tile's values).
+    #[inline(always)]
+    pub fn gather_axes_row<S: TileSource>(&mut self, grid: &S, pos: usize, row: &NeighbourRow) {
+        self.gather_parts::<true, false, S>(grid, pos, row);
     }
 
     /// Asks the CPU to bring into cache the neighbour tiles that a gather for the tile at
@@ -278,8 +294,9 @@ impl<const R: usize> PaddedBlock<R> {
     }
 
     /// Fills the whole block (`STAR`: only the rows a [`levelset_kernels::TileWindow`]
-    /// reads, see [`PaddedBlock::gather_star_row`]) from the tile at list position `pos`,
-    /// whose neighbours are `row`.
+    /// reads, see [`PaddedBlock::gather_star_row`]; `STAR` without `BOX`: only those along
+    /// the axes, see [`PaddedBlock::gather_axes_row`]) from the tile at list position
+    /// `pos`, whose neighbours are `row`.
     ///
     /// Padded row by padded row: a box row (`y, z` in `-1..5`) is the same x-row of three
     /// neighbouring parts, three 4-value copies; a star row outside the box is the tile
@@ -289,7 +306,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// of that, the unchecked copies (instead of indexing with bounds checks) gave about two
     /// fifths.
     #[inline(always)]
-    fn gather_parts<const STAR: bool, S: TileSource>(
+    fn gather_parts<const STAR: bool, const BOX: bool, S: TileSource>(
         &mut self,
         grid: &S,
         pos: usize,
@@ -311,14 +328,21 @@ impl<const R: usize> PaddedBlock<R> {
         let part_of = |v: usize| (v >= r) as usize + (v >= r + 4) as usize;
         let local = |v: usize| (v + 4 - r) % 4;
         let box_rows = r - 1..r + 5;
+        let core = r..r + 4;
         for z in 0..w {
             for y in 0..w {
-                let (in_box, in_star) = if box_rows.contains(&y) && box_rows.contains(&z) {
+                // `in_box`: the row needs its three x-pieces; `in_star`: it is read at all.
+                let (in_box, in_star) = if !BOX {
+                    let (cy, cz) = (core.contains(&y), core.contains(&z));
+                    (cy && cz, cy || cz)
+                } else if box_rows.contains(&y) && box_rows.contains(&z) {
                     (true, true)
                 } else {
-                    (false, (r..r + 4).contains(&y) || (r..r + 4).contains(&z))
+                    (false, core.contains(&y) || core.contains(&z))
                 };
                 if STAR && !in_star {
+                    #[cfg(debug_assertions)]
+                    data[12 * y + 12 * w * z..][..12].fill(f32::NAN);
                     continue;
                 }
                 let middle = 1 + 3 * part_of(y) + 9 * part_of(z);
@@ -327,6 +351,11 @@ impl<const R: usize> PaddedBlock<R> {
                 // The x-pieces: all three, or the tile column's alone (a star row outside
                 // the box).
                 let pieces = if STAR && !in_box { 1..2 } else { 0..3 };
+                #[cfg(debug_assertions)]
+                if pieces.len() == 1 {
+                    data[dst..][..4].fill(f32::NAN);
+                    data[dst + 8..][..4].fill(f32::NAN);
+                }
                 for k in pieces {
                     // SAFETY: `y, z < W`, so `dst + 4k + 4 <= 12 W² = data.len()`;
                     // `local(·) < 4`, so `src + 4 <= 64`; `middle - 1 + k < 27`.
