@@ -66,26 +66,19 @@ fn tag_of(v: f64) -> u64 {
 const PROGRESS_UNITS: u64 = 1000;
 const PROGRESS_EVERY: u64 = 1 << 14;
 
-/// A heap entry: the arrival time's bits in total order (bits 64..128), the padded index
-/// (bits 32..64) and the handle (bits 0..32), so that the least entry is the least (time,
-/// coordinate); the handle never decides (a voxel has one entry).
+/// A heap entry: the arrival time's bits in total order (bits 64..128) and the padded
+/// index (bits 0..32), so that the least entry is the least (time, coordinate).
 #[inline(always)]
-fn entry(t: f64, i: usize, h: u32) -> u128 {
+fn entry(t: f64, i: usize) -> u128 {
     let b = t.to_bits();
     // The bits of an f64 as an unsigned key in `f64::total_cmp` order.
     let k = if b >> 63 == 1 { !b } else { b | 1 << 63 };
-    ((k as u128) << 64) | ((i as u128) << 32) | h as u128
+    ((k as u128) << 64) | i as u128
 }
 
 /// The padded index of an entry.
 #[inline(always)]
 fn index_of(e: u128) -> usize {
-    (e >> 32) as u32 as usize
-}
-
-/// The handle of an entry.
-#[inline(always)]
-fn handle_of(e: u128) -> usize {
     e as u32 as usize
 }
 
@@ -117,9 +110,6 @@ struct Flat {
     lo: [usize; 3],
     pad: [usize; 3],
     strides: [usize; 3],
-    /// The heap position of each handle, and the handles free for reuse.
-    pos: Vec<u32>,
-    free: Vec<u32>,
     /// Per active axis (longer than one voxel), in axis order: the stride and the term
     /// factor `(h₀ / hₐ)²`.
     axes: Vec<(usize, f64)>,
@@ -147,12 +137,10 @@ impl Flat {
             if pe <= e {
                 break;
             }
-            self.heap[p] = pe;
-            self.pos[handle_of(pe)] = p as u32;
+            self.place(p, pe);
             p = parent;
         }
-        self.heap[p] = e;
-        self.pos[handle_of(e)] = p as u32;
+        self.place(p, e);
     }
 
     /// Places `e` at heap slot `p` or below.
@@ -192,34 +180,29 @@ impl Flat {
             if ce >= e {
                 break;
             }
-            self.heap[p] = ce;
-            self.pos[handle_of(ce)] = p as u32;
+            self.place(p, ce);
             p = c;
         }
-        self.heap[p] = e;
-        self.pos[handle_of(e)] = p as u32;
+        self.place(p, e);
     }
 
-    /// Makes voxel `i` trial with time `t`: a new entry, the voxel holding its handle.
+    /// Puts entry `e` at heap slot `p`, its voxel holding the slot.
+    #[inline(always)]
+    fn place(&mut self, p: usize, e: u128) {
+        self.heap[p] = e;
+        self.value[index_of(e)] = boxed(TRIAL, p as u32);
+    }
+
+    /// Makes voxel `i` trial with time `t`: a new entry.
     #[inline(always)]
     fn push(&mut self, i: usize, t: f64) {
-        let h = match self.free.pop() {
-            Some(h) => h,
-            None => {
-                self.pos.push(0);
-                (self.pos.len() - 1) as u32
-            }
-        };
-        self.value[i] = boxed(TRIAL, h);
         self.heap.push(0);
-        self.sift_up(self.heap.len() - 1, entry(t, i, h));
+        self.sift_up(self.heap.len() - 1, entry(t, i));
     }
 
-    /// Removes the least entry (the heap is not empty) and frees its handle.
+    /// Removes the least entry (the heap is not empty).
     #[inline(always)]
     fn pop(&mut self) {
-        let top = self.heap[0];
-        self.free.push(handle_of(top) as u32);
         let last = self.heap.pop().expect("a non-empty heap");
         if !self.heap.is_empty() {
             self.sift_down(0, last);
@@ -229,11 +212,10 @@ impl Flat {
     /// Sets the time of the trial voxel `i` to `t` (smaller or larger), if it differs.
     #[inline(always)]
     fn change(&mut self, i: usize, t: f64) {
-        let h = self.value[i].to_bits() as u32;
-        let p = self.pos[h as usize] as usize;
+        let p = self.value[i].to_bits() as u32 as usize;
         let old = self.heap[p];
         if time_of(old) != t {
-            let e = entry(t, i, h);
+            let e = entry(t, i);
             if e < old {
                 self.sift_up(p, e);
             } else {
@@ -456,8 +438,6 @@ fn side(
         lo,
         pad,
         strides,
-        pos: Vec::new(),
-        free: Vec::new(),
         axes,
         heap: Vec::new(),
     };
