@@ -140,7 +140,7 @@ fn lattice_steps_wrap_periodic_axes_and_stop_at_obstacles() {
 /// The flat march of `dense_distance` gives the sparse march's values bit for bit (and
 /// the same reached voxels): 1-D, 2-D and 3-D arrays, per-axis spacing, obstacles, ±∞,
 /// exact zeros, plateaus of equal times (ties broken by coordinate), both orders, with
-/// and without a limit.
+/// and without a limit; and the flat march gives the same values on 1 and 3 threads.
 #[test]
 fn the_flat_march_equals_the_sparse_one_bit_for_bit() {
     use super::dense::{checked_lattice, sparse_distance, DenseGrid};
@@ -188,6 +188,25 @@ fn the_flat_march_equals_the_sparse_one_bit_for_bit() {
                     super::flat::distance(&phi, &lattice, second, limit, &Progress::none(), scale)
                         .unwrap()
                         .unwrap();
+                // One thread (the two sides one after the other) and three: the same bits.
+                for threads in [1, 3] {
+                    let pool =
+                        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    let other = pool
+                        .install(|| {
+                            super::flat::distance(
+                                &phi,
+                                &lattice,
+                                second,
+                                limit,
+                                &Progress::none(),
+                                scale,
+                            )
+                        })
+                        .unwrap()
+                        .unwrap();
+                    assert_eq!(other, flat, "case {k}, {second}, {narrow:?}, {threads} threads");
+                }
                 let (values, reached) = (flat.values, flat.reached);
                 assert_eq!(reached, sparse.reached, "case {k}, second {second}, {narrow:?}");
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
