@@ -421,13 +421,19 @@ def table(records) -> str:
     methods = {"threshold": 0, "gac": 1, "chan-vese": 2}
     rows = sorted(records, key=lambda r: (order.get(r["phantom"], 9), r["snr"],
                                           methods.get(r["method"], 9), r["tool"], r["threads"]))
-    out = ["| phantom | SNR | method | tool | threads | Dice | iterations | seconds |",
-           "|---|---|---|---|---|---|---|---|"]
+    # A run's speed-up over the same tool, method and image on one thread.
+    one = {(r["phantom"], r["snr"], r["method"], r["tool"]): r.get("seconds")
+           for r in rows if r["threads"] == 1}
+    out = ["| phantom | SNR | method | tool | threads | Dice | iterations | seconds"
+           " | ÷ 1 thread |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         size = "×".join(str(d) for d in r["dims"])
+        t1 = one.get((r["phantom"], r["snr"], r["method"], r["tool"]))
+        gain = t1 / r["seconds"] if t1 and r.get("seconds") and r["threads"] != 1 else None
         out.append(f"| {r['phantom']} {size} | {r['snr']:g} | {r['method']} | {r['tool']}"
                    f" | {r['threads']} | {fmt(r.get('dice'), '.4f')}"
-                   f" | {fmt(r.get('iterations'), 'd')} | {fmt(r.get('seconds'), '.2f')} |")
+                   f" | {fmt(r.get('iterations'), 'd')} | {fmt(r.get('seconds'), '.3f')}"
+                   f" | {fmt(gain, '.2f')} |")
     return "\n".join(out)
 
 
@@ -468,6 +474,8 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1, help="the phantoms' noise seed (default 1)")
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2],
                     help="thread counts (default 1 2)")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs of ours per method and thread count, the fastest kept (default 1)")
     ap.add_argument("--quick", action="store_true",
                     help="smoke test: size 48 and one SNR (4), unless given")
     ap.add_argument("--only-itk", action="store_true", help="run only SimpleITK")
@@ -575,10 +583,18 @@ def main() -> int:
                               f" {r['iterations']} it, {r['seconds']:.2f} s", file=sys.stderr)
             if not args.only_itk:
                 for method in ("threshold", "gac", "chan-vese"):
+                    # --repeat: the thread counts in turn, each run's record the fastest of its
+                    # thread count (the same result every time; the machines are shared).
+                    best = {}
+                    for _ in range(args.repeat):
+                        for threads in args.threads:
+                            mask = pdir / f"{kind}-{method}-{threads}t-mask.nii.gz"
+                            r = ours_run(levelset, method, image_path, truth_path, seeds,
+                                         window, threads, mask)
+                            if threads not in best or r["seconds"] < best[threads]["seconds"]:
+                                best[threads] = dict(r, runs=args.repeat)
                     for threads in args.threads:
-                        mask = pdir / f"{kind}-{method}-{threads}t-mask.nii.gz"
-                        r = ours_run(levelset, method, image_path, truth_path, seeds, window,
-                                     threads, mask)
+                        r = best[threads]
                         records.append(dict(base, method=method, tool="levelset",
                                             threads=threads, **r))
                         save()
