@@ -331,9 +331,34 @@ impl Flat {
 /// (empty: `lo > hi`).
 type Bounds = ([usize; 3], [usize; 3]);
 
-/// The padded box of the side `inside` over `bounds` (the side's open voxels) grown by two
-/// voxels (the march reads up to two voxels from a voxel of its side) and clipped to the
-/// array: the interface frozen with its distance estimates (Bærentzen Sec. 4; see
+/// The box a side marches on: its `bounds` grown by two voxels (the march reads up to two
+/// voxels from a voxel of its side) and clipped to the array of `dims` (`lo..hi`), padded
+/// by `pad` wall voxels per side along each axis longer than one voxel (`padded` voxels
+/// along each axis).
+struct SideBox {
+    lo: [usize; 3],
+    hi: [usize; 3],
+    pad: [usize; 3],
+    padded: [usize; 3],
+}
+
+impl SideBox {
+    fn new(bounds: &Bounds, dims: [usize; 3]) -> SideBox {
+        let pad = dims.map(|n| usize::from(n > 1));
+        let lo = [0, 1, 2].map(|a| bounds.0[a].saturating_sub(2));
+        let hi = [0, 1, 2].map(|a| (bounds.1[a] + 2).min(dims[a]));
+        let padded = [0, 1, 2].map(|a| hi[a] - lo[a] + 2 * pad[a]);
+        SideBox { lo, hi, pad, padded }
+    }
+
+    /// Voxels of the padded box.
+    fn len(&self) -> usize {
+        self.padded.iter().product()
+    }
+}
+
+/// The padded box of the side `inside` over `bounds` (the side's open voxels, see
+/// [`SideBox`]): the interface frozen with its distance estimates (Bærentzen Sec. 4; see
 /// `freeze_interface`: every open voxel with a 6-neighbour of the other sign, or φ = 0),
 /// the side's other open voxels far, the rest walls; and the first trial layer (every far
 /// voxel next to the interface, with its update from the interface) in the heap. Returns
@@ -346,13 +371,11 @@ fn side(
     second: bool,
 ) -> (Flat, usize) {
     let dims = lattice.dims;
-    let pad = dims.map(|n| usize::from(n > 1));
-    let lo = [0, 1, 2].map(|a| bounds.0[a].saturating_sub(2));
-    let hi = [0, 1, 2].map(|a| (bounds.1[a] + 2).min(dims[a]));
+    let sb = SideBox::new(&bounds, dims);
+    let SideBox { lo, hi, pad, padded: pd } = sb;
     let m = [0, 1, 2].map(|a| hi[a] - lo[a]);
-    let pd = [0, 1, 2].map(|a| m[a] + 2 * pad[a]);
     let strides = [1, pd[0], pd[0] * pd[1]];
-    let total = pd[0] * pd[1] * pd[2];
+    let total = sb.len();
     let axes: Vec<(usize, f64)> =
         (0..3).filter(|&a| dims[a] > 1).map(|a| (strides[a], lattice.ratios[a].powi(2))).collect();
     let [nx, ny, nz] = dims;
@@ -565,15 +588,10 @@ pub(super) fn distance(
         })
         .reduce(|| [empty; 2], join);
     let present = bounds.map(|b| b.0[0] <= b.1[0]);
-    // Voxels of a side's padded box (as `side` lays it out).
-    let cells = |b: &Bounds| -> f64 {
-        (0..3)
-            .map(|a| {
-                (b.1[a] + 2).min(dims[a]) - b.0[a].saturating_sub(2) + 2 * usize::from(dims[a] > 1)
-            })
-            .product::<usize>() as f64
-    };
-    let bytes: f64 = (0..2).filter(|&s| present[s]).map(|s| cells(&bounds[s]) * 8.0).sum();
+    let bytes: f64 = (0..2)
+        .filter(|&s| present[s])
+        .map(|s| SideBox::new(&bounds[s], dims).len() as f64 * 8.0)
+        .sum();
     crate::memory::check(bytes, "the fast-marching array (one value per voxel)")?;
 
     let (outside, inside) = rayon::join(
