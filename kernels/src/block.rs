@@ -135,13 +135,36 @@ impl<'a, const R: usize> TileBlock<'a, R> {
         kernel: &K,
         out: &mut [f32; 64],
     ) -> Result<(), KernelError> {
+        self.apply_slices::<L, K>(kernel, out, false)
+    }
+
+    /// [`TileBlock::apply`], or with `first_slice_only` the 16 voxels of the slice z = 0
+    /// only, copied into the slices z = 1, 2, 3: a planar lattice's level set, extruded
+    /// along z, at a quarter of the evaluations. One loop with a bound chosen at run time,
+    /// so that a sweep holds one copy of the kernel's code for both.
+    #[inline(always)]
+    pub fn apply_slices<L: Lane, K: VoxelKernel>(
+        &self,
+        kernel: &K,
+        out: &mut [f32; 64],
+        first_slice_only: bool,
+    ) -> Result<(), KernelError> {
         #[allow(clippy::let_unit_value)]
         let () = Fits::<K, R>::TILE_OK;
         kernel.check(64)?;
+        // A lane group lies within one slice (at most 16 lanes; a constant condition).
+        assert!(L::LANES <= 16, "a lane group of {} spans two slices", L::NAME);
+        let groups = if first_slice_only { 16 / L::LANES } else { 64 / L::LANES };
         // A plain loop, not `for_each`: see `group`.
-        for g in 0..64 / L::LANES {
+        for g in 0..groups {
             let (first, w) = self.group::<L>(g);
             kernel.eval(&w, first).store(&mut out[first..]);
+        }
+        if first_slice_only {
+            let (slice, rest) = out.split_at_mut(16);
+            for copy in rest.chunks_exact_mut(16) {
+                copy.copy_from_slice(slice);
+            }
         }
         Ok(())
     }

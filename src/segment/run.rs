@@ -7,8 +7,8 @@ use super::stats::{self, Normalization};
 use super::{Init, Method, Params, Report, Resolved, SegmentError, StepInfo, Stop};
 use crate::coord::Coord;
 use crate::evolve::{
-    Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
-    Velocity,
+    Flow, GridKind, Integrator, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation,
+    Speed, Velocity,
 };
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
@@ -390,11 +390,26 @@ fn segment_in_pool(
             "the initial level set has no interface in the image".into(),
         ));
     }
+    // HJ-WENO5 in space (first-order upwinding loses up to 0.2 of Dice on thin tubes and
+    // 0.02 on the MNI white matter), forward Euler in time when the flow has a curvature
+    // term: the same masks as TVD-RK3 to 10⁻³ of Dice at a third of the sweeps. The
+    // parabolic term damps the slow growth that forward Euler allows HJ-WENO5's purely
+    // hyperbolic modes, so a flow without one keeps TVD-RK3 (decision 0024).
+    let integrator = if resolved.curvature > 0.0 { Integrator::Euler } else { Integrator::Rk3 };
+    resolved.integrator = match integrator {
+        Integrator::Euler => "euler",
+        Integrator::Rk3 => "rk3",
+    };
     let settings = Settings {
+        integrator,
         renormalization: Renormalization::Coupled { weight: 1.0 },
         lattice: Some(lattice),
         pool: params.pool.clone(),
         ..Settings::default()
+    };
+    let stages = match integrator {
+        Integrator::Euler => 1,
+        Integrator::Rk3 => 3,
     };
     let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)?;
 
@@ -436,7 +451,7 @@ fn segment_in_pool(
             force.set_means(c1, c2);
             means = Some([norm.back(c1), norm.back(c2)]);
         }
-        updates += (sim.stored_voxels() * 3) as f64;
+        updates += (sim.stored_voxels() * stages) as f64;
         let t_step = Instant::now();
         let report = match sim.step() {
             Ok(r) => r,
@@ -748,6 +763,7 @@ fn prepare(
         feature: feature.is_some(),
         spacing: image.spacing,
         planar,
+        integrator: "rk3",
     };
     // σ in voxels of each axis (the default), or world units (given).
     // The rays' pilot at one voxel of smoothing, kept when that is the smoothing chosen.

@@ -370,6 +370,9 @@ struct TileSweep<'a> {
     /// The list positions to compute (this rank's tiles when distributed): the others
     /// (ghost tiles, which the exchange after the sweep overwrites) keep their values.
     owned: Range<usize>,
+    /// A planar lattice's step: each tile's first z-slice is computed and copied into the
+    /// other three (the level set is extruded along z; see [`crate::evolve::Lattice::planar`]).
+    planar: bool,
 }
 
 impl Sweep for TileSweep<'_> {
@@ -380,8 +383,8 @@ impl Sweep for TileSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let TileSweep { grid, table, out, band, compute_mask, activity, owned, .. } = self;
-        let shared = Shared { grid, table, compute_mask, owned: &owned, make: &make };
+        let TileSweep { grid, table, out, band, compute_mask, activity, owned, planar, .. } = self;
+        let shared = Shared { grid, table, compute_mask, planar, owned: &owned, make: &make };
         out.par_chunks_mut(TILE_CHUNK)
             .zip(band.par_chunks_mut(TILE_CHUNK))
             .zip(activity.par_chunks_mut(TILE_CHUNK))
@@ -400,6 +403,8 @@ struct Shared<'a, M, S> {
     grid: &'a S,
     table: &'a NeighbourTable,
     compute_mask: bool,
+    /// Compute the first z-slice of each tile and copy it (see [`TileSweep`]).
+    planar: bool,
     owned: &'a Range<usize>,
     make: &'a M,
 }
@@ -426,7 +431,7 @@ where
     M: Fn(Range<usize>) -> K,
     S: TileSource,
 {
-    let Shared { grid, table, compute_mask, owned, make } = *shared;
+    let Shared { grid, table, compute_mask, planar, owned, make } = *shared;
     let gamma = grid.gamma();
     let ahead = pos + PaddedBlock::<R>::PREFETCH_AHEAD;
     if ahead < prefetch_end {
@@ -459,7 +464,7 @@ where
     }
     let tb = TileBlock::<R>::new(block.data())?;
     let k = BandMasked { step: make(64 * pos..64 * pos + 64), box_min: &m[..], gamma };
-    tb.apply::<L, _>(&k, &mut out.0)?;
+    tb.apply_slices::<L, _>(&k, &mut out.0, planar)?;
     Ok(true)
 }
 
@@ -539,7 +544,8 @@ impl Sweep for InPlaceSweep<'_> {
         let n = grid.len();
         let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
         let len = n.div_ceil(tasks).max(TILE_CHUNK);
-        let shared = Shared { grid: &grid, table, compute_mask, owned: &owned, make: &make };
+        let shared =
+            Shared { grid: &grid, table, compute_mask, planar: false, owned: &owned, make: &make };
         let held: Vec<Vec<(usize, Tile)>> = band
             .par_chunks_mut(len)
             .zip(activity.par_chunks_mut(len))
@@ -868,6 +874,7 @@ impl Representation for TilesRep {
             band: &mut self.buf.band,
             compute_mask: p.stage == 1,
             activity: &mut self.buf.activity,
+            planar: p.lattice.is_some_and(|l| l.planar),
         };
         dispatch(&p, scheme, sweep)?;
         self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
@@ -906,6 +913,7 @@ impl Representation for TilesRep {
                 band,
                 compute_mask: fresh,
                 activity,
+                planar: false,
             };
             dispatch_anchor(p.h, sweep)?;
         }
@@ -927,6 +935,7 @@ impl Representation for TilesRep {
                     band,
                     compute_mask,
                     activity,
+                    planar: false,
                 };
                 dispatch_renorm(p, anchored.then_some(tile_flat(anchor)), sweep)?;
                 self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
