@@ -911,7 +911,9 @@ def segment(
     From seeds, the level set starts from the part of the image the front is sure to
     cover (a flood fill through the voxels where the method's speed is clearly outward,
     by openings curvature cannot close; ``report["params"]["start_voxels"]``): the same
-    answer in fewer steps. ``fast_start=False`` starts from the seeds' balls.
+    answer in fewer steps. GAC shrinking an ``init_mask`` (``propagation_scaling`` < 0)
+    starts without the part of the mask the front from outside is sure to sweep (away from
+    the edges, g ≥ ½). ``fast_start=False`` starts from the seeds' balls or the mask.
 
     ``sigma`` (Gaussian smoothing, world units), ``propagation_scaling`` β,
     ``curvature_scaling`` ε, ``advection_scaling`` α default to values chosen from the image

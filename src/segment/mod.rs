@@ -70,6 +70,11 @@
 //! compares with the seeds' region, so a fill that runs out of the object is reported
 //! after one step.
 //!
+//! GAC shrinking a larger initial region (a mask and a negative propagation) starts the
+//! same way mirrored: without the region's voxels that the front from outside is sure to
+//! sweep, those reached from outside through openings of voxels away from the edges
+//! (g ≥ ½, the balloon at least at half strength), less one voxel at their edge.
+//!
 //! # Stopping
 //! After every step: the RMS over the voxels next to the interface (|φ| < the smallest
 //! spacing) of the change of φ *per unit time* (the adaptive Δt cannot hide motion), and
@@ -209,7 +214,8 @@ pub struct Params {
     /// by openings wider than curvature can close; [module docs](crate::segment#the-fast-start))
     /// instead of the seeds' balls: the same answer in fewer steps, by the flows'
     /// comparison principle. Seeds, a positive propagation and one method (no weighted
-    /// terms) only; on by default.
+    /// terms); or GAC shrinking an initial mask (a negative propagation), without the part
+    /// of the mask the front from outside is sure to sweep. On by default.
     pub fast_start: bool,
 }
 

@@ -1366,11 +1366,14 @@ fn start_region(
     resolved: &Resolved,
     norm: &Normalization,
 ) -> Option<Vec<u8>> {
-    if !params.fast_start
-        || !matches!(init, Init::Seeds { .. })
-        || params.propagation.unwrap_or(1.0) <= 0.0
-        || params.terms.iter().any(|t| t.1 != 0.0)
-    {
+    if !params.fast_start || params.terms.iter().any(|t| t.1 != 0.0) {
+        return None;
+    }
+    let propagation = params.propagation.unwrap_or(1.0);
+    if propagation < 0.0 && matches!(init, Init::Mask(_)) {
+        return shrinking_start(image, params, inputs, seeds, resolved);
+    }
+    if !matches!(init, Init::Seeds { .. }) || propagation <= 0.0 {
         return None;
     }
     let smoothed = &inputs.smoothed.data;
@@ -1397,6 +1400,40 @@ fn start_region(
     let eps = resolved.curvature / inputs.h_min as f32;
     let r = ((2.0 * eps / (resolved.propagation * s)).ceil() as usize).max(super::start::OPENING);
     Some(super::start::fill(&confident, seeds, image.dims, r))
+}
+
+/// The fast start of GAC shrinking a larger initial region (`region`, 1 inside) onto the
+/// object (a negative propagation, as scikit-image's balloon −1): the fill of
+/// [`super::start::fill`] mirrored. The front from outside is sure to sweep the voxels of
+/// the region where the balloon pulls it inward at least at half strength (g ≥ ½, away
+/// from edges), reached from outside through openings of 2r + 1 such voxels, less one
+/// voxel at their edge; the start is the region without them. By the comparison principle
+/// (see `super::start`) a start between the region and the steady state the region
+/// shrinks to evolves to that same steady state. `None` for other methods, or when the
+/// fill would sweep the whole region (no edge holds the front: the run from the region
+/// itself shows that).
+fn shrinking_start(
+    image: &Image,
+    params: &Params,
+    inputs: &MethodInputs<'_>,
+    region: &[u8],
+    resolved: &Resolved,
+) -> Option<Vec<u8>> {
+    let g = match (params.method, inputs.g) {
+        (Method::Gac, Some(g)) => &g.data,
+        _ => return None,
+    };
+    // Outside the region counts as swept already: the fill starts there.
+    let confident: Vec<u8> =
+        g.par_iter().zip(region).map(|(&v, &r)| (r == 0 || v >= 0.5) as u8).collect();
+    let outside: Vec<u8> = region.par_iter().map(|&r| (r == 0) as u8).collect();
+    // The curvature radius as for growing (see `start_region`): ε/r ≤ ½ |β| for GAC.
+    let eps = resolved.curvature / inputs.h_min as f32;
+    let beta = resolved.propagation.abs();
+    let r = ((2.0 * eps / beta).ceil() as usize).max(super::start::OPENING);
+    let swept = super::start::fill(&confident, &outside, image.dims, r);
+    let start: Vec<u8> = region.par_iter().zip(&swept).map(|(&r, &s)| r & (s ^ 1)).collect();
+    (par_count(&start) > 0).then_some(start)
 }
 
 /// The mask φ ≤ 0 at the image's voxels.

@@ -80,10 +80,11 @@ pub struct SegmentArgs {
     /// it (the neighbouring tissue, not the whole outside)
     #[arg(long)]
     pub no_first_edge: bool,
-    /// Start the level set from the seeds' balls. By default it starts from the part of
-    /// the image the front from the seeds is sure to cover (a flood fill through the voxels
-    /// where the method's speed is clearly outward; the report's `start_voxels`): the same
-    /// answer in fewer steps
+    /// Start the level set from the seeds' balls (or the --init-mask). By default it starts
+    /// from the part of the image the front from the seeds is sure to cover (a flood fill
+    /// through the voxels where the method's speed is clearly outward; the report's
+    /// `start_voxels`), or for GAC shrinking an --init-mask (--propagation < 0) without the
+    /// part the front from outside is sure to sweep: the same answer in fewer steps
     #[arg(long)]
     pub no_fast_start: bool,
     /// σ of the Gaussian smoothing in world units (0: none) [default: from the image's noise].
