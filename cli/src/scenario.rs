@@ -681,10 +681,7 @@ impl Scenario {
     ) -> Result<(Summary, Simulation), EvolveError> {
         after(&self.sim)?;
         let p = &self.params;
-        let stages = match p.integrator {
-            Integrator::Euler => 1,
-            Integrator::Rk3 => 3,
-        };
+        let stages = p.integrator.stages();
         let m0 = self.sim.measure()?;
         let mut records = vec![record(0, 0.0, 0.0, &m0, 0.0)];
         let mut seconds = 0.0;

@@ -126,6 +126,16 @@ pub enum Integrator {
     Rk3,
 }
 
+impl Integrator {
+    /// Sweeps of the physical terms per time step.
+    pub fn stages(self) -> usize {
+        match self {
+            Integrator::Euler => 1,
+            Integrator::Rk3 => 3,
+        }
+    }
+}
+
 /// Lane type of the tile engine's kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]

@@ -282,9 +282,9 @@ pub struct Resolved {
     pub feature: bool,
     pub spacing: [f64; 3],
     pub planar: bool,
-    /// The time integration: `"euler"` (forward Euler) when the flow has a curvature
-    /// term, `"rk3"` (TVD-RK3) when it has none; HJ-WENO5 in space either way.
-    pub integrator: &'static str,
+    /// The time integration (`"euler"` or `"rk3"` in the report): forward Euler when the
+    /// flow has a curvature term, TVD-RK3 when it has none; HJ-WENO5 in space either way.
+    pub integrator: crate::evolve::Integrator,
 }
 
 /// Why a segmentation stopped.

@@ -390,27 +390,21 @@ fn segment_in_pool(
             "the initial level set has no interface in the image".into(),
         ));
     }
-    // HJ-WENO5 in space (first-order upwinding loses up to 0.2 of Dice on thin tubes and
-    // 0.02 on the MNI white matter), forward Euler in time when the flow has a curvature
-    // term: the same masks as TVD-RK3 to 10⁻³ of Dice at a third of the sweeps. The
-    // parabolic term damps the slow growth that forward Euler allows HJ-WENO5's purely
-    // hyperbolic modes, so a flow without one keeps TVD-RK3 (decision 0024).
-    let integrator = if resolved.curvature > 0.0 { Integrator::Euler } else { Integrator::Rk3 };
-    resolved.integrator = match integrator {
-        Integrator::Euler => "euler",
-        Integrator::Rk3 => "rk3",
-    };
+    // HJ-WENO5 in space (first-order upwinding lost 0.21 of Dice on thin tubes and 0.019
+    // on the MNI white matter), forward Euler in time when the flow has a curvature term:
+    // the same masks as TVD-RK3 to 6·10⁻⁴ of Dice at a third of the sweeps. The parabolic
+    // term damps the slow growth that forward Euler allows HJ-WENO5's purely hyperbolic
+    // modes, so a flow without one keeps TVD-RK3 (decision 0037).
+    resolved.integrator =
+        if resolved.curvature > 0.0 { Integrator::Euler } else { Integrator::Rk3 };
     let settings = Settings {
-        integrator,
+        integrator: resolved.integrator,
         renormalization: Renormalization::Coupled { weight: 1.0 },
         lattice: Some(lattice),
         pool: params.pool.clone(),
         ..Settings::default()
     };
-    let stages = match integrator {
-        Integrator::Euler => 1,
-        Integrator::Rk3 => 3,
-    };
+    let stages = resolved.integrator.stages();
     let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)?;
 
     // Region sums on a fixed-point copy of Ĩ: exact integer sums, the same bits in any
@@ -763,7 +757,8 @@ fn prepare(
         feature: feature.is_some(),
         spacing: image.spacing,
         planar,
-        integrator: "rk3",
+        // Chosen with the flow's curvature weight (`segment_in_pool`).
+        integrator: Integrator::Rk3,
     };
     // σ in voxels of each axis (the default), or world units (given).
     // The rays' pilot at one voxel of smoothing, kept when that is the smoothing chosen.
@@ -1392,14 +1387,19 @@ fn start_region(
         }
         _ => return None,
     };
-    // The opening passes channels of radius r + ½ voxels, whose curvature (below 1/r)
-    // holds back at most half of the confident voxels' speed: ε/r ≤ ½ β s, with ε the
-    // flow's curvature weight in voxels and s = ½ for the threshold speed, 1 for GAC's
-    // balloon (g scales both terms) and Chan–Vese.
+    // The speed per unit of β in the confident voxels: ½ for the threshold speed, 1 for
+    // GAC's balloon (g scales both terms) and Chan–Vese.
     let s = if matches!(params.method, Method::Threshold { .. }) { 0.5 } else { 1.0 };
+    Some(super::start::fill(&confident, seeds, image.dims, opening_radius(inputs, resolved, s)))
+}
+
+/// The fill's least opening radius r (voxels): channels of radius r + ½ voxels, whose
+/// curvature (below 1/r) holds back at most half of the confident voxels' speed,
+/// ε/r ≤ ½ |β| s, with ε the flow's curvature weight in voxels and `s` the speed there
+/// per unit of β; at least [`super::start::OPENING`].
+fn opening_radius(inputs: &MethodInputs<'_>, resolved: &Resolved, s: f32) -> usize {
     let eps = resolved.curvature / inputs.h_min as f32;
-    let r = ((2.0 * eps / (resolved.propagation * s)).ceil() as usize).max(super::start::OPENING);
-    Some(super::start::fill(&confident, seeds, image.dims, r))
+    ((2.0 * eps / (resolved.propagation.abs() * s)).ceil() as usize).max(super::start::OPENING)
 }
 
 /// The fast start of GAC shrinking a larger initial region (`region`, 1 inside) onto the
@@ -1427,11 +1427,9 @@ fn shrinking_start(
     let confident: Vec<u8> =
         g.par_iter().zip(region).map(|(&v, &r)| (r == 0 || v >= 0.5) as u8).collect();
     let outside: Vec<u8> = region.par_iter().map(|&r| (r == 0) as u8).collect();
-    // The curvature radius as for growing (see `start_region`): ε/r ≤ ½ |β| for GAC.
-    let eps = resolved.curvature / inputs.h_min as f32;
-    let beta = resolved.propagation.abs();
-    let r = ((2.0 * eps / beta).ceil() as usize).max(super::start::OPENING);
-    let swept = super::start::fill(&confident, &outside, image.dims, r);
+    // GAC's balloon: s = 1 where g is 1, as for growing.
+    let swept =
+        super::start::fill(&confident, &outside, image.dims, opening_radius(inputs, resolved, 1.0));
     let start: Vec<u8> = region.par_iter().zip(&swept).map(|(&r, &s)| r & (s ^ 1)).collect();
     (par_count(&start) > 0).then_some(start)
 }

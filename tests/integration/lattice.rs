@@ -44,6 +44,12 @@ fn sphere_sdf(c: [f64; 3], r: f64) -> impl Fn([f64; 3]) -> f64 + Sync {
     move |p| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt() - r
 }
 
+/// The signed distance in the xy-plane to the circle of centre `c` and radius `r` (a disc
+/// extruded along z).
+fn disc_sdf(c: [f64; 2], r: f64) -> impl Fn([f64; 3]) -> f64 + Sync {
+    move |p| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt() - r
+}
+
 fn coupled() -> Settings {
     Settings { renormalization: Renormalization::Coupled { weight: 1.0 }, ..Settings::default() }
 }
@@ -110,9 +116,7 @@ fn isotropic_lattice_matches_the_exact_radius() {
 #[test]
 fn planar_disc_shrinks_by_the_curvature_of_its_circle() {
     let spacing = [1.0, 1.0, 1.0];
-    let (r0, c) = (16.0, [24.0, 24.0]);
-    let disc = |p: [f64; 3]| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt() - r0;
-    let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 4], disc);
+    let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [48, 48, 4], disc_sdf([24.0; 2], 16.0));
     let mut sim = curvature_flow(grid, Lattice { spacing, planar: true });
     let area = |sim: &Simulation| {
         let d = sim.to_dense(Coord::new(0, 0, 0), [48, 48, 1]).unwrap();
@@ -160,9 +164,7 @@ fn every_representation_agrees_on_a_lattice_bit_for_bit() {
 #[test]
 fn every_representation_agrees_on_a_planar_lattice_bit_for_bit() {
     let spacing = [0.8, 1.0, 1.0];
-    let (r0, c) = (9.0, [14.0, 15.0]);
-    let disc = |p: [f64; 3]| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt() - r0;
-    let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [36, 32, 4], disc);
+    let grid = lattice_grid(spacing, Coord::new(0, 0, 0), [36, 32, 4], disc_sdf([14.0, 15.0], 9.0));
     let z = |p: [f64; 3]| 1.0 + 0.5 * (0.3 * p[0]).sin() * (0.2 * p[1]).cos();
     let u = |p: [f64; 3]| [0.2 * (0.1 * p[1]).sin() as f32, -0.1, 0.0];
     let band = assert_representations_agree(grid, Lattice { spacing, planar: true }, z, u);
