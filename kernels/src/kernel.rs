@@ -522,12 +522,13 @@ impl<K: VoxelKernel> VoxelKernel for BandMasked<'_, K> {
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
         let m = self.box_min.lanes::<L>(first);
         let gamma = L::splat(self.gamma);
-        // A single voxel outside the computational band keeps its value: the step is not
-        // evaluated (the same bits as evaluating it and selecting the centre). Scalar
-        // lanes only: a third of a tile's voxels skip the step then, but only about a
-        // tenth of its 16-voxel slices, too few to pay for the branch (measured with
-        // `levelset run sphere|spiral --threads 1`).
-        if L::LANES == 1 && !gamma.any_gt(m) {
+        // A lane group whose voxels are all outside the computational band keeps its
+        // values: the step is not evaluated (the same bits as evaluating it and selecting
+        // the centre). Groups of up to 8 voxels (one voxel, one or two tile rows) only: a
+        // third of a tile's voxels lie outside, but only about a tenth of its 16-voxel
+        // slices, too few to pay for the branch. Measured with `levelset run
+        // sphere|spiral|enright` (decision 0038).
+        if L::LANES <= 8 && !gamma.any_gt(m) {
             return w.centre();
         }
         gamma.select_gt(m, self.step.eval(w, first), w.centre())
