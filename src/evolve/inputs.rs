@@ -47,6 +47,11 @@ enum Written {
     Checked(bool),
 }
 
+/// Whether the flow steps a planar lattice's level set (see [`Representation::fill_scalar`]).
+fn planar(settings: &Settings) -> bool {
+    settings.lattice.is_some_and(|l| l.planar)
+}
+
 impl Default for Inputs {
     fn default() -> Self {
         Inputs {
@@ -117,10 +122,9 @@ impl Inputs {
         let kappa_bar = kappa_bar(rep, flow, settings)?;
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
-        self.fill_speed(rep, &flow.speed, pool, t, first, add);
+        self.fill_speed(rep, &flow.speed, settings, t, first, add);
         let written = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
-        let factor = settings.lattice.map_or(1.0, |l| l.curvature_factor());
-        let curvature_ok = self.fill_curvature(rep, flow, factor, pool, t, first);
+        let curvature_ok = self.fill_curvature(rep, flow, settings, t, first);
         // Every sample a stage reads must be finite: a NaN would count as 0 in the upwind
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
@@ -145,11 +149,12 @@ impl Inputs {
         &mut self,
         rep: &dyn Representation,
         speed: &Speed,
-        pool: &Option<Arc<rayon::ThreadPool>>,
+        settings: &Settings,
         t: f64,
         first: bool,
         add: f32,
     ) {
+        let (pool, planar) = (&settings.pool, planar(settings));
         let n = rep.flat().len();
         self.uniform_speed = None;
         if !matches!(speed, Speed::Constant(_)) {
@@ -164,7 +169,7 @@ impl Inputs {
                 if first || f.time_dependent() {
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
-                    in_pool(pool, || rep.fill_scalar(f.as_ref(), t, base));
+                    in_pool(pool, || rep.fill_scalar(f.as_ref(), t, planar, base));
                 }
                 let (speed, base) = (&mut self.speed, &self.base);
                 in_pool(pool, || {
@@ -175,7 +180,7 @@ impl Inputs {
                 if first {
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
-                    in_pool(pool, || rep.fill_scalar(target.as_ref(), t, base));
+                    in_pool(pool, || rep.fill_scalar(target.as_ref(), t, planar, base));
                     let g = rep.spec().gamma();
                     let base = &mut self.base;
                     in_pool(pool, || base.par_iter_mut().for_each(|v| *v = v.clamp(-g, g)));
@@ -192,18 +197,19 @@ impl Inputs {
         }
     }
 
-    /// ε Z(x) per voxel, times the lattice's curvature `factor`, when the flow has a
+    /// ε Z(x) per voxel, times the lattice's curvature factor, when the flow has a
     /// curvature field (sampled in stage 1, and in every stage when it depends on time);
     /// returns whether every sample is finite and ≥ 0.
     fn fill_curvature(
         &mut self,
         rep: &dyn Representation,
         flow: &Flow,
-        factor: f32,
-        pool: &Option<Arc<rayon::ThreadPool>>,
+        settings: &Settings,
         t: f64,
         first: bool,
     ) -> bool {
+        let pool = &settings.pool;
+        let factor = settings.lattice.map_or(1.0, |l| l.curvature_factor());
         let Some(z) = &flow.curvature_field else {
             self.curvature.clear();
             return true;
@@ -213,7 +219,7 @@ impl Inputs {
         }
         resize_exact(&mut self.curvature, rep.flat().len(), 0.0);
         let out = &mut self.curvature;
-        in_pool(pool, || rep.fill_scalar(z.as_ref(), t, out));
+        in_pool(pool, || rep.fill_scalar(z.as_ref(), t, planar(settings), out));
         let eps = flow.curvature * factor;
         let curvature = &mut self.curvature;
         in_pool(pool, || {

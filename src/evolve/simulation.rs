@@ -500,10 +500,11 @@ impl Simulation {
         rep.for_each_unstored_inside_run(&mut f);
     }
 
-    /// The runs of [`Simulation::for_each_inside_run`] folded over the thread pool
-    /// ([`Settings::pool`]) on tiles: every part of the band folds its runs into its own
-    /// `identity()` with `visit`, and `combine` joins the parts. Neither the parts, nor
-    /// the order of the runs, nor the grouping of `combine` is fixed (they follow the
+    /// The voxels of [`Simulation::for_each_inside_run`] folded over the thread pool
+    /// ([`Settings::pool`]) on tiles, where the stored ones come as runs along each tile
+    /// row: every part of the band folds its runs into its own `identity()` with `visit`,
+    /// and `combine` joins the parts. Neither the parts, nor the runs and their order, nor
+    /// the grouping of `combine` is fixed (they follow the
     /// thread count), so the result is deterministic when `combine` and `visit` commute
     /// exactly: counts and integer sums, or [`crate::exact::ExactSum`]. Other
     /// representations fold in one part.

@@ -328,9 +328,10 @@ pub struct Report {
     /// mean lies within four noise levels of the outside's. The mask is then no
     /// segmentation of anything, though the run stopped normally.
     pub weak_contrast: Option<String>,
-    /// Band voxels at the end.
+    /// Band voxels at the end (of a 2-D image: its pixels).
     pub band_voxels: usize,
-    /// Σ over steps of the stored voxels times the stages (the voxels the kernels updated).
+    /// Σ over steps of the stored voxels times the stages (the voxels the kernels updated;
+    /// of a 2-D image, one z-slice of each tile).
     pub voxel_updates: f64,
     /// Seconds for the feature images, the evolution, and in all.
     pub seconds_features: f64,

@@ -405,6 +405,10 @@ fn segment_in_pool(
         ..Settings::default()
     };
     let stages = resolved.integrator.stages();
+    let planar = lattice.planar;
+    // A 2-D image's level set is extruded over the four z-slices of one tile layer, and
+    // the sweeps compute the first and copy it: what is computed and reported is a quarter.
+    let layers = if planar { 4 } else { 1 };
     let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)?;
 
     // Region sums on a fixed-point copy of Ĩ: exact integer sums, the same bits in any
@@ -422,7 +426,7 @@ fn segment_in_pool(
     let mut leak = None;
     volumes.push(voxels);
     let mut seconds_steps = 0.0;
-    let mut near = change_since(tiles_of(&sim), &[], 1.0, h_min).2;
+    let mut near = change_since(tiles_of(&sim), &[], 1.0, h_min, planar).2;
     let stop = loop {
         if sim.steps() >= params.max_iterations {
             break Stop::MaxIterations;
@@ -445,7 +449,7 @@ fn segment_in_pool(
             force.set_means(c1, c2);
             means = Some([norm.back(c1), norm.back(c2)]);
         }
-        updates += (sim.stored_voxels() * stages) as f64;
+        updates += (sim.stored_voxels() / layers * stages) as f64;
         let t_step = Instant::now();
         let report = match sim.step() {
             Ok(r) => r,
@@ -454,7 +458,8 @@ fn segment_in_pool(
         };
         seconds_steps += t_step.elapsed().as_secs_f64();
         // RMS of (φⁿ⁺¹ − φⁿ)/Δt over the voxels with |φⁿ| < h.
-        let (sq, band_voxels, next) = change_since(tiles_of(&sim), &near, report.dt as f64, h_min);
+        let (sq, band_voxels, next) =
+            change_since(tiles_of(&sim), &near, report.dt as f64, h_min, planar);
         rms = if near.is_empty() { 0.0 } else { (sq / near.len() as f64).sqrt() };
         near = next;
         let faces;
@@ -506,7 +511,7 @@ fn segment_in_pool(
         means,
         leak,
         weak_contrast,
-        band_voxels: sim.band_voxels(),
+        band_voxels: sim.band_voxels() / layers,
         voxel_updates: updates,
         seconds_features,
         seconds_evolution,
@@ -1143,13 +1148,25 @@ fn tiles_of(sim: &Simulation) -> &TileGrid {
 /// parallel; a part takes the old voxels from its first tile up to the next part's
 /// (before the first part: all from the start), so every old voxel is met once.
 ///
+/// On a planar lattice (`planar`) only each tile's first z-slice is read: the image's
+/// voxels, of which the other three slices are copies (the sweep copies them, see
+/// `TileBlock::apply_slices`), so the RMS is the same and the band counts the image's
+/// pixels.
+///
 /// The sum is exact ([`ExactSum`]: each term ((φⁿ⁺¹ − φⁿ)/h)², in voxels of `h`, rounded
 /// once to f32 and to the sum's fixed point, then scaled by (h/Δt)²), so it is the same
 /// whatever the parts and the thread count, as the engine's reductions are. The fixed
 /// point resolves 2⁻³² ≈ 2·10⁻¹⁰ voxel² a term; at the default stopping RMS (0.01) a term
 /// is about 10⁻⁶ voxel² (Δt of 0.1–0.25 h on the 128³ phantoms).
-fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize, Vec<Near>) {
+fn change_since(
+    grid: &TileGrid,
+    near: &[Near],
+    dt: f64,
+    h: f64,
+    planar: bool,
+) -> (f64, usize, Vec<Near>) {
     let coords = grid.tile_coords();
+    let image_voxels = if planar { 16 } else { 64 };
     let values = grid.values();
     let gamma = grid.gamma();
     let parts = coords.len().div_ceil(CHANGE_CHUNK).max(1);
@@ -1183,7 +1200,7 @@ fn change_since(grid: &TileGrid, near: &[Near], dt: f64, h: f64) -> (f64, usize,
                     diff(old[k].2, sim_value_left(old[k].2, gamma));
                     k += 1;
                 }
-                for (l, &v) in values[p].0.iter().enumerate() {
+                for (l, &v) in values[p].0[..image_voxels].iter().enumerate() {
                     let in_band = v.abs() < gamma;
                     band += in_band as usize;
                     if k < old.len() && old[k].0 == tc && old[k].1 as usize == l {

@@ -126,7 +126,7 @@ impl Representation for DenseRep {
         self.field.data()
     }
 
-    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, _planar: bool, out: &mut [f32]) {
         let nx = self.field.dims()[0];
         let o = self.field.origin();
         for (row, chunk) in out.chunks_mut(nx).enumerate() {

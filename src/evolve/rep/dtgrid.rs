@@ -178,7 +178,7 @@ impl Representation for DtRep {
         self.grid.values()
     }
 
-    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, _planar: bool, out: &mut [f32]) {
         let spec = self.spec();
         for_each_run(&self.grid, |i, start, len| f.fill_run(&spec, start, t, &mut out[i..i + len]));
     }

@@ -40,8 +40,11 @@ pub(crate) trait Representation: Send + Sync {
     fn spec(&self) -> GridSpec;
     /// The current values in flat order.
     fn flat(&self) -> &[f32];
-    /// Samples a scalar field at every stored voxel (flat order).
-    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]);
+    /// Samples a scalar field at every stored voxel (flat order). With `planar` (a planar
+    /// lattice's level set, extruded over z) a representation may sample only the voxels
+    /// its sweeps compute: the tiles their first z-slice (see `TileBlock::apply_slices`),
+    /// the other voxels then hold 0.
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, planar: bool, out: &mut [f32]);
     /// Samples a vector field at every stored voxel (flat order).
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
     /// Samples a field that depends on the position only (u(x, 0) of a time-separable

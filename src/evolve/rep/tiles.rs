@@ -272,8 +272,8 @@ impl TilesRep {
         }
     }
 
-    /// The inside runs of `for_each_inside_run` (stored voxels with φ ≤ 0 as runs of one,
-    /// then the unstored interior between tiles), this rank's tiles split over the current
+    /// The inside runs of `for_each_inside_run` (the stored voxels with φ ≤ 0 as runs
+    /// along each tile row, then the unstored interior between tiles), this rank's tiles split over the current
     /// thread pool: each part folds its runs into its own `identity()` with `visit`, and
     /// `combine` joins the parts in an order and grouping that depend on the thread count.
     pub(crate) fn fold_inside_runs<T: Send>(
@@ -288,9 +288,18 @@ impl TilesRep {
             .into_par_iter()
             .with_min_len(TILE_CHUNK)
             .fold(identity, |mut acc, p| {
-                for (l, &v) in values[p].0.iter().enumerate() {
-                    if v <= 0.0 {
-                        visit(&mut acc, voxel_of(coords[p], l), 1);
+                // The runs of φ ≤ 0 along each of the tile's 16 rows of 4 voxels.
+                for (row, vals) in values[p].0.chunks_exact(4).enumerate() {
+                    let mut x = 0;
+                    while x < 4 {
+                        let x0 = x;
+                        while x < 4 && vals[x] <= 0.0 {
+                            x += 1;
+                        }
+                        if x > x0 {
+                            visit(&mut acc, voxel_of(coords[p], 4 * row + x0), (x - x0) as u32);
+                        }
+                        x += 1;
                     }
                 }
                 if p > 0 {
@@ -778,11 +787,16 @@ impl Representation for TilesRep {
         tile_flat(self.grid.values())
     }
 
-    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, out: &mut [f32]) {
+    fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, planar: bool, out: &mut [f32]) {
         let spec = self.spec();
         let coords = self.grid.tile_coords();
+        // A planar lattice's sweeps read the first z-slice's 4 rows only; the other rows
+        // are set to 0.
+        let rows = if planar { 4 } else { 16 };
         out.par_chunks_mut(64).zip(coords.par_iter()).for_each(|(o, &tc)| {
-            for (row, o) in o.chunks_mut(4).enumerate() {
+            let (sampled, unread) = o.split_at_mut(4 * rows);
+            unread.fill(0.0);
+            for (row, o) in sampled.chunks_mut(4).enumerate() {
                 let start = voxel_of(tc, 4 * row);
                 f.fill_run(&spec, start, t, o);
             }
