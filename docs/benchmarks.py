@@ -597,6 +597,7 @@ def segment2d_section(meta):
         "| image | side | method and start | seconds | Dice | scikit-image's time ÷ ours | ours: iterations, stop |",
         "|---|---|---|---|---|---|---|",
     ]
+    out[2] += f" Run 1: {runs[0]['note']} Run 2: {runs[1]['note']}"
     for r, b in zip(runs[0]["records"], runs[1]["records"]):
         ours = r["side"] == "ours"
         out.append(

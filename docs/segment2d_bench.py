@@ -49,7 +49,7 @@ from skimage import segmentation as seg
 import sparse_levelset as sl
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from python_bench import best_of  # noqa: E402  (the fastest of several calls)
+from python_bench import best_of, machine  # noqa: E402  (the fastest of several calls)
 
 
 def dice(a, b):
@@ -153,7 +153,7 @@ def main():
         theirs = [t["seconds"] for t in records if t["image"] == r["image"]
                   and t["side"] == "scikit-image" and kind in t["tool"]]
         r["speed"] = theirs[0] / r["seconds"] if r["side"] == "ours" else None
-    note = (f"Measured {datetime.datetime.now().isoformat(timespec='seconds')} with "
+    note = (f"Measured {datetime.datetime.now().isoformat(timespec='seconds')} on {machine()} with "
             f"`target/py-venv/bin/python docs/segment2d_bench.py --repeat {a.repeat}` "
             f"(fastest of {a.repeat}; sparse_levelset {sl.__version__}, scikit-image "
             f"{skimage.__version__}, NumPy {np.__version__}, Python "
