@@ -504,10 +504,9 @@ impl Simulation {
     /// ([`Settings::pool`]) on tiles, where the stored ones come as runs along each tile
     /// row: every part of the band folds its runs into its own `identity()` with `visit`,
     /// and `combine` joins the parts. Neither the parts, nor the runs and their order, nor
-    /// the grouping of `combine` is fixed (they follow the
-    /// thread count), so the result is deterministic when `combine` and `visit` commute
-    /// exactly: counts and integer sums, or [`crate::exact::ExactSum`]. Other
-    /// representations fold in one part.
+    /// the grouping of `combine` is fixed (they follow the thread count), so the result is
+    /// deterministic when `combine` and `visit` commute exactly: counts and integer sums,
+    /// or [`crate::exact::ExactSum`]. Other representations fold in one part.
     pub fn fold_inside_runs<T: Send>(
         &self,
         identity: impl Fn() -> T + Sync + Send,

@@ -273,9 +273,10 @@ impl TilesRep {
     }
 
     /// The inside runs of `for_each_inside_run` (the stored voxels with φ ≤ 0 as runs
-    /// along each tile row, then the unstored interior between tiles), this rank's tiles split over the current
-    /// thread pool: each part folds its runs into its own `identity()` with `visit`, and
-    /// `combine` joins the parts in an order and grouping that depend on the thread count.
+    /// along each tile row, then the unstored interior between tiles), this rank's tiles
+    /// split over the current thread pool: each part folds its runs into its own
+    /// `identity()` with `visit`, and `combine` joins the parts in an order and grouping
+    /// that depend on the thread count.
     pub(crate) fn fold_inside_runs<T: Send>(
         &self,
         identity: &(impl Fn() -> T + Sync),
