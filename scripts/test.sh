@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Every test of the workspace on a fresh machine: the Rust tests (`cargo test --workspace`),
 # then the Python package built from `python/` as an abi3 manylinux wheel (maturin, from
-# target/py-venv) and its pytest suite, run in a fresh virtual environment
-# (target/wheel-venv) with the reference libraries the tests compare against
-# (python/requirements-test.txt) and no Rust toolchain on PATH. The `.vdb` cross-checks run Debian's OpenVDB
-# (python3-openvdb for /usr/bin/python3, vdb_print from libopenvdb-tools), installed with
-# apt-get when missing, as are OpenMPI and libclang for the distributed runs' tests: the
-# Rust tests are built once, with the `mpi` feature of the library and the CLI (the tests
-# in cli/tests/distributed start `mpirun -n 2` and `-n 3`; without the feature that binary
-# holds no test, and the only other difference is the refusal of `mpirun` by a build
-# without it). Extra arguments go to `cargo test` (e.g. --no-default-features).
+# the virtual environment target/py-venv, which holds the reference libraries the tests
+# compare against: python/requirements-test.txt) and its pytest suite, run on that wheel
+# installed in the same environment with no Rust toolchain on PATH. The `.vdb`
+# cross-checks run Debian's OpenVDB (python3-openvdb for /usr/bin/python3, vdb_print from
+# libopenvdb-tools), installed with apt-get when missing, as are OpenMPI and libclang for
+# the distributed runs' tests: the Rust tests are built once, with the `mpi` feature of the
+# library and the CLI (the tests in cli/tests/distributed start `mpirun -n 2` and `-n 3`;
+# without the feature that binary holds no test, and the only other difference is the
+# refusal of `mpirun` by a build without it). Extra arguments go to `cargo test` (e.g.
+# --no-default-features).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -48,20 +49,17 @@ echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux),
 rm -rf target/wheels
 "$venv/bin/maturin" build --release --locked --manifest-path python/Cargo.toml --out target/wheels
 wheel=$(ls target/wheels/sparse_levelset-*-abi3-manylinux*.whl)
-# The wheel in a fresh virtual environment, with the test's libraries and nothing of Rust:
-# PATH holds the environment and the system's programs only (OpenVDB's tools, mpirun).
-wenv=target/wheel-venv
-rm -rf "$wenv"
-"${PYTHON:-python3}" -m venv "$wenv"
-"$wenv/bin/python" -m pip install -q --upgrade pip
-"$wenv/bin/python" -m pip install -q -r python/requirements-test.txt "$wheel"
-bare_path="$PWD/$wenv/bin:/usr/local/bin:/usr/bin:/bin"
+# The wheel replaces whatever the environment held of the package (the docs' scripts run
+# there too); `pip check` then verifies that what the wheel declares it needs is installed.
+"$venv/bin/python" -m pip install -q --force-reinstall --no-deps "$wheel"
+"$venv/bin/python" -m pip check
+# The tests see the environment and the system's programs only (OpenVDB's tools, mpirun):
+# nothing of Rust, so they show that the wheel needs none.
+bare_path="$PWD/$venv/bin:/usr/local/bin:/usr/bin:/bin"
 if PATH="$bare_path" command -v cargo >/dev/null || PATH="$bare_path" command -v rustc >/dev/null; then
   echo "cargo or rustc is on $bare_path: the wheel's test would not show that it needs no Rust" >&2
   exit 1
 fi
-# The development environment gets the same wheel (the docs' scripts run there).
-"$venv/bin/python" -m pip install -q --force-reinstall --no-deps "$wheel"
 # Run from python/tests so that the installed package, not the source folder, is imported.
 (cd python/tests && env -u CARGO_HOME -u RUSTUP_HOME PATH="$bare_path" \
-  "../../$wenv/bin/python" -m pytest -q -p no:cacheprovider .)
+  "../../$venv/bin/python" -m pytest -q -p no:cacheprovider .)

@@ -15,7 +15,7 @@ use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
 use crate::storage::convert::{map_tile_rows, tiles_from_dense};
 use crate::storage::dense::DenseField;
-use crate::storage::tiles::TileGrid;
+use crate::storage::tiles::{TileGrid, SLICE_LEN, TILE_DIM, TILE_LEN};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -102,13 +102,13 @@ impl Segmentation {
         }
         let gamma = tiles.spec().gamma();
         let [nx, ny, nz] = image.dims;
-        let layers = if planar { 4 } else { nz };
+        let layers = if planar { TILE_DIM as usize } else { nz };
         let old = self.simulation.to_dense(Coord::new(0, 0, 0), [nx, ny, layers])?;
         let old = old.data();
         // New voxels per axis: positions 0, h, 2h, … up to the last image voxel's centre.
         let n: [usize; 3] = std::array::from_fn(|a| {
             if a == 2 && planar {
-                4
+                TILE_DIM as usize
             } else {
                 ((image.dims[a] - 1) as f64 * s[a] / h + 1e-9).floor() as usize + 1
             }
@@ -406,9 +406,9 @@ fn segment_in_pool(
     };
     let stages = resolved.integrator.stages();
     let planar = lattice.planar;
-    // A 2-D image's level set is extruded over the four z-slices of one tile layer, and
-    // the sweeps compute the first and copy it: what is computed and reported is a quarter.
-    let layers = if planar { 4 } else { 1 };
+    // A 2-D image's level set is extruded over the z-slices of one tile layer, and the
+    // sweeps compute the first and copy it: what is computed and reported is one slice.
+    let layers = if planar { TILE_LEN / SLICE_LEN } else { 1 };
     let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)?;
 
     // Region sums on a fixed-point copy of Ĩ: exact integer sums, the same bits in any
@@ -1166,7 +1166,7 @@ fn change_since(
     planar: bool,
 ) -> (f64, usize, Vec<Near>) {
     let coords = grid.tile_coords();
-    let image_voxels = if planar { 16 } else { 64 };
+    let image_voxels = if planar { SLICE_LEN } else { TILE_LEN };
     let values = grid.values();
     let gamma = grid.gamma();
     let parts = coords.len().div_ceil(CHANGE_CHUNK).max(1);

@@ -17,7 +17,7 @@ use crate::grid::GridSpec;
 use crate::memory::grown_capacity;
 use crate::storage::tiles::{
     compute_activity, voxel_of, InPlaceTiles, NeighbourTable, PaddedBlock, Tile, TileGrid,
-    TileSource, ACTIVE_MASK,
+    TileSource, ACTIVE_MASK, SLICE_LEN, TILE_LEN,
 };
 use levelset_kernels::{BandMasked, Lane, LaneFn, TileBlock, VoxelKernel};
 use rayon::prelude::*;
@@ -791,11 +791,11 @@ impl Representation for TilesRep {
     fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, planar: bool, out: &mut [f32]) {
         let spec = self.spec();
         let coords = self.grid.tile_coords();
-        // A planar lattice's sweeps read the first z-slice's 4 rows only; the other rows
-        // are set to 0.
-        let rows = if planar { 4 } else { 16 };
-        out.par_chunks_mut(64).zip(coords.par_iter()).for_each(|(o, &tc)| {
-            let (sampled, unread) = o.split_at_mut(4 * rows);
+        // A planar lattice's sweeps read the first z-slice only; the other slices are set
+        // to 0.
+        let sampled = if planar { SLICE_LEN } else { TILE_LEN };
+        out.par_chunks_mut(TILE_LEN).zip(coords.par_iter()).for_each(|(o, &tc)| {
+            let (sampled, unread) = o.split_at_mut(sampled);
             unread.fill(0.0);
             for (row, o) in sampled.chunks_mut(4).enumerate() {
                 let start = voxel_of(tc, 4 * row);

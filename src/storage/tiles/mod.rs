@@ -35,6 +35,10 @@ use crate::storage::levelset::{Accessor, LevelSet};
 pub const TILE_DIM: i32 = 4;
 /// Voxels in a tile.
 pub const TILE_LEN: usize = 64;
+/// Voxels in one z-slice of a tile: what a planar lattice's tile holds (a 2-D level set is
+/// extruded over a tile layer's `TILE_DIM` slices; the sweeps compute the first slice
+/// and copy it into the others).
+pub const SLICE_LEN: usize = TILE_LEN / TILE_DIM as usize;
 /// Smallest tile coordinate whose voxels fit in i32.
 pub const TILE_MIN: i32 = i32::MIN >> 2;
 /// Largest tile coordinate whose voxels fit in i32.
