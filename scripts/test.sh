@@ -60,6 +60,7 @@ if PATH="$bare_path" command -v cargo >/dev/null || PATH="$bare_path" command -v
   echo "cargo or rustc is on $bare_path: the wheel's test would not show that it needs no Rust" >&2
   exit 1
 fi
+echo "== [${SECONDS}s] pytest on the wheel"
 # Run from python/tests so that the installed package, not the source folder, is imported.
 (cd python/tests && env -u CARGO_HOME -u RUSTUP_HOME PATH="$bare_path" \
   "../../$venv/bin/python" -m pytest -q -p no:cacheprovider .)
