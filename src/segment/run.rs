@@ -408,7 +408,7 @@ fn segment_in_pool(
     let planar = lattice.planar;
     // A 2-D image's level set is extruded over the z-slices of one tile layer, and the
     // sweeps compute the first and copy it: what is computed and reported is one slice.
-    let layers = if planar { TILE_LEN / SLICE_LEN } else { 1 };
+    let layers = if planar { TILE_DIM as usize } else { 1 };
     let mut sim = Simulation::from_tile_grid(GridKind::Tiles(Lanes::Simd), tiles, flow, settings)?;
 
     // Region sums on a fixed-point copy of Ĩ: exact integer sums, the same bits in any
