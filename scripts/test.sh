@@ -2,14 +2,15 @@
 # Every test of the workspace on a fresh machine: the Rust tests (`cargo test --workspace`),
 # then the Python package built from `python/` as an abi3 manylinux wheel (maturin, from
 # the virtual environment target/py-venv, which holds the reference libraries the tests
-# compare against: python/requirements-test.txt) and its pytest suite, run on that wheel
+# compare against: python/requirements-test.txt), built in the same `suite` profile as the
+# Rust tests so that it reuses their compiled library, and its pytest suite, run on that wheel
 # installed in the same environment with no Rust toolchain on PATH. The `.vdb`
 # cross-checks run Debian's OpenVDB (python3-openvdb for /usr/bin/python3, vdb_print from
 # libopenvdb-tools), installed with apt-get when missing, as are OpenMPI and libclang for
-# the distributed runs' tests: the Rust tests are built once, with the `mpi` feature of the
-# library and the CLI (the tests in cli/tests/distributed start `mpirun -n 2` and `-n 3`;
-# without the feature that binary holds no test, and the only other difference is the
-# refusal of `mpirun` by a build without it). Extra arguments go to `cargo test` (e.g.
+# the distributed runs' tests: the Rust tests are built once, with the CLI's `mpi` feature
+# (the crate sparse-levelset-mpi; the tests in cli/tests/distributed start `mpirun -n 2` and
+# `-n 3`; without the feature that binary holds no test, and the only other difference is
+# the refusal of `mpirun` by a build without it). Extra arguments go to `cargo test` (e.g.
 # --no-default-features).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,18 +37,33 @@ if [ ! -x "$venv/bin/python" ]; then
   echo "== [${SECONDS}s] creating $venv"
   "${PYTHON:-python3}" -m venv "$venv"
 fi
-"$venv/bin/python" -m pip install -q --upgrade pip
-"$venv/bin/python" -m pip install -q -r python/requirements-test.txt
+# The Python libraries download and install while the Rust tests compile.
+echo "== [${SECONDS}s] installing the Python test requirements (in the background: target/py-venv-install.log)"
+("$venv/bin/python" -m pip install -q --upgrade pip &&
+  "$venv/bin/python" -m pip install -q -r python/requirements-test.txt) \
+  >target/py-venv-install.log 2>&1 &
+pip_pid=$!
+trap 'kill "$pip_pid" 2>/dev/null || true' EXIT
 
 echo "== [${SECONDS}s] Rust tests, with MPI (distributed runs under mpirun on 2 and 3 ranks)"
-# The Python crate holds no Rust test (its tests are the pytest suite below, on the wheel):
-# left out here, it is not compiled a second time, in the test profile, for nothing.
-cargo test --workspace --exclude sparse-levelset-python --locked \
-  --features sparse-levelset/mpi,levelset-cli/mpi "$@"
+# The `suite` profile (the test profile's settings) is the wheel's too: the wheel's build
+# below reuses the library and the dependencies this build compiled. The Python crate holds
+# no Rust test; selected here, it makes the features resolve as for the wheel's build.
+cargo test --profile suite --workspace --locked --features levelset-cli/mpi "$@"
+
+if ! wait "$pip_pid"; then
+  cat target/py-venv-install.log >&2
+  echo "installing python/requirements-test.txt into $venv failed" >&2
+  exit 1
+fi
 
 echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux), tested where no Rust is"
 rm -rf target/wheels
-"$venv/bin/maturin" build --release --locked --manifest-path python/Cargo.toml --out target/wheels
+# Its build's output is kept (target/wheels/build.log): CI checks from it that the library
+# was not compiled a second time.
+mkdir -p target/wheels
+"$venv/bin/maturin" build --profile suite --locked --manifest-path python/Cargo.toml \
+  --out target/wheels 2>&1 | tee target/wheels/build.log
 wheel=$(ls target/wheels/sparse_levelset-*-abi3-manylinux*.whl)
 # The wheel replaces whatever the environment held of the package (the docs' scripts run
 # there too); `pip check` then verifies that what the wheel declares it needs is installed.

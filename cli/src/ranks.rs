@@ -22,7 +22,7 @@ pub fn transport() -> Result<Option<Arc<dyn Transport>>, String> {
     #[cfg(feature = "mpi")]
     {
         let _ = n;
-        let mpi = sparse_levelset::distributed::Mpi::init()?;
+        let mpi = sparse_levelset_mpi::Mpi::init()?;
         Ok(Some(Arc::new(mpi)))
     }
     #[cfg(not(feature = "mpi"))]

@@ -2,8 +2,8 @@
 //!
 //! A distributed [`Simulation`](crate::evolve::Simulation) (built by
 //! [`Simulation::distributed`](crate::evolve::Simulation::distributed)) runs one part of
-//! the band on every rank of a [`Transport`] — MPI processes (`Mpi`, cargo feature
-//! `mpi`) or threads of one process ([`LocalRanks`], for tests and experiments). The
+//! the band on every rank of a [`Transport`] — MPI processes (`Mpi` of the crate
+//! `sparse-levelset-mpi`) or threads of one process ([`LocalRanks`], for tests and experiments). The
 //! result is the single-process result bit for bit, for any number of ranks and threads.
 //!
 //! # Decomposition
@@ -45,7 +45,7 @@
 //!
 //! # Example
 //! Two ranks as threads of this process; with MPI, every process of `mpirun` makes its
-//! transport with `Arc::new(Mpi::init()?)` (feature `mpi`) and runs the closure's body.
+//! transport with `Arc::new(sparse_levelset_mpi::Mpi::init()?)` and runs the closure's body.
 //! ```
 //! use sparse_levelset::storage::convert::tiles_from_shape;
 //! use sparse_levelset::distributed::LocalRanks;
@@ -85,11 +85,6 @@
 //! rank (a later stage's non-finite speed, growth past the coordinate range or the memory
 //! budget in tile management) cannot be undone on the other ranks, which are waiting in
 //! the step's exchanges: the job is aborted ([`Transport::abort`]) with the message.
-
-#[cfg(feature = "mpi")]
-mod mpi;
-#[cfg(feature = "mpi")]
-pub use self::mpi::Mpi;
 
 /// Ghost slabs of tiles on either side of a rank's slabs: one tile (4 voxels) covers the
 /// widest stencil (HJ-WENO5's 3 voxels).

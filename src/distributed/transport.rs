@@ -10,7 +10,7 @@ use std::time::Instant;
 /// How ranks talk: the few collective operations the decomposition needs. Every rank
 /// calls them in the same order.
 ///
-/// Implementations: `Mpi` (feature `mpi`), [`LocalRanks`] (threads of one process) and
+/// Implementations: `Mpi` (crate `sparse-levelset-mpi`), [`LocalRanks`] (threads of one process) and
 /// [`SingleRank`].
 pub trait Transport: Send + Sync {
     /// This rank, `0..size()`.

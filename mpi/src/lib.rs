@@ -1,12 +1,27 @@
-//! [`Transport`] over MPI (the `mpi` crate, rsmpi, on the system's MPI library; cargo
-//! feature `mpi`).
+//! [`Transport`] over MPI (the `mpi` crate, rsmpi, on the system's MPI library), for the
+//! distributed simulations of sparse-levelset
+//! ([`Simulation::distributed`](sparse_levelset::evolve::Simulation::distributed); the
+//! decomposition is described in [`sparse_levelset::distributed`]).
+//!
+//! Every process `mpirun` starts makes one transport and runs the same calls:
+//! ```no_run
+//! use sparse_levelset::distributed::Transport;
+//! use sparse_levelset_mpi::Mpi;
+//! use std::sync::Arc;
+//!
+//! let transport: Arc<dyn Transport> = Arc::new(Mpi::init()?);
+//! println!("rank {} of {}", transport.rank(), transport.size());
+//! # Ok::<(), String>(())
+//! ```
+//! The library does not depend on MPI: this crate is its one MPI transport, kept apart so
+//! that the library builds without an MPI library.
 
-use super::Transport;
 use mpi::datatype::{Partition, PartitionMut};
 use mpi::environment::Universe;
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Threading;
+use sparse_levelset::distributed::Transport;
 use std::sync::Mutex;
 
 /// The ranks of `MPI_COMM_WORLD`. MPI is initialised with `MPI_THREAD_SERIALIZED`: a
