@@ -10,7 +10,7 @@ use crate::curvature::{curvature_speed, curvature_speed_aniso};
 use crate::diff::{diff_minus, diff_plus, upwind_norms, Axis, X, Y, Z};
 use crate::error::KernelError;
 use crate::lane::Lane;
-use crate::rk::{clamp_band, euler, rk3_combine};
+use crate::rk::{clamp_band, euler, rk3_blend, rk3_combine, rk3_weights};
 use crate::speed::{advection_rate, eq3_speed, smoothed_sign};
 use crate::weno::weno5_one_sided;
 use crate::window::Window;
@@ -430,6 +430,57 @@ impl<K: VoxelKernel, const STAGE: u8> VoxelKernel for Rk3<'_, K, STAGE> {
         let rate = self.rate.eval(w, first);
         let phi_n = if STAGE > 1 { self.phi_n.lanes::<L>(first) } else { w.centre() };
         let next = rk3_combine::<L, STAGE>(phi_n, w.centre(), L::splat(self.dt), rate);
+        clamp_band(next, L::splat(self.gamma))
+    }
+}
+
+/// TVD-RK3 stage 2 or 3 with the stage chosen at run time: the arithmetic and bits of
+/// [`Rk3`] at that stage ([`rk3_blend`] with the stage's [`rk3_weights`]), one type for both
+/// stages, so that an engine compiles one kernel where [`Rk3`] needs two. The fields are those
+/// of [`Rk3`] and the stage's weights; `phi_n` holds φⁿ per voxel and is always read.
+#[derive(Clone, Copy, Debug)]
+pub struct Rk3Blend<'a, K> {
+    pub rate: K,
+    pub dt: f32,
+    pub gamma: f32,
+    pub phi_n: &'a [f32],
+    pub weights: Rk3Weights,
+}
+
+/// The weights of TVD-RK3 stage 2 or 3 ([`rk3_weights`]), for [`Rk3Blend`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rk3Weights {
+    a: f32,
+    b: f32,
+}
+
+impl Rk3Weights {
+    /// The weights of stage `stage` when it is 2 or 3 (`None` otherwise: stage 1 is not a
+    /// blend).
+    pub const fn of_stage(stage: u8) -> Option<Rk3Weights> {
+        match (stage, rk3_weights(stage)) {
+            (2 | 3, Some((a, b))) => Some(Rk3Weights { a, b }),
+            _ => None,
+        }
+    }
+}
+
+impl<K: VoxelKernel> VoxelKernel for Rk3Blend<'_, K> {
+    const AXIS_REACH: i32 = K::AXIS_REACH;
+    const BOX_REACH: i32 = K::BOX_REACH;
+
+    fn check(&self, voxels: usize) -> Result<(), KernelError> {
+        self.rate.check(voxels)?;
+        self.phi_n.check(voxels)
+    }
+
+    #[inline(always)]
+    fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
+        let rate = self.rate.eval(w, first);
+        let euler = L::splat(self.dt).mul_add(rate, w.centre());
+        let phi_n = self.phi_n.lanes::<L>(first);
+        let Rk3Weights { a, b } = self.weights;
+        let next = rk3_blend(phi_n, euler, L::splat(a), L::splat(b));
         clamp_band(next, L::splat(self.gamma))
     }
 }

@@ -108,8 +108,8 @@
 //! * **HJ-WENO5 ε** = 10⁻⁶ max vₖ² (scale invariant); weights are formed with one
 //!   reciprocal and one division per derivative instead of four divisions.
 //! * **Smoothed sign** φ/√(φ² + h²) in the rescaling term (van der Laan et al. 2011, Sec. 3.2).
-//! * **Band clamp** to [−γ, γ] is part of the time-step kernels ([`Euler`], [`Rk3`]), so
-//!   both grids clamp identically.
+//! * **Band clamp** to [−γ, γ] is part of the time-step kernels ([`Euler`], [`Rk3`],
+//!   [`Rk3Blend`]), so both grids clamp identically.
 //! * **A scalar baseline that is scalar.** The `f32` sweeps hide each voxel's index from
 //!   LLVM's loop vectoriser (see [`block`]), so `f32` measures one-voxel-at-a-time
 //!   arithmetic, as a point-by-point grid runs it, not auto-vectorised code.
@@ -134,8 +134,8 @@ pub use block::{DenseBlock, TileBlock};
 pub use diff::{Axis, X, Y, Z};
 pub use error::KernelError;
 pub use kernel::{
-    AdvectionRate, BandMasked, BoxMinAbs, Eq3Rate, Euler, ImageRate, Rk3, ScalarField,
-    ScaledVelocity, Scheme, Sum, Upwind1, VectorField, VoxelKernel, Weno5,
+    AdvectionRate, BandMasked, BoxMinAbs, Eq3Rate, Euler, ImageRate, Rk3, Rk3Blend, Rk3Weights,
+    ScalarField, ScaledVelocity, Scheme, Sum, Upwind1, VectorField, VoxelKernel, Weno5,
 };
 pub use lane::{Lane, LaneKind, FUSED_MUL_ADD};
 pub use level::{check_env, dispatch, dispatch_at, dispatch_default, dispatch_one, LaneFn, Level};

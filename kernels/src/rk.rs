@@ -10,30 +10,50 @@
 //! φⁿ⁺¹ = ⅓ φⁿ + ⅔ (φ⁽²⁾ + Δt 𝓛(φ⁽²⁾))                    stage 3
 //! ```
 //!
-//! A stage is a const generic (`STAGE` in 1..=3), decided once per sweep.
+//! A stage is a const generic (`STAGE` in 1..=3, [`crate::Rk3`]) decided once per sweep, or,
+//! for stages 2 and 3, a pair of weights decided once per sweep ([`crate::Rk3Blend`]: one
+//! compiled kernel for both, the same bits).
 
 use crate::lane::Lane;
 
+/// The weights `(a, b)` of TVD-RK3 stage `stage` (Shu & Osher 1988):
+/// `φ = a φⁿ + b (φᵏ + Δt 𝓛(φᵏ))`, `(0, 1)`, `(¾, ¼)`, `(⅓, ⅔)` for stages 1, 2, 3 (each the
+/// nearest `f32`); `None` for any other stage.
+pub const fn rk3_weights(stage: u8) -> Option<(f32, f32)> {
+    match stage {
+        1 => Some((0.0, 1.0)),
+        2 => Some((0.75, 0.25)),
+        3 => Some((1.0 / 3.0, 2.0 / 3.0)),
+        _ => None,
+    }
+}
+
 /// The TVD-RK3 stage combination (Shu & Osher 1988) for one lane group:
-/// `a φⁿ + b (φᵏ + Δt 𝓛(φᵏ))` with `(a, b)` = `(0, 1)`, `(¾, ¼)`, `(⅓, ⅔)` for stages
-/// 1, 2, 3. `phi_n` is ignored in stage 1 (that stage is the Euler step of Sec. 4.7).
-/// `STAGE` outside 1..=3 does not compile.
+/// `a φⁿ + b (φᵏ + Δt 𝓛(φᵏ))` with `(a, b)` from [`rk3_weights`]. `phi_n` is ignored in
+/// stage 1 (that stage is the Euler step of Sec. 4.7). `STAGE` outside 1..=3 does not
+/// compile.
 #[inline(always)]
 pub fn rk3_combine<L: Lane, const STAGE: u8>(phi_n: L, phi_k: L, dt: L, rate: L) -> L {
     let euler = dt.mul_add(rate, phi_k);
     let (a, b) = const {
-        match STAGE {
-            1 => (0.0f32, 1.0f32),
-            2 => (0.75, 0.25),
-            3 => (1.0 / 3.0, 2.0 / 3.0),
-            _ => panic!("TVD-RK3 has stages 1, 2, 3"),
+        match rk3_weights(STAGE) {
+            Some(w) => w,
+            None => panic!("TVD-RK3 has stages 1, 2, 3"),
         }
     };
     if STAGE == 1 {
         euler
     } else {
-        L::splat(b).mul_add(euler, L::splat(a) * phi_n)
+        rk3_blend(phi_n, euler, L::splat(a), L::splat(b))
     }
+}
+
+/// `a φⁿ + b e` with `e` the Euler step `φᵏ + Δt 𝓛(φᵏ)`, in the order of operations every
+/// later TVD-RK3 stage uses ([`rk3_combine`] at stages 2 and 3, [`crate::Rk3Blend`]):
+/// `b · e + (a · φⁿ)`, fused.
+#[inline(always)]
+pub fn rk3_blend<L: Lane>(phi_n: L, euler: L, a: L, b: L) -> L {
+    b.mul_add(euler, a * phi_n)
 }
 
 /// Forward Euler `φ + Δt 𝓛` (van der Laan et al. 2011, Sec. 4.7: φⁿ⁺¹ = φⁿ + Δt S). Same

@@ -1,6 +1,6 @@
 //! The dispatch: the run-time choices of a stage — spatial scheme, F uniform or per
 //! voxel, advection on or off, Runge–Kutta stage — become one kernel type, decided once
-//! per stage and outside every loop (STYLE: "decide once"; the way OpenVDB's
+//! per stage and outside every loop (the way OpenVDB's
 //! `LevelSetTracker` nests `normalize1<S>` → `normalize2<S, T>`). Three plain generic
 //! functions, one per choice:
 //!
@@ -8,8 +8,9 @@
 //!    reach 3);
 //! 2. `inputs::<S, R>`: the rate from the stage's inputs — eq. (3) with a uniform or a
 //!    per-voxel F, alone or plus advection (`Sum<Eq3Rate, AdvectionRate>`);
-//! 3. `stage::<R>`: the TVD-RK3 stage around the rate (`Rk3<_, 1 | 2 | 3>`; forward
-//!    Euler is stage 1 alone),
+//! 3. `stage::<R>`: the TVD-RK3 stage around the rate (`Rk3<_, 1>`; `Rk3Blend` for stages
+//!    2 and 3, one kernel with the stage's weights as values; forward Euler is stage 1
+//!    alone),
 //!
 //! and the result goes to the representation's [`Sweep`], which runs it over its voxels
 //! (the tile sweep then picks the lane type, the DT-Grid sweep its point window).
@@ -17,8 +18,8 @@
 use super::{EvolveError, Lattice, SpatialScheme};
 use levelset_kernels::{
     AdvectionRate, AnchoredRenormRate, BoxFarWindow, BoxWindow, Eq3Rate, Euler, ImageRate,
-    InterfaceAnchor, Lane, RenormRate, Rk3, ScalarField, ScaledVelocity, Scheme, Sum, Upwind1,
-    VoxelKernel, Weno5,
+    InterfaceAnchor, Lane, RenormRate, Rk3, Rk3Blend, Rk3Weights, ScalarField, ScaledVelocity,
+    Scheme, Sum, Upwind1, VoxelKernel, Weno5,
 };
 use std::ops::Range;
 
@@ -244,18 +245,20 @@ where
             gamma,
             phi_n: phi_n(r),
         }),
-        2 => sweep.run::<_, _, R>(move |r: Range<usize>| Rk3::<K, 2> {
-            rate: rate(r.clone()),
-            dt,
-            gamma,
-            phi_n: phi_n(r),
-        }),
-        _ => sweep.run::<_, _, R>(move |r: Range<usize>| Rk3::<K, 3> {
-            rate: rate(r.clone()),
-            dt,
-            gamma,
-            phi_n: phi_n(r),
-        }),
+        // Stages 2 and 3 are one kernel with the stage's weights as values (the bits of
+        // `Rk3<K, 2 | 3>`): each kernel of the step is compiled once for them, not twice.
+        stage => {
+            let Some(weights) = Rk3Weights::of_stage(stage) else {
+                unreachable!("TVD-RK3 has stages 1, 2 and 3, not {stage}")
+            };
+            sweep.run::<_, _, R>(move |r: Range<usize>| Rk3Blend {
+                rate: rate(r.clone()),
+                dt,
+                gamma,
+                phi_n: phi_n(r),
+                weights,
+            })
+        }
     }
 }
 

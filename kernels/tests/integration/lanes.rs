@@ -21,7 +21,8 @@ use levelset_kernels::weno::weno5_one_sided;
 use levelset_kernels::{
     box27_index, box_far39_index, dispatch_at, star19_index, AdvectionRate, Axis, BoxFarWindow,
     BoxStarWindow, BoxWindow, DenseBlock, Eq3Rate, Euler, Lane, LaneFn, LaneKind, Level, Rk3,
-    Scheme, StarWindow, TileBlock, Upwind1, VoxelKernel, Weno5, Window, X, Y, Z,
+    Rk3Blend, Rk3Weights, Scheme, StarWindow, TileBlock, Upwind1, VoxelKernel, Weno5, Window, X, Y,
+    Z,
 };
 use std::marker::PhantomData;
 
@@ -426,6 +427,39 @@ fn tiles_every_lane_matches_scalar_dense_and_point_windows() {
             let _ = round;
             all_kernels!(&TileCheck { tile: &tile }, &speed, [&u, &v, &w], &phi_n);
         }
+    }
+}
+
+/// TVD-RK3 stages 2 and 3 with the stage a run-time value ([`Rk3Blend`]) give the bits of
+/// the stage as a type ([`Rk3`]), with every lane type; stage 1 and stages past 3 are not
+/// blends.
+#[test]
+fn rk3_blend_matches_the_stages_bit_for_bit() {
+    let mut rng = Rng(303);
+    for dims in [[19, 5, 3], [7, 3, 4]] {
+        for fill in FILLS {
+            let data = fill_dense(fill, &mut rng, dims);
+            let block = DenseBlock::<3>::new(&data, dims).unwrap();
+            let n = block.voxels();
+            let (speed, phi_n) = (field(fill, &mut rng, n), field(fill, &mut rng, n));
+            let rate = Eq3Rate::<Weno5, &[f32]>::new(H, &speed, 0.25, 1.0);
+            let (dt, gamma) = (0.07, GAMMA);
+            let typed2 =
+                dense_all_lanes("rk3 2", &Rk3::<_, 2> { rate, dt, gamma, phi_n: &phi_n }, &block);
+            let typed3 =
+                dense_all_lanes("rk3 3", &Rk3::<_, 3> { rate, dt, gamma, phi_n: &phi_n }, &block);
+            for (stage, typed) in [(2, typed2), (3, typed3)] {
+                let weights = Rk3Weights::of_stage(stage).unwrap();
+                let blend = Rk3Blend { rate, dt, gamma, phi_n: &phi_n, weights };
+                let got = dense_all_lanes("rk3 blend", &blend, &block);
+                for (i, (&a, &b)) in got.iter().zip(&typed).enumerate() {
+                    assert!(same_bits(a, b), "stage {stage} {fill:?} voxel {i}: {a:e} vs {b:e}");
+                }
+            }
+        }
+    }
+    for stage in [0, 1, 4] {
+        assert_eq!(Rk3Weights::of_stage(stage), None, "stage {stage}");
     }
 }
 
