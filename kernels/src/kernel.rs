@@ -477,10 +477,10 @@ impl<K: VoxelKernel> VoxelKernel for Rk3Blend<'_, K> {
     #[inline(always)]
     fn eval<L: Lane, W: Window<L>>(&self, w: &W, first: usize) -> L {
         let rate = self.rate.eval(w, first);
-        let euler = L::splat(self.dt).mul_add(rate, w.centre());
+        let step = euler(w.centre(), L::splat(self.dt), rate);
         let phi_n = self.phi_n.lanes::<L>(first);
         let Rk3Weights { a, b } = self.weights;
-        let next = rk3_blend(phi_n, euler, L::splat(a), L::splat(b));
+        let next = rk3_blend(phi_n, step, L::splat(a), L::splat(b));
         clamp_band(next, L::splat(self.gamma))
     }
 }
