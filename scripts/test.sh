@@ -5,9 +5,9 @@
 # compare against: python/requirements-test.txt), built in the same `suite` profile as the
 # Rust tests so that it reuses their compiled library, and its pytest suite, run on that wheel
 # installed in the same environment with no Rust toolchain on PATH. The `.vdb`
-# cross-checks run Debian's OpenVDB (python3-openvdb for /usr/bin/python3, vdb_print from
-# libopenvdb-tools), installed with apt-get when missing, as are OpenMPI and libclang for
-# the distributed runs' tests: the Rust tests are built once, with the CLI's `mpi` feature
+# cross-checks run Debian's OpenVDB, installed with apt-get when missing
+# (scripts/system-deps.sh), as are OpenMPI and libclang for the distributed runs' tests:
+# the Rust tests are built once, with the CLI's `mpi` feature
 # (the crate sparse-levelset-mpi; the tests in cli/tests/distributed start `mpirun -n 2` and
 # `-n 3`; without the feature that binary holds no test, and the only other difference is
 # the refusal of `mpirun` by a build without it). Extra arguments go to `cargo test` (e.g.
@@ -15,22 +15,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! { /usr/bin/python3 -c "import pyopenvdb" && command -v vdb_print; } >/dev/null 2>&1; then
-  echo "== [${SECONDS}s] installing Debian's OpenVDB (python3-openvdb, libopenvdb-tools)"
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-openvdb libopenvdb-tools >/dev/null
-fi
-
-if ! { command -v mpirun && dpkg -s libopenmpi-dev libclang-dev; } >/dev/null 2>&1; then
-  echo "== [${SECONDS}s] installing OpenMPI and libclang (libopenmpi-dev, openmpi-bin, libclang-dev)"
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libopenmpi-dev openmpi-bin \
-    libclang-dev >/dev/null
-fi
+bash scripts/system-deps.sh
 
 venv=target/py-venv
 if [ ! -x "$venv/bin/python" ]; then
