@@ -192,7 +192,10 @@ fn collapse_settings() -> [(Settings, f64); 3] {
 /// collapse reported at the same step.
 #[test]
 fn collapse_agrees_with_the_dt_grid() {
-    let shape = Shape::Sphere { center: [0.25, -0.5, 0.125], radius: 8.0 };
+    let r0 = 8.0;
+    let shape = Shape::Sphere { center: [0.25, -0.5, 0.125], radius: r0 };
+    // Half the collapse time r₀²/(2ε), ε = 1.
+    let half_t = r0 * r0 / 4.0;
     for (settings, _) in collapse_settings() {
         let mut sims = [GridKind::Tiles(Lanes::Simd), GridKind::DtGrid].map(|kind| {
             let flow = Flow::mean_curvature(1.0);
@@ -207,7 +210,7 @@ fn collapse_agrees_with_the_dt_grid() {
                 (Err(EvolveError::Collapsed { .. }), Err(EvolveError::Collapsed { .. })) => break,
                 (x, y) => panic!("step {}: tiles {x:?}, DT-Grid {y:?}", a.steps()),
             }
-            if halfway && a.time() >= 16.0 {
+            if halfway && a.time() >= half_t {
                 halfway = false;
                 let bits = |s: &Simulation| -> Vec<(Coord, u32)> {
                     band(s).into_iter().map(|(c, v)| (c, v.to_bits())).collect()
