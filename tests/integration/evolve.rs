@@ -95,7 +95,7 @@ fn mean_curvature_flow_agrees_everywhere() {
 fn volume_conserving_flow_agrees_everywhere() {
     let shape = Shape::Box { center: [-0.3, 0.7, 1.1], half_extents: [11.0, 7.0, 5.0] };
     for settings in configs() {
-        all_agree(&shape, GridSpec::default(), Flow::volume_conserving(1.0), settings.clone(), 100);
+        all_agree(&shape, GridSpec::default(), Flow::volume_conserving(1.0), settings.clone(), 50);
     }
 }
 
@@ -137,7 +137,7 @@ fn morph_agrees_everywhere() {
     let t: Arc<dyn sparse_levelset::evolve::ScalarFn> =
         Arc::new(StaticSdf { sdf: move |p| target.sdf(p), clamp: spec.gamma() });
     for settings in configs() {
-        all_agree(&shape, spec, Flow::morph(t.clone()), settings.clone(), 100);
+        all_agree(&shape, spec, Flow::morph(t.clone()), settings.clone(), 50);
     }
 }
 
