@@ -132,14 +132,13 @@ pub fn check(bytes: f64, what: &str) -> Result<(), GridError> {
     // A poisoned lock only means another thread panicked while holding it: the reading
     // is plain data, and a stale one is read again below.
     let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(r) = last.as_mut() {
-        if valid
-            && r.at.elapsed() < READING_LIFE
-            && r.admitted + bytes <= READING_SHARE * r.limit as f64
-        {
-            r.admitted += bytes;
-            return Ok(());
-        }
+    if let Some(r) = last.as_mut()
+        && valid
+        && r.at.elapsed() < READING_LIFE
+        && r.admitted + bytes <= READING_SHARE * r.limit as f64
+    {
+        r.admitted += bytes;
+        return Ok(());
     }
     let limit = limit();
     if valid && bytes <= limit as f64 {

@@ -93,12 +93,12 @@ impl Inputs {
         if flow.curvature_field.is_some() {
             b += growth_bytes(&self.curvature, n);
         }
-        if let Some(Velocity::Field(f)) = &flow.velocity {
-            if f.time_scale(0.0).is_some() {
-                // The previous samples and their keys (a tile's coordinate per 64 voxels).
-                b += self.spare.iter().map(|c| growth_bytes(c, n)).sum::<u64>()
-                    + growth_bytes(&self.static_keys, n / 64);
-            }
+        if let Some(Velocity::Field(f)) = &flow.velocity
+            && f.time_scale(0.0).is_some()
+        {
+            // The previous samples and their keys (a tile's coordinate per 64 voxels).
+            b += self.spare.iter().map(|c| growth_bytes(c, n)).sum::<u64>()
+                + growth_bytes(&self.static_keys, n / 64);
         }
         b
     }
@@ -249,15 +249,15 @@ impl Inputs {
         let written = |w: bool| if w { Written::Arrays } else { Written::Nothing };
         // u(x, t) = s(t) u(x, 0): u(x, 0) sampled once per step (where the layout changed),
         // the kernels multiply by s.
-        if let Velocity::Field(f) = vel {
-            if let Some(scale) = f.time_scale(t) {
-                self.velocity_scale = scale;
-                return if first {
-                    self.fill_static(rep, f.as_ref(), pool, n)
-                } else {
-                    Written::Nothing
-                };
-            }
+        if let Velocity::Field(f) = vel
+            && let Some(scale) = f.time_scale(t)
+        {
+            self.velocity_scale = scale;
+            return if first {
+                self.fill_static(rep, f.as_ref(), pool, n)
+            } else {
+                Written::Nothing
+            };
         }
         self.static_keys.clear();
         for c in &mut self.velocity {

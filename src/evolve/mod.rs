@@ -276,19 +276,17 @@ impl Flow {
         if !(self.curvature.is_finite() && self.curvature >= 0.0) {
             return bad("curvature weight ε", self.curvature);
         }
-        if let Speed::Constant(f) = self.speed {
-            if !f.is_finite() {
-                return Err(EvolveError::InvalidParameter(format!(
-                    "speed F must be finite, got {f}"
-                )));
-            }
+        if let Speed::Constant(f) = self.speed
+            && !f.is_finite()
+        {
+            return Err(EvolveError::InvalidParameter(format!("speed F must be finite, got {f}")));
         }
-        if let Some(Velocity::Constant(u)) = self.velocity {
-            if u.iter().any(|c| !c.is_finite()) {
-                return Err(EvolveError::InvalidParameter(format!(
-                    "velocity must be finite, got {u:?}"
-                )));
-            }
+        if let Some(Velocity::Constant(u)) = self.velocity
+            && u.iter().any(|c| !c.is_finite())
+        {
+            return Err(EvolveError::InvalidParameter(format!(
+                "velocity must be finite, got {u:?}"
+            )));
         }
         Ok(())
     }

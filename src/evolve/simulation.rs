@@ -805,13 +805,14 @@ impl Simulation {
         in_pool(&self.settings.pool, || rep.finish_step(&budget))?;
         let collapsed = self.detect_collapse();
         let step = self.steps + 1;
-        if let Some(r) = self.settings.reinit {
-            if !collapsed && step.is_multiple_of(r.every) {
-                let rep = self
-                    .reinitialized(r.order)
-                    .map_err(|e| EvolveError::ReinitFailed { step, reason: e.to_string() })?;
-                self.rep = rep;
-            }
+        if let Some(r) = self.settings.reinit
+            && !collapsed
+            && step.is_multiple_of(r.every)
+        {
+            let rep = self
+                .reinitialized(r.order)
+                .map_err(|e| EvolveError::ReinitFailed { step, reason: e.to_string() })?;
+            self.rep = rep;
         }
         Ok(collapsed)
     }

@@ -236,10 +236,10 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
     finite_pos("advection", params.advection.map(f64::from))?;
     finite_pos("RMS tolerance", Some(params.rms))?;
     finite_pos("volume-change tolerance", Some(params.volume_change))?;
-    if let Some(k) = params.edge_scale {
-        if !(k.is_finite() && k > 0.0) {
-            return invalid(format!("edge scale K must be finite and > 0, got {k}"));
-        }
+    if let Some(k) = params.edge_scale
+        && !(k.is_finite() && k > 0.0)
+    {
+        return invalid(format!("edge scale K must be finite and > 0, got {k}"));
     }
     if params.window == 0 {
         return invalid("the volume window must be at least 1 step".into());
@@ -441,10 +441,11 @@ fn segment_in_pool(
             // The outside's competitor is the intensity beyond the seeds' first edge when
             // that lies on the outside mean's side and clearly nearer (a neighbouring
             // tissue, not the same background measured along a few rays).
-            if let Some(far) = gate.map(|g| g.far as f64) {
-                if (far - c1) * (c2 - c1) > 0.0 && (far - c1).abs() < NEIGHBOUR * (c2 - c1).abs() {
-                    c2 = far;
-                }
+            if let Some(far) = gate.map(|g| g.far as f64)
+                && (far - c1) * (c2 - c1) > 0.0
+                && (far - c1).abs() < NEIGHBOUR * (c2 - c1).abs()
+            {
+                c2 = far;
             }
             force.set_means(c1, c2);
             means = Some([norm.back(c1), norm.back(c2)]);
@@ -1040,7 +1041,7 @@ fn inside_quantile(values: &Image, initial: &DenseField, q: f64) -> Result<f64, 
         .data
         .par_chunks(part)
         .zip(initial.data()[..n].par_chunks(part))
-        .map(|(v, phi)| v.iter().zip(phi).filter(|(_, &p)| p <= 0.0).map(|(&v, _)| v).collect())
+        .map(|(v, phi)| v.iter().zip(phi).filter(|&(_, &p)| p <= 0.0).map(|(&v, _)| v).collect())
         .collect();
     let parts: Vec<&[f32]> = parts.iter().map(Vec::as_slice).filter(|p| !p.is_empty()).collect();
     Ok(if parts.is_empty() { 0.0 } else { features::percentile_of_parts(&parts, q)? as f64 })

@@ -128,7 +128,7 @@ fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3]) -> Vec<u8> {
         .par_iter()
         .zip(set)
         .enumerate()
-        .filter(|(_, (&s, &m))| s != 0 && m != 0)
+        .filter(|&(_, (&s, &m))| s != 0 && m != 0)
         .map(|(i, _)| i)
         .collect();
     for &i in &first {

@@ -121,18 +121,18 @@ pub fn measure<G: LevelSet + ?Sized>(
             return;
         }
         band += 1;
-        if band.is_multiple_of(4096) {
-            if let Err(e) = ticker.advance(4096) {
-                err = Some(e.into());
-                return;
-            }
+        if band.is_multiple_of(4096)
+            && let Err(e) = ticker.advance(4096)
+        {
+            err = Some(e.into());
+            return;
         }
         inside_terms.add((0.5 - v / h).clamp(0.0, 1.0));
         // A gap since the previous band voxel of this row: one sign, read at its start.
-        if let Some(p) = prev.filter(|p| p.z == c.z && p.y == c.y && c.x - p.x > 1) {
-            if acc.value(Coord::new(p.x + 1, p.y, p.z)) < 0.0 {
-                gaps_inside += (c.x - p.x - 1) as u64;
-            }
+        if let Some(p) = prev.filter(|p| p.z == c.z && p.y == c.y && c.x - p.x > 1)
+            && acc.value(Coord::new(p.x + 1, p.y, p.z)) < 0.0
+        {
+            gaps_inside += (c.x - p.x - 1) as u64;
         }
         prev = Some(c);
         if v.abs() < width {

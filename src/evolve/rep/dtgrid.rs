@@ -300,10 +300,13 @@ impl Representation for DtRep {
     fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {
         let mut prev: Option<(Coord, f32)> = None;
         for (c, v) in self.grid.iter() {
-            if let Some((p, pv)) = prev {
-                if p.z == c.z && p.y == c.y && c.x > p.x + 1 && pv < 0.0 {
-                    f(Coord::new(p.x + 1, p.y, p.z), (c.x as i64 - p.x as i64 - 1) as u32);
-                }
+            if let Some((p, pv)) = prev
+                && p.z == c.z
+                && p.y == c.y
+                && c.x > p.x + 1
+                && pv < 0.0
+            {
+                f(Coord::new(p.x + 1, p.y, p.z), (c.x as i64 - p.x as i64 - 1) as u32);
             }
             prev = Some((c, v));
         }

@@ -164,24 +164,24 @@ pub(super) fn read(path: &Path, spacing_arg: Option<[f64; 3]>) -> Result<LoadedI
     }
 
     // What the header says.
-    if let Some(t) = h.get("ObjectType") {
-        if t != "Image" {
-            return Err(ImageError::Unsupported {
-                path: p(),
-                what: format!("a MetaImage of ObjectType {} (not Image) is", clip(t, 40)),
-            });
-        }
+    if let Some(t) = h.get("ObjectType")
+        && t != "Image"
+    {
+        return Err(ImageError::Unsupported {
+            path: p(),
+            what: format!("a MetaImage of ObjectType {} (not Image) is", clip(t, 40)),
+        });
     }
-    if let Some(v) = h.get("FileFormatVersion") {
-        if v != "0" {
-            return Err(ImageError::Unsupported {
-                path: p(),
-                what: format!(
-                    "MetaImage FileFormatVersion {} (ElementOrigin, ElementDirection) is",
-                    clip(v, 20)
-                ),
-            });
-        }
+    if let Some(v) = h.get("FileFormatVersion")
+        && v != "0"
+    {
+        return Err(ImageError::Unsupported {
+            path: p(),
+            what: format!(
+                "MetaImage FileFormatVersion {} (ElementOrigin, ElementDirection) is",
+                clip(v, 20)
+            ),
+        });
     }
     let ndims = h.required("NDims")?;
     let ndim = match ndims.parse::<i64>() {
@@ -205,17 +205,17 @@ pub(super) fn read(path: &Path, spacing_arg: Option<[f64; 3]>) -> Result<LoadedI
     }
     let size = |i: usize| sizes.get(i).map_or(1, |&s| s as u64);
     let dims = check_dims(path, [size(0), size(1), size(2)], &size_text)?;
-    if let Some(c) = h.numbers::<i64>("ElementNumberOfChannels", 1)? {
-        if c[0] != 1 {
-            return Err(ImageError::Unsupported {
-                path: p(),
-                what: format!(
-                    "ElementNumberOfChannels = {} (a vector or colour image; only scalar images \
+    if let Some(c) = h.numbers::<i64>("ElementNumberOfChannels", 1)?
+        && c[0] != 1
+    {
+        return Err(ImageError::Unsupported {
+            path: p(),
+            what: format!(
+                "ElementNumberOfChannels = {} (a vector or colour image; only scalar images \
                      are read) is",
-                    c[0]
-                ),
-            });
-        }
+                c[0]
+            ),
+        });
     }
     if h.flag("BinaryData")? == Some(false) {
         return Err(ImageError::Unsupported {

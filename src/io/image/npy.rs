@@ -115,17 +115,17 @@ pub(super) fn read(path: &Path, spacing: Option<[f64; 3]>) -> Result<LoadedImage
         return Err(corrupt(format!("header length {header_len} bytes is implausibly large")));
     }
     let preamble = 8 + len_bytes as u64;
-    if let Some(len) = file_len {
-        if len < preamble + header_len as u64 {
-            return Err(ImageError::Truncated {
-                path: p(),
-                detail: format!(
-                    "the file ends inside the header: it announces {header_len} header bytes, \
+    if let Some(len) = file_len
+        && len < preamble + header_len as u64
+    {
+        return Err(ImageError::Truncated {
+            path: p(),
+            detail: format!(
+                "the file ends inside the header: it announces {header_len} header bytes, \
                      {} follow",
-                    len - preamble
-                ),
-            });
-        }
+                len - preamble
+            ),
+        });
     }
     let mut text = vec![0u8; header_len];
     let got = voxels::read_full(&mut r, &mut text).map_err(io_err)?;

@@ -380,10 +380,10 @@ impl DtGrid {
         if v.is_nan() {
             return Err(GridError::NaN { coord: c });
         }
-        if let Some(last) = self.last() {
-            if c <= last {
-                return Err(GridError::NotSorted { last, coord: c });
-            }
+        if let Some(last) = self.last()
+            && c <= last
+        {
+            return Err(GridError::NotSorted { last, coord: c });
         }
         if self.len() >= MAX_POINTS {
             return Err(GridError::InvalidParameter(format!(

@@ -192,10 +192,10 @@ impl<S: SignOracle> Builder<S> {
         if ![c.x, c.y, c.z].iter().all(|q| COORD_RANGE.contains(q)) {
             return Err(GridError::OutOfRange { coord: c });
         }
-        if let Some(last) = self.last {
-            if c.key() <= last.key() {
-                return Err(GridError::NotSorted { last, coord: c });
-            }
+        if let Some(last) = self.last
+            && c.key() <= last.key()
+        {
+            return Err(GridError::NotSorted { last, coord: c });
         }
         if self.values.len() >= super::MAX_VALUES {
             return Err(GridError::InvalidParameter(format!(

@@ -242,10 +242,10 @@ impl HrleGrid {
     /// or a voxel outside the domain (Sec. 5.1: one binary search per block).
     #[inline]
     pub fn locate_index(&self, c: Coord) -> Result<usize, bool> {
-        if let Some((lo, hi)) = self.domain {
-            if !in_box(c, lo, hi) {
-                return Err(false);
-            }
+        if let Some((lo, hi)) = self.domain
+            && !in_box(c, lo, hi)
+        {
+            return Err(false);
         }
         let mut s = 0usize;
         for (b, q) in [(0, c.z), (1, c.y), (2, c.x)] {
@@ -382,10 +382,10 @@ impl HrleGrid {
             if lo.x > hi.x || lo.y > hi.y || lo.z > hi.z {
                 return Err(format!("empty domain {lo}..{hi}"));
             }
-            if let Some((a, b)) = bbox {
-                if !in_box(a, lo, hi) || !in_box(b, lo, hi) {
-                    return Err(format!("stored voxels {a}..{b} leave the domain {lo}..{hi}"));
-                }
+            if let Some((a, b)) = bbox
+                && (!in_box(a, lo, hi) || !in_box(b, lo, hi))
+            {
+                return Err(format!("stored voxels {a}..{b} leave the domain {lo}..{hi}"));
             }
         }
         Ok(())

@@ -202,10 +202,10 @@ impl Accessor for HrleAccessor<'_> {
     #[inline]
     fn value(&mut self, c: Coord) -> f32 {
         let g = self.grid;
-        if let Some((lo, hi)) = g.domain {
-            if !in_box(c, lo, hi) {
-                return g.spec.background(false);
-            }
+        if let Some((lo, hi)) = g.domain
+            && !in_box(c, lo, hi)
+        {
+            return g.spec.background(false);
         }
         if self.key != Some((c.z, c.y)) {
             self.key = Some((c.z, c.y));

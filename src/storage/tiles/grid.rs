@@ -215,10 +215,10 @@ impl TileGrid {
         values: &Tile,
         border: u32,
     ) -> Result<usize, GridError> {
-        if let Some(&last) = self.coords.last() {
-            if tile_coord <= last {
-                return Err(GridError::NotSorted { last, coord: tile_coord });
-            }
+        if let Some(&last) = self.coords.last()
+            && tile_coord <= last
+        {
+            return Err(GridError::NotSorted { last, coord: tile_coord });
         }
         if !tile_in_range(tile_coord) {
             return Err(GridError::OutOfRange { coord: tile_coord });

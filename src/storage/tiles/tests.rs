@@ -310,10 +310,10 @@ fn brute_triggered(grid: &TileGrid) -> BTreeSet<Coord> {
     let mut out = BTreeSet::new();
     for c in brute_dilation(grid.tile_coords()) {
         for (d, off) in NEIGHBOURHOOD.iter().enumerate() {
-            if let Ok(p) = grid.find_tile(c.wrapping_add(*off)) {
-                if grid.activity_flags(p) & NEIGHBOUR_TRIGGER[d] != 0 {
-                    out.insert(c);
-                }
+            if let Ok(p) = grid.find_tile(c.wrapping_add(*off))
+                && grid.activity_flags(p) & NEIGHBOUR_TRIGGER[d] != 0
+            {
+                out.insert(c);
             }
         }
     }

@@ -113,15 +113,15 @@ pub(super) fn checked_lattice(
     if grid.spacing.iter().any(|h| !(h.is_finite() && *h > 0.0)) {
         return bad(format!("the spacing must be finite and > 0, got {:?}", grid.spacing));
     }
-    if let Some(w) = narrow {
-        if !(w.is_finite() && w > 0.0) {
-            return bad(format!("narrow must be finite and > 0, got {w}"));
-        }
+    if let Some(w) = narrow
+        && !(w.is_finite() && w > 0.0)
+    {
+        return bad(format!("narrow must be finite and > 0, got {w}"));
     }
-    if let Some(m) = mask {
-        if m.len() != phi.len() {
-            return bad(format!("the mask has {} values, phi has {}", m.len(), phi.len()));
-        }
+    if let Some(m) = mask
+        && m.len() != phi.len()
+    {
+        return bad(format!("the mask has {} values, phi has {}", m.len(), phi.len()));
     }
     let lo = Coord::new(0, 0, 0);
     let dims = grid.dims;
@@ -376,14 +376,14 @@ pub fn dense_extension_velocities(
     opts: &DenseOptions,
 ) -> Result<DenseExtension, FmmError> {
     check_speed(speed, phi.len(), grid.dims, mask, false)?;
-    if let Some(e) = ext_mask {
-        if e.len() != phi.len() {
-            return Err(FmmError::InvalidParameter(format!(
-                "ext_mask has {} values, phi has {}",
-                e.len(),
-                phi.len()
-            )));
-        }
+    if let Some(e) = ext_mask
+        && e.len() != phi.len()
+    {
+        return Err(FmmError::InvalidParameter(format!(
+            "ext_mask has {} values, phi has {}",
+            e.len(),
+            phi.len()
+        )));
     }
     let (lattice, h0) = checked_lattice(phi, grid, mask, opts.narrow, None)?;
     let mut m = Marcher::on_lattice(opts.order == Order::Second, lattice.clone(), UnitCost);

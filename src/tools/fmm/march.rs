@@ -231,10 +231,8 @@ impl<C: Cost> Marcher<C> {
     /// pays nothing for it: the run loop is compiled once for each).
     #[inline(always)]
     fn step_in<const LATTICE: bool>(&self, c: Coord, axis: usize, d: i32) -> Option<Coord> {
-        if LATTICE {
-            if let Some(l) = &self.lattice {
-                return l.step(c, axis, d);
-            }
+        if LATTICE && let Some(l) = &self.lattice {
+            return l.step(c, axis, d);
         }
         let a = AXES[axis];
         let n = c.checked_add(Coord::new(a.x * d, a.y * d, a.z * d))?;
@@ -441,12 +439,11 @@ impl<C: Cost> Marcher<C> {
                 if t1 < v1 {
                     v1 = t1;
                     v2 = None;
-                    if SECOND {
-                        if let Some((t2, st2)) = self.frozen_in::<LATTICE>(c, id, axis, 2 * d) {
-                            let t2 = s * t2;
-                            if usable(st2) && t2 <= t1 {
-                                v2 = Some(t2);
-                            }
+                    if SECOND && let Some((t2, st2)) = self.frozen_in::<LATTICE>(c, id, axis, 2 * d)
+                    {
+                        let t2 = s * t2;
+                        if usable(st2) && t2 <= t1 {
+                            v2 = Some(t2);
                         }
                     }
                 }

@@ -250,10 +250,11 @@ pub(crate) fn freeze_interface<S: Source + ?Sized, C: Cost>(
         let d = if d.is_none() && zeros && v == 0.0 { Some(0.0) } else { d };
         if let Some(d) = d {
             for (i, n) in star.iter().enumerate() {
-                if let Some(n) = n {
-                    if (*n < 0.0) != (v < 0.0) && n.abs() >= clamp {
-                        extra.push(c.wrapping_add(OFFSETS[i]));
-                    }
+                if let Some(n) = n
+                    && (*n < 0.0) != (v < 0.0)
+                    && n.abs() >= clamp
+                {
+                    extra.push(c.wrapping_add(OFFSETS[i]));
                 }
             }
             let inside = v < 0.0;

@@ -162,15 +162,15 @@ pub fn isosurface_dense_with(
     if opts.step == 0 {
         return Err(MeshError::InvalidParameter("step must be at least 1 (1: every voxel)".into()));
     }
-    if let Some(m) = opts.mask {
-        if m.len() != field.data().len() {
-            return Err(MeshError::InvalidParameter(format!(
-                "the mask has {} flags for an array of {} voxels {:?} (x, y, z)",
-                m.len(),
-                field.data().len(),
-                field.dims()
-            )));
-        }
+    if let Some(m) = opts.mask
+        && m.len() != field.data().len()
+    {
+        return Err(MeshError::InvalidParameter(format!(
+            "the mask has {} flags for an array of {} voxels {:?} (x, y, z)",
+            m.len(),
+            field.data().len(),
+            field.dims()
+        )));
     }
     super::surface::check_nan(field)?;
     let iso = match opts.iso {

@@ -169,11 +169,11 @@ impl RenderOptions {
                 return bad(format!("{name} must be finite and in ({lo}, {hi}) degrees, got {v}"));
             }
         }
-        if let Some(f) = &self.frame {
-            if f.lo.iter().chain(&f.hi).any(|v| !v.is_finite()) || (0..3).any(|a| f.lo[a] > f.hi[a])
-            {
-                return bad(format!("frame box must be finite with lo ≤ hi, got {f:?}"));
-            }
+        if let Some(f) = &self.frame
+            && (f.lo.iter().chain(&f.hi).any(|v| !v.is_finite())
+                || (0..3).any(|a| f.lo[a] > f.hi[a]))
+        {
+            return bad(format!("frame box must be finite with lo ≤ hi, got {f:?}"));
         }
         Ok(())
     }
