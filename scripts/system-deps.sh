@@ -9,15 +9,16 @@ set -euo pipefail
 sudo=""
 if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
 
+# What is missing, then one `apt-get update` and one install for all of it.
+missing=()
 if ! { /usr/bin/python3 -c "import pyopenvdb" && command -v vdb_print; } >/dev/null 2>&1; then
-  echo "== installing Debian's OpenVDB (python3-openvdb, libopenvdb-tools)"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-openvdb libopenvdb-tools >/dev/null
+  missing+=(python3-openvdb libopenvdb-tools)
 fi
-
 if ! { command -v mpirun && dpkg -s libopenmpi-dev libclang-dev; } >/dev/null 2>&1; then
-  echo "== installing OpenMPI and libclang (libopenmpi-dev, openmpi-bin, libclang-dev)"
+  missing+=(libopenmpi-dev openmpi-bin libclang-dev)
+fi
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "== installing Debian packages: ${missing[*]}"
   $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libopenmpi-dev openmpi-bin \
-    libclang-dev >/dev/null
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
