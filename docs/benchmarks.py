@@ -106,12 +106,15 @@ def collect():
     except FileNotFoundError:
         old = {}
     dates = {name: old.get("dates", {}).get(name, old.get("date", today)) for name, _ in RUNS}
+    machines = {name: old.get("machines", {}).get(name, machine_of(old)) for name, _ in RUNS}
     for name, _ in RUNS:
         if not only or name in only:
             dates[name] = today
+            machines[name] = this_machine()
     meta = {
         "date": today,
         "dates": dates,
+        "machines": machines,
         "cpu": first["cpu"],
         "target_features": first["target_features"],
         "level": first.get("level", "baseline"),
@@ -119,6 +122,30 @@ def collect():
         "commands": {name: shown(cmd) for name, cmd in RUNS},
     }
     (DATA / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
+
+
+def this_machine():
+    """The CPU this process runs on and the widest vector level the kernels choose on it at
+    run time (from /proc/cpuinfo)."""
+    model, flags = "unknown CPU", set()
+    try:
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and model == "unknown CPU":
+                model = " ".join(value.split()[:2])
+            elif key.strip() == "flags" and not flags:
+                flags = set(value.split())
+    except OSError:
+        pass
+    level = "avx512" if "avx512f" in flags else "avx2" if "avx2" in flags else "sse"
+    return f"{model}, {vector_width({'level': level, 'target_features': []})}"
+
+
+def machine_of(meta):
+    """The one machine an older meta.json names for all its files."""
+    if not meta:
+        return this_machine()
+    return f"{meta['cpu']}, {vector_width(meta)}"
 
 
 def load(name):
@@ -653,13 +680,21 @@ def distributed_section(meta):
 
 
 def run_days(meta):
-    """When the files were made: one day, or each day with its files."""
+    """When and where the files were made: one day and machine, or each with its files."""
     dates = meta.get("dates") or {name: meta["date"] for name in meta["commands"]}
-    days = sorted(set(dates.values()))
-    if len(days) == 1:
-        return f"on {days[0]}"
-    groups = [f"{d} ({', '.join(sorted(n for n, x in dates.items() if x == d))})" for d in days]
-    return "on these days, by the files in `docs/data/`: " + "; ".join(groups)
+    machines = meta.get("machines") or {}
+    where = {name: machines.get(name, machine_of(meta)) for name in dates}
+    runs = sorted(set((dates[n], where[n]) for n in dates))
+    if len(runs) == 1:
+        return f"on {runs[0][0]}: CPU {runs[0][1]}, {meta['threads']} cores"
+    groups = [
+        f"{d} on {m} ({', '.join(sorted(n for n in dates if (dates[n], where[n]) == (d, m)))})"
+        for d, m in runs
+    ]
+    return (
+        f"on these days and CPUs ({meta['threads']} cores each), by the files in `docs/data/`: "
+        + "; ".join(groups)
+    )
 
 
 def write():
@@ -669,8 +704,7 @@ def write():
         "",
         "Written by `python3 docs/benchmarks.py write` from the JSON files in `docs/data/`,"
         " which `python3 docs/benchmarks.py collect` made by running the commands named in"
-        f" each section {run_days(meta)}: CPU {meta['cpu']}, {meta['threads']} cores,"
-        f" vector width {vector_width(meta)}. A JSON file that records a `level` comes from"
+        f" each section {run_days(meta)}. A JSON file that records a `level` comes from"
         " a release build for the x86-64 baseline that ran at that instruction-set level,"
         " chosen at run time; one without comes from a release build with"
         " `-C target-cpu=native` (the same kernels, at the same width)."

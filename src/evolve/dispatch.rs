@@ -293,25 +293,43 @@ pub(crate) fn dispatch_anchor<V: Sweep>(h: f32, sweep: V) -> Result<(), EvolveEr
     sweep.run::<_, _, 1>(move |_| InterfaceAnchor { voxel_size: h })
 }
 
+/// Stored anchors of a renormalisation ([`InterfaceAnchor`] over φ⁰): what the sweeps'
+/// kernels read for the voxels `r` of the flat order.
+pub(crate) trait Anchors<'a>: Copy + Send + Sync + 'a {
+    /// The anchors of one block's voxels.
+    type Field: ScalarField + 'a;
+    /// The anchors of the voxels `r`.
+    fn field(self, r: Range<usize>) -> Self::Field;
+}
+
+/// One anchor per voxel, in the flat order.
+impl<'a> Anchors<'a> for &'a [f32] {
+    type Field = &'a [f32];
+    #[inline(always)]
+    fn field(self, r: Range<usize>) -> &'a [f32] {
+        &self[r]
+    }
+}
+
 /// One forward-Euler sweep in pseudo time of the renormalisation rate, with the scheme's
 /// reach. `anchor` holds the Russo–Smereka anchors of φ⁰ per voxel (flat order): the
 /// distance estimate at voxels next to the interface, ±∞ elsewhere ([`InterfaceAnchor`]);
 /// `None` evaluates them in place from the values swept, which must be φ⁰ (the first
 /// sweep; [`AnchoredRenormRate`], the same bits as an anchor pass before it).
-pub(crate) fn dispatch_renorm<V: Sweep>(
+pub(crate) fn dispatch_renorm<'a, A: Anchors<'a>, V: Sweep>(
     p: &RenormParams,
-    anchor: Option<&[f32]>,
+    anchor: Option<A>,
     sweep: V,
 ) -> Result<(), EvolveError> {
     match p.scheme {
-        SpatialScheme::Upwind1 => renorm::<Upwind1, 1, V>(p, anchor, sweep),
-        SpatialScheme::Weno5 => renorm::<Weno5, 3, V>(p, anchor, sweep),
+        SpatialScheme::Upwind1 => renorm::<Upwind1, 1, A, V>(p, anchor, sweep),
+        SpatialScheme::Weno5 => renorm::<Weno5, 3, A, V>(p, anchor, sweep),
     }
 }
 
-fn renorm<'a, S: Scheme, const R: usize, V: Sweep>(
+fn renorm<'a, S: Scheme, const R: usize, A: Anchors<'a>, V: Sweep>(
     p: &RenormParams,
-    anchor: Option<&'a [f32]>,
+    anchor: Option<A>,
     sweep: V,
 ) -> Result<(), EvolveError>
 where
@@ -320,7 +338,7 @@ where
     let (h, dt, gamma) = (p.h, p.dtau, p.gamma);
     match anchor {
         Some(anchor) => sweep.run::<_, _, R>(move |r: Range<usize>| Euler {
-            rate: RenormRate::<S, &'a [f32]>::new(h, &anchor[r]),
+            rate: RenormRate::<S, A::Field>::new(h, anchor.field(r)),
             dt,
             gamma,
         }),

@@ -266,11 +266,10 @@ fn a_renormalization_that_does_not_fit_changes_nothing() {
         let sum = sim.checksum();
         // Room for the grid (and for building it next to its first list), not for the
         // sweeps' buffers: the double buffer, φ⁰, the band mask and the anchors.
-        // (Tile management builds the new list next to the old one; the DT-Grid's rebuild
-        // scratch is part of its work bytes.)
+        // (The DT-Grid's rebuild scratch is part of its work bytes.)
         let limit = match kind {
             GridKind::DtGrid => (m.bytes + m.work_bytes) as u64,
-            _ => 2 * (m.bytes + m.work_bytes) as u64 + m.bytes as u64 / 2,
+            _ => 2 * (m.bytes + m.work_bytes) as u64,
         };
         let settings = Settings { memory_limit: Some(limit), ..Settings::default() };
         let mut tight =

@@ -17,6 +17,7 @@
 //! when the new list's were built in a step buffer, see
 //! [`crate::storage::tiles::TileGrid::manage_tiles`]: φⁿ is put back into it).
 
+pub(crate) mod anchors;
 pub(crate) mod dense;
 pub(crate) mod dtgrid;
 pub(crate) mod tiles;

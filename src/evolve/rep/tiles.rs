@@ -2,6 +2,7 @@
 //! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
 //! (van der Laan et al. 2011, Sec. 4.7), tile management after each step (Sec. 4.6).
 
+use super::anchors::{self, TileAnchors};
 use super::{
     growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
 };
@@ -32,15 +33,25 @@ const TILE_CHUNK: usize = 64;
 pub(crate) const TILE_GRID_BYTES: u64 =
     (std::mem::size_of::<Tile>() + std::mem::size_of::<Coord>() + 2 * 4) as u64;
 
+/// Bytes per tile of the arrays tile management builds next to the list: the new list's
+/// coordinates, border and activity flags, where each tile went and came from, the flags it
+/// keeps while it decides, with a growing band's headroom.
+const MANAGE_BYTES_PER_TILE: u64 = 40;
+
+/// Bytes per tile of the stored anchors ([`TileAnchors`]) in the estimates: the two bit
+/// words and the start of each tile, and the values of the voxels next to the interface
+/// (about 8 a tile on spheres of radius 200 to 800 and in the morph scenario).
+const ANCHOR_BYTES_PER_TILE: u64 = 18 + 4 * 16;
+
 /// Bytes per tile the engine holds while it steps: the grid's own arrays, the double
-/// buffer with its activity flags, the band mask, the neighbour table's row, and a third
-/// value array when the steps keep φⁿ (see [`Buffers`]). Tile management builds the new
-/// list's values in a step buffer, so it adds only the list's small arrays.
+/// buffer with its activity flags, the band mask, the neighbour table's row, a third
+/// value array when the steps keep φⁿ beside the double buffer (see [`Buffers`]), and the
+/// larger of the anchors, which live through a renormalisation, and the arrays of tile
+/// management, which follows it. Tile management moves the values within the arena (or
+/// writes them into a free step buffer), so it adds no value array.
 ///
 /// With forward Euler the renormalisation's sweeps write in place, so φⁿ stays in the
-/// double buffer, and the anchors, when stored, are the third array (and tile
-/// management's spare); a fourth only with TVD-RK3, whose stages hold φⁿ beside the
-/// double buffer ([`value_arrays`]).
+/// double buffer; TVD-RK3's stages hold φⁿ beside the double buffer ([`value_arrays`]).
 pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
     let tile = std::mem::size_of::<Tile>() as u64;
     let row = std::mem::size_of::<crate::storage::tiles::NeighbourRow>() as u64;
@@ -49,15 +60,16 @@ pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
     if phi_n {
         b += tile + 4;
     }
-    if anchors {
-        b += tile;
+    b + if anchors {
+        ANCHOR_BYTES_PER_TILE.max(MANAGE_BYTES_PER_TILE)
+    } else {
+        MANAGE_BYTES_PER_TILE
     }
-    b
 }
 
-/// Which of the φⁿ buffer (with its flags) and the anchors' the engine allocates besides
-/// the double buffer: forward Euler keeps φⁿ in `out` (its sweeps write in place), so
-/// with stored anchors those are its third array; otherwise as `keeps` says.
+/// Whether the engine allocates the φⁿ buffer (with its flags) besides the double buffer,
+/// and whether it stores anchors: forward Euler keeps φⁿ in `out` (its sweeps write in
+/// place) when it stores anchors; otherwise as `keeps` says.
 fn value_arrays(keeps: StepKeeps) -> (bool, bool) {
     if keeps.anchors && !keeps.rk3 {
         (false, true)
@@ -103,8 +115,9 @@ struct Buffers {
     /// holds a band voxel, min |φⁿ| < γ; see [`band_bits`]): a 32nd of the minima it
     /// stands for.
     band: Vec<u64>,
-    /// The renormalisation's anchors of φ⁰, 64 per tile.
-    anchor: Vec<Tile>,
+    /// The renormalisation's anchors of φ⁰, stored where they hold a number (boxed: empty
+    /// between renormalisations).
+    anchor: Box<TileAnchors>,
 }
 
 impl Buffers {
@@ -118,8 +131,8 @@ impl Buffers {
         if phi_n {
             b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
         }
-        if anchors {
-            b += growth_bytes(&self.anchor, tiles);
+        if anchors && self.anchor.is_unallocated() {
+            b += tiles as u64 * ANCHOR_BYTES_PER_TILE;
         }
         b
     }
@@ -142,9 +155,6 @@ impl Buffers {
     /// renormalisation), so that a step that stores them holds three value arrays, not
     /// four.
     fn spare(&mut self, undo: Undo) -> &mut Vec<Tile> {
-        if self.anchor.capacity() > 0 {
-            return &mut self.anchor;
-        }
         match undo {
             Undo::Out => &mut self.phi_n,
             Undo::Nothing | Undo::PhiN => &mut self.out,
@@ -158,13 +168,14 @@ impl Buffers {
             + vec_bytes(&self.out)
             + vec_bytes(&self.band)
             + vec_bytes(&self.activity)
-            + vec_bytes(&self.anchor)
+            + self.anchor.bytes()
     }
 }
 
 impl TilesRep {
     /// The engine over `grid`; builds the neighbour table in the current rayon pool.
-    pub fn new(grid: TileGrid, lanes: Lanes) -> Self {
+    pub fn new(mut grid: TileGrid, lanes: Lanes) -> Self {
+        grid.reserve_value_headroom();
         let mut table = NeighbourTable::default();
         table.rebuild(grid.tile_coords());
         TilesRep {
@@ -513,6 +524,55 @@ where
             }
         }
         Ok(())
+    }
+}
+
+/// The anchor pass of a renormalisation ([`levelset_kernels::InterfaceAnchor`] over φ⁰)
+/// into [`TileAnchors`]: each chunk of tiles is computed as a [`TileSweep`]'s into a
+/// buffer of its own, and only the anchors of the voxels in the band mask that are not ±∞
+/// are kept (a sweep reads no other, see [`crate::evolve::rep::anchors`]). So the anchors
+/// take a few bytes per tile instead of a fourth value array.
+struct AnchorSweep<'a> {
+    grid: &'a TileGrid,
+    table: &'a NeighbourTable,
+    lanes: Lanes,
+    band: &'a mut [u64],
+    compute_mask: bool,
+    owned: Range<usize>,
+    anchors: &'a mut TileAnchors,
+}
+
+impl Sweep for AnchorSweep<'_> {
+    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
+    where
+        K: VoxelKernel,
+        M: Fn(Range<usize>) -> K + Sync,
+        Halo<R>: crate::evolve::dispatch::Reach,
+    {
+        let simd = self.lanes == Lanes::Simd;
+        let AnchorSweep { grid, table, band, compute_mask, owned, anchors, .. } = self;
+        let shared =
+            Shared { grid, table, compute_mask, planar: false, owned: &owned, make: &make };
+        anchors.resize(grid.len());
+        band.par_chunks_mut(anchors::GROUP).zip(anchors.groups_mut()).enumerate().try_for_each_init(
+            || (vec![Tile::splat(0.0); anchors::GROUP], vec![0u32; anchors::GROUP]),
+            |(out, act), (c, (mask, mut group))| {
+                let len = mask.len();
+                let (out, act) = (&mut out[..len], &mut act[..len]);
+                let chunk = Chunk::<M, R> {
+                    shared: &shared,
+                    start: c * anchors::GROUP,
+                    out: &mut *out,
+                    mask: &mut *mask,
+                    act,
+                };
+                levelset_kernels::dispatch_default(simd, chunk)?;
+                for (i, (t, &m)) in out.iter().zip(mask.iter()).enumerate() {
+                    group.push(i, t, m);
+                }
+                Ok(())
+            },
+        )
     }
 }
 
@@ -915,20 +975,17 @@ impl Representation for TilesRep {
         let anchored = p.anchored();
         if anchored {
             self.buf.resize_flags(n);
-            resize_exact(&mut self.buf.anchor, n, Tile::splat(0.0));
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-            let Buffers { anchor, band, activity, .. } = &mut self.buf;
-            // The anchors of φ⁰ (and, at rest, the band mask of φ⁰); `activity` is scratch.
-            let sweep = TileSweep {
+            let Buffers { anchor, band, .. } = &mut self.buf;
+            // The anchors of φ⁰ (and, at rest, the band mask of φ⁰).
+            let sweep = AnchorSweep {
                 owned: owned.clone(),
                 grid: &self.grid,
                 table: &self.table,
                 lanes: self.lanes,
-                out: anchor,
                 band,
                 compute_mask: fresh,
-                activity,
-                planar: false,
+                anchors: anchor,
             };
             dispatch_anchor(p.h, sweep)?;
         }
@@ -952,7 +1009,7 @@ impl Representation for TilesRep {
                     activity,
                     planar: false,
                 };
-                dispatch_renorm(p, anchored.then_some(tile_flat(anchor)), sweep)?;
+                dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
             } else {
                 // `out` holds φⁿ for the undo (forward Euler, or the sweeps at rest after
@@ -972,7 +1029,7 @@ impl Representation for TilesRep {
                     compute_mask,
                     activity,
                 };
-                dispatch_renorm(p, anchored.then_some(tile_flat(anchor)), sweep)?;
+                dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_activity(&mut self.buf.activity)?;
             }
             self.exchange_ghosts();
@@ -980,6 +1037,9 @@ impl Representation for TilesRep {
                 self.undo = Undo::Out;
             }
         }
+        // The anchors live only through a renormalisation: tile management, next, has
+        // their memory.
+        *self.buf.anchor = TileAnchors::default();
         Ok(())
     }
 
@@ -992,16 +1052,29 @@ impl Representation for TilesRep {
         // The new list's values go into the memory of the step buffer that does not hold
         // φⁿ, when it is large enough; the list before the step then keeps no values of
         // its own (φⁿ is put back into it on undo). The table follows the list.
+        // Where the spare is too small, the values move within the grid's arena, which
+        // grows only past its capacity; the table's rows move within the table.
         let spare = self.buf.spare(self.undo);
+        let arena_cap = spare.capacity().max(self.grid.value_capacity());
+        let rows_cap = self.table.capacity();
+        let growth = |cap: usize, n: usize, size: usize| {
+            (if n <= cap { 0 } else { grown_capacity(n) - cap } * size) as u64
+        };
         let managed = self.grid.manage_tiles_checked(
             Some(&mut self.table),
             |tiles| {
                 let needed = current
-                    + grown_capacity(tiles) as u64 * TILE_GRID_BYTES
-                    + NeighbourTable::follow_bytes(tiles) as u64;
+                    + growth(arena_cap, tiles, std::mem::size_of::<Tile>())
+                    + growth(
+                        rows_cap,
+                        tiles,
+                        std::mem::size_of::<crate::storage::tiles::NeighbourRow>(),
+                    )
+                    + tiles as u64 * MANAGE_BYTES_PER_TILE;
                 budget.admit(needed, current, "the band's tiles")
             },
             spare,
+            true,
         );
         let (_, prev) = match (managed, &self.part) {
             (Ok(m), _) => m,

@@ -650,6 +650,22 @@ impl TileGrid {
         }
     }
 
+    /// Tiles the value arena holds without growing.
+    pub(crate) fn value_capacity(&self) -> usize {
+        self.arena.capacity()
+    }
+
+    /// Gives the value arena the headroom of a growing band
+    /// ([`crate::memory::grown_capacity`]), so that tile management, which moves the values
+    /// within the arena when it has no spare buffer, rarely has to copy them into a larger
+    /// one. No value changes.
+    pub(crate) fn reserve_value_headroom(&mut self) {
+        let (n, want) = (self.arena.len(), crate::memory::grown_capacity(self.arena.len()));
+        if self.arena.capacity() < want {
+            self.arena.reserve_exact(want - n);
+        }
+    }
+
     /// Installs a new list whose arrays are in list order and rebuilds the row directory;
     /// returns the previous grid.
     pub(super) fn replace_list(

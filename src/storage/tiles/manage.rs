@@ -23,7 +23,7 @@
 //! [`TileGrid::manage_tiles_streamed`] (tested).
 
 use super::flags::{ACTIVE_MASK, BORDER_MASK, INSIDE, NEIGHBOUR_TRIGGER};
-use super::stream::{ListMoves, NeighbourCursor, NeighbourTable, NONE};
+use super::stream::{move_kept, ListMoves, NeighbourCursor, NeighbourTable, NONE};
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
@@ -70,7 +70,7 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
-        self.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new()).map(|(stats, _)| stats)
+        self.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new(), true).map(|(stats, _)| stats)
     }
 
     /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
@@ -88,11 +88,18 @@ impl TileGrid {
     /// and activity flags are whole), and [`TileGrid::swap_values`] must give it a full
     /// set (φⁿ, which a caller that undoes a step holds anyway) before it is used. So the
     /// list changes without a second value array next to the first.
+    ///
+    /// `in_place`: where the spare is too small, the values move within the grid's own
+    /// arena instead of into a new one (compaction towards the front, then expansion
+    /// towards the back, see [`move_kept`]); the previous grid returned then has no values
+    /// either, as above. Otherwise a new arena holds them and the previous grid keeps its
+    /// own.
     pub(crate) fn manage_tiles_checked(
         &mut self,
         table: Option<&mut NeighbourTable>,
         admit: impl FnOnce(usize) -> Result<(), GridError>,
         spare: &mut Vec<Tile>,
+        in_place: bool,
     ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
         if n == 0 {
@@ -124,12 +131,40 @@ impl TileGrid {
             let mut a = std::mem::take(spare);
             a.truncate(total);
             a.resize(total, Tile::splat(0.0));
-            a
+            Some(a)
+        } else if in_place {
+            None
         } else {
-            filled(total, Tile::splat(0.0))
+            Some(filled(total, Tile::splat(0.0)))
         };
         let (list, moves) = self.compact(&keep, &border_new, &created, &created_inside, arena);
         let (coords, arena, border, activity) = list;
+        let arena = match arena {
+            Some(a) => a,
+            None => {
+                let mut values = std::mem::take(&mut self.arena);
+                if total > values.capacity() {
+                    // With the headroom of a growing band, so that the next steps move
+                    // within this arena instead of copying it into a larger one.
+                    values.reserve_exact(grown_capacity(total) - values.len());
+                }
+                if total > n {
+                    values.resize(total, Tile::splat(0.0));
+                }
+                move_kept(&mut values, &moves.from);
+                values.truncate(total);
+                let g = self.gamma();
+                // The created tiles: ±γ by the sign their flags took (`created_tile`).
+                values.par_iter_mut().zip(&moves.from).zip(&activity).for_each(
+                    |((v, &from), &a)| {
+                        if from == NONE {
+                            *v = Tile::splat(if a & INSIDE != 0 { -g } else { g });
+                        }
+                    },
+                );
+                values
+            }
+        };
         if let Some(t) = table {
             t.follow(&coords, &moves);
         }
@@ -228,10 +263,11 @@ impl TileGrid {
     }
 
     /// Phase 3: the new list in list order (coordinates, values, border and activity
-    /// flags), its values written into `new_arena` (one tile per entry of the new list),
-    /// and where each tile went ([`ListMoves`]). Each chunk merges its kept tiles with the
-    /// created tiles of its coordinate range; a prefix sum over the chunks' counts places
-    /// every chunk's output, written in parallel.
+    /// flags), its values written into `new_arena` (one tile per entry of the new list;
+    /// `None`: the values are left to the caller), and where each tile went
+    /// ([`ListMoves`]). Each chunk merges its kept tiles with the created tiles of its
+    /// coordinate range; a prefix sum over the chunks' counts places every chunk's output,
+    /// written in parallel.
     #[allow(clippy::type_complexity)] // the four arrays of a list
     fn compact(
         &self,
@@ -239,9 +275,10 @@ impl TileGrid {
         border_new: &[AtomicU32],
         created: &[Coord],
         created_inside: &[bool],
-        mut new_arena: Vec<Tile>,
-    ) -> ((Vec<Coord>, Vec<Tile>, Vec<u32>, Vec<u32>), ListMoves) {
-        let total = new_arena.len();
+        mut new_arena: Option<Vec<Tile>>,
+    ) -> ((Vec<Coord>, Option<Vec<Tile>>, Vec<u32>, Vec<u32>), ListMoves) {
+        let total = keep.iter().filter(|&&k| k).count() + created.len();
+        debug_assert!(new_arena.as_ref().is_none_or(|a| a.len() == total));
         let (coords, arena, activity) = (&self.coords[..], &self.arena[..], &self.activity[..]);
         let n = coords.len();
         let chunks = n.div_ceil(CHUNK);
@@ -270,15 +307,19 @@ impl TileGrid {
                 Some(*b - l)
             })
             .collect();
+        let arena_parts: Vec<Option<&mut [Tile]>> = match new_arena.as_mut() {
+            Some(a) => split_by(a, &lens).into_iter().map(Some).collect(),
+            None => lens.iter().map(|_| None).collect(),
+        };
         split_by(&mut new_coords, &lens)
             .into_par_iter()
-            .zip(split_by(&mut new_arena, &lens))
+            .zip(arena_parts)
             .zip(split_by(&mut new_border, &lens))
             .zip(split_by(&mut new_activity, &lens))
             .zip(split_by(&mut moves.from, &lens))
             .zip(moves.to.par_chunks_mut(CHUNK))
             .enumerate()
-            .for_each(|(c, (((((oc, oa), ob), of), from), to))| {
+            .for_each(|(c, (((((oc, mut oa), ob), of), from), to))| {
                 let base = bases[c];
                 let (mut p, end) = (c * CHUNK, ((c + 1) * CHUNK).min(n));
                 let (mut q, qend) = (cuts[c], cuts[c + 1]);
@@ -295,7 +336,9 @@ impl TileGrid {
                     };
                     if take_old {
                         oc[o] = coords[p];
-                        oa[o] = arena[p];
+                        if let Some(oa) = oa.as_deref_mut() {
+                            oa[o] = arena[p];
+                        }
                         ob[o] = border_new[p].load(Ordering::Relaxed);
                         of[o] = activity[p];
                         // Positions fit in u32: `check_list_len` refused longer lists.
@@ -304,7 +347,11 @@ impl TileGrid {
                         p += 1;
                     } else {
                         oc[o] = created[q];
-                        (oa[o], ob[o], of[o]) = self.created_tile(created_inside[q]);
+                        let (tile, b, a) = self.created_tile(created_inside[q]);
+                        if let Some(oa) = oa.as_deref_mut() {
+                            oa[o] = tile;
+                        }
+                        (ob[o], of[o]) = (b, a);
                         q += 1;
                     }
                     o += 1;

@@ -305,18 +305,30 @@ impl NeighbourTable {
         use rayon::prelude::*;
         let ListMoves { to, from } = moves;
         debug_assert!(to.len() == self.rows.len() && from.len() == coords.len());
-        let old = &self.rows;
-        let mut rows = Vec::with_capacity(crate::memory::grown_capacity(coords.len()));
-        rows.par_extend(from.par_iter().enumerate().with_min_len(Self::CHUNK).map(|(q, &p)| {
-            if p != NONE {
-                old[p as usize].moved(to)
-            } else {
-                let nb = NeighbourCursor::over(coords, q, q + 1)
-                    .next()
-                    .expect("a cursor over one entry yields it");
-                NeighbourRow::new(nb.matched, &nb.ptr)
-            }
-        }));
+        // The rows move within the table (as the values within the arena), then are
+        // renumbered: no second table next to the first.
+        let rows = &mut self.rows;
+        if coords.len() > rows.capacity() {
+            let want = crate::memory::grown_capacity(coords.len());
+            rows.reserve_exact(want - rows.len());
+        }
+        if coords.len() > rows.len() {
+            rows.resize(coords.len(), NeighbourRow::EMPTY);
+        }
+        move_kept(rows, from);
+        rows.truncate(coords.len());
+        rows.par_iter_mut().zip(from).enumerate().with_min_len(Self::CHUNK).for_each(
+            |(q, (row, &p))| {
+                *row = if p != NONE {
+                    row.moved(to)
+                } else {
+                    let nb = NeighbourCursor::over(coords, q, q + 1)
+                        .next()
+                        .expect("a cursor over one entry yields it");
+                    NeighbourRow::new(nb.matched, &nb.ptr)
+                };
+            },
+        );
         // The created tiles in their kept neighbours' rows (those of created neighbours
         // found them already); one tile per neighbour and direction, so the order of the
         // writes does not matter. The created tiles are found on the pool: a step creates
@@ -339,12 +351,11 @@ impl NeighbourTable {
                 }
             }
         }
-        self.rows = rows;
     }
 
-    /// Bytes [`NeighbourTable::follow`] allocates for a list of `len` tiles.
-    pub(crate) fn follow_bytes(len: usize) -> usize {
-        crate::memory::grown_capacity(len) * std::mem::size_of::<NeighbourRow>()
+    /// Rows the table holds without growing.
+    pub(crate) fn capacity(&self) -> usize {
+        self.rows.capacity()
     }
 
     /// The neighbours of list entry `pos`.
@@ -387,6 +398,49 @@ pub(crate) struct ListMoves {
     pub to: Vec<u32>,
     /// Per entry of the new list: its position in the old list, [`NONE`] if created.
     pub from: Vec<u32>,
+}
+
+/// Moves every kept entry of `values` (an array of the old list, at least as long as the
+/// new list) to its position in the new list, `o` from `from[o]` ([`ListMoves::from`]),
+/// in place. A tile's target can only be the source of another tile that moves the same way
+/// (towards the front or the back) further along that direction, so the tiles that move
+/// towards the front go first in ascending order, then those that move towards the back
+/// in descending order; each run of consecutive tiles with one shift is one `memmove`.
+/// The created tiles' places keep stale entries (the caller fills them).
+pub(crate) fn move_kept<T: Copy>(values: &mut [T], from: &[u32]) {
+    let n = from.len();
+    let src = |o: usize| (from[o] != NONE).then_some(from[o] as usize);
+    // Towards the front, in ascending order.
+    let mut o = 0;
+    while o < n {
+        match src(o) {
+            Some(p) if p > o => {
+                let mut k = 1;
+                while o + k < n && src(o + k) == Some(p + k) {
+                    k += 1;
+                }
+                values.copy_within(p..p + k, o);
+                o += k;
+            }
+            _ => o += 1,
+        }
+    }
+    // Towards the back, in descending order (`end`: one past the next tile to look at).
+    let mut end = n;
+    while end > 0 {
+        let o = end - 1;
+        match src(o) {
+            Some(p) if p < o => {
+                let mut k = 1;
+                while k <= p && src(o - k) == Some(p - k) {
+                    k += 1;
+                }
+                values.copy_within(p + 1 - k..p + 1, o + 1 - k);
+                end -= k;
+            }
+            _ => end -= 1,
+        }
+    }
 }
 
 /// The line of a tile coordinate, `(z, y)`, as one key ordered as the list orders lines.
@@ -533,5 +587,40 @@ impl Iterator for DilationStream<'_> {
     type Item = Neighbours;
     fn next(&mut self) -> Option<Neighbours> {
         DilationStream::next(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::storage::tiles::Tile;
+
+    /// Moving in place gives what a copy into a new arena gives, for lists that lose and
+    /// gain tiles anywhere (both directions of movement, runs of every length).
+    #[test]
+    fn moving_in_place_equals_copying() {
+        let mut rng = fastrand::Rng::with_seed(11);
+        for _ in 0..300 {
+            let n = rng.usize(0..60);
+            let old: Vec<Tile> = (0..n).map(|i| Tile::splat(i as f32)).collect();
+            // The new list: each old tile kept or not, with created tiles between them.
+            let mut from = Vec::new();
+            for p in 0..n {
+                from.extend(std::iter::repeat_n(NONE, rng.usize(0..3) * usize::from(rng.bool())));
+                if rng.u8(0..4) != 0 {
+                    from.push(p as u32);
+                }
+            }
+            let want: Vec<Option<Tile>> =
+                from.iter().map(|&p| (p != NONE).then(|| old[p as usize])).collect();
+            let mut values = old.clone();
+            values.resize(n.max(from.len()), Tile::splat(f32::NAN));
+            move_kept(&mut values, &from);
+            for (o, w) in want.iter().enumerate() {
+                if let Some(w) = w {
+                    assert_eq!(&values[o], w, "tile {o} of {from:?}");
+                }
+            }
+        }
     }
 }

@@ -384,7 +384,7 @@ fn management_admission_and_undo_restore_the_grid() {
         randomize_activity(&mut grid, &mut rng);
         let before = grid.clone();
         let refuse = |_: usize| Err(GridError::InvalidParameter("refused".into()));
-        assert!(grid.manage_tiles_checked(None, refuse, &mut Vec::new()).is_err());
+        assert!(grid.manage_tiles_checked(None, refuse, &mut Vec::new(), true).is_err());
         grid.check_invariants().unwrap();
         assert_same_grid(&grid, &before);
         let mut asked = None;
@@ -396,6 +396,7 @@ fn management_admission_and_undo_restore_the_grid() {
                     Ok(())
                 },
                 &mut Vec::new(),
+                false,
             )
             .unwrap();
         grid.check_invariants().unwrap();
@@ -442,9 +443,12 @@ fn parallel_management_equals_streamed() {
             let mut table = NeighbourTable::default();
             table.rebuild(grid.tile_coords());
             // Each pool, finding the neighbours itself and reading them from a table, with
-            // new memory or a spare buffer of garbage.
+            // new memory, a spare buffer of garbage, or the values moved in place.
             let runs = pools.iter().flat_map(|p| [(p, false), (p, true)]);
-            for ((pool, with_table), recycle) in runs.flat_map(|r| [(r, false), (r, true)]) {
+            let modes = [(false, false), (true, false), (false, true)];
+            for ((pool, with_table), (recycle, in_place)) in
+                runs.flat_map(|r| modes.map(|m| (r, m)))
+            {
                 let mut got = grid.clone();
                 let mut spare = if recycle {
                     vec![Tile::splat(f32::NAN); 2 * grid.len() + 64]
@@ -458,6 +462,7 @@ fn parallel_management_equals_streamed() {
                             with_table.then_some(&mut followed),
                             |_| Ok(()),
                             &mut spare,
+                            in_place,
                         )
                     })
                     .unwrap();
@@ -472,10 +477,13 @@ fn parallel_management_equals_streamed() {
                 }
                 if let Some(prev) = prev {
                     // Recycled: the new values live in the spare's memory, and the previous
-                    // grid's values (the list's before) were lent to it.
-                    let lent = if recycle { &spare } else { &prev.arena };
-                    assert_eq!(lent, &grid.arena);
-                    assert_eq!(prev.arena.is_empty(), recycle);
+                    // grid's values (the list's before) were lent to it. In place: they
+                    // were moved into the new list.
+                    if !in_place {
+                        let lent = if recycle { &spare } else { &prev.arena };
+                        assert_eq!(lent, &grid.arena);
+                    }
+                    assert_eq!(prev.arena.is_empty(), recycle || in_place);
                     assert_eq!(prev.tile_coords(), grid.tile_coords());
                 }
                 assert_eq!(stats, want_stats);
