@@ -151,9 +151,8 @@ impl Buffers {
     }
 
     /// A tile buffer that does not hold φⁿ of the step in progress (`undo`): scratch
-    /// between steps. The anchors when there are any (they only live through a
-    /// renormalisation), so that a step that stores them holds three value arrays, not
-    /// four.
+    /// between steps (empty with forward Euler, whose double buffer holds φⁿ; tile
+    /// management then moves the values within the arena).
     fn spare(&mut self, undo: Undo) -> &mut Vec<Tile> {
         match undo {
             Undo::Out => &mut self.phi_n,
@@ -1045,7 +1044,7 @@ impl Representation for TilesRep {
 
     fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError> {
         let current = (self.bytes() + self.work_bytes()) as u64;
-        // The new list and its neighbour table are allocated next to the current list
+        // The new list's coordinates and flags are allocated next to the current list's
         // (which a step in progress keeps until it stands); the step buffers grow to the
         // new list in the next step, which admits them before its first stage.
         debug_assert_eq!(self.table.len(), self.grid.len(), "stale neighbour table");
