@@ -41,29 +41,34 @@ pub(crate) struct GroupAnchors<'a> {
 }
 
 impl GroupAnchors<'_> {
-    /// Stores the anchors `t` of the group's tile `i` (tiles in order from the group's
-    /// first) at the voxels of `mask` (bit per voxel; the others are never read).
-    pub fn push(&mut self, i: usize, t: &Tile, mask: u64) {
-        if i == 0 {
-            self.values.clear();
+    /// Stores the anchors `tiles` of the group's tiles (in order from its first) at the
+    /// voxels of their band-mask words `masks` (the others are never read), in a vector of
+    /// exactly their number.
+    pub fn fill(&mut self, tiles: &[Tile], masks: &[u64]) {
+        let mut total = 0;
+        for (i, (t, &mask)) in tiles.iter().zip(masks).enumerate() {
+            // Branch-free over the tile: which anchors are −∞ and which +∞.
+            let (mut neg, mut pos) = (0u64, 0u64);
+            for (v, a) in t.0.iter().enumerate() {
+                let b = a.to_bits();
+                neg |= u64::from(b == f32::NEG_INFINITY.to_bits()) << v;
+                pos |= u64::from(b == f32::INFINITY.to_bits()) << v;
+            }
+            self.stored[i] = mask & !neg & !pos;
+            self.negative[i] = mask & neg;
+            // A group holds at most 64 tiles of 64 values.
+            self.start[i] = total as u16;
+            total += self.stored[i].count_ones() as usize;
         }
-        // A group holds at most 64 tiles of 64 values.
-        self.start[i] = self.values.len() as u16;
-        // Branch-free over the tile: which anchors are −∞ and which +∞.
-        let (mut neg, mut pos) = (0u64, 0u64);
-        for (v, a) in t.0.iter().enumerate() {
-            let b = a.to_bits();
-            neg |= u64::from(b == f32::NEG_INFINITY.to_bits()) << v;
-            pos |= u64::from(b == f32::INFINITY.to_bits()) << v;
+        self.values.clear();
+        self.values.reserve_exact(total);
+        for (t, &stored) in tiles.iter().zip(self.stored.iter()) {
+            let mut m = stored;
+            while m != 0 {
+                self.values.push(t.0[m.trailing_zeros() as usize]);
+                m &= m - 1;
+            }
         }
-        let (stored, negative) = (mask & !neg & !pos, mask & neg);
-        let mut m = stored;
-        while m != 0 {
-            self.values.push(t.0[m.trailing_zeros() as usize]);
-            m &= m - 1;
-        }
-        self.stored[i] = stored;
-        self.negative[i] = negative;
     }
 }
 

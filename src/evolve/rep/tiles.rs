@@ -566,9 +566,7 @@ impl Sweep for AnchorSweep<'_> {
                     act,
                 };
                 levelset_kernels::dispatch_default(simd, chunk)?;
-                for (i, (t, &m)) in out.iter().zip(mask.iter()).enumerate() {
-                    group.push(i, t, m);
-                }
+                group.fill(out, mask);
                 Ok(())
             },
         )
