@@ -170,6 +170,16 @@ pub(crate) const fn grown_capacity(n: usize) -> usize {
     n.saturating_add(n / 16)
 }
 
+/// Resizes a buffer to `n` elements; when it has to grow, to the capacity
+/// [`grown_capacity`] gives (a sixteenth of headroom instead of the doubling of a growing
+/// `Vec`), so that its capacity is what the memory budget admitted.
+pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
+    if n > v.capacity() {
+        v.reserve_exact(grown_capacity(n) - v.len());
+    }
+    v.resize(n, fill);
+}
+
 /// Asks Linux to back the 2 MiB-aligned interior of a fresh output buffer with
 /// transparent huge pages (`madvise(MADV_HUGEPAGE)`, honoured when THP is `madvise` or
 /// `always`), before anything touches it: the first write then faults once per 2 MiB

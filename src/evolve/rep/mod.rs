@@ -22,6 +22,7 @@ pub(crate) mod dense;
 pub(crate) mod dtgrid;
 pub(crate) mod tiles;
 
+pub(crate) use crate::memory::resize_exact;
 pub(crate) use dense::DenseRep;
 pub(crate) use dtgrid::DtRep;
 pub(crate) use tiles::{step_bytes_per_tile, TilesRep, TILE_GRID_BYTES};
@@ -259,16 +260,6 @@ pub(crate) fn growth_bytes<T>(v: &Vec<T>, n: usize) -> u64 {
         return 0;
     }
     ((grown_capacity(n) - v.capacity()) * std::mem::size_of::<T>()) as u64
-}
-
-/// Resizes a buffer to `n` elements; when it has to grow, to the capacity
-/// [`grown_capacity`] gives (a sixteenth of headroom instead of the doubling of a growing
-/// `Vec`), so that its capacity is what the memory budget admitted ([`growth_bytes`]).
-pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
-    if n > v.capacity() {
-        v.reserve_exact(grown_capacity(n) - v.len());
-    }
-    v.resize(n, fill);
 }
 
 /// Which buffer holds φⁿ while a step is in progress (no copy is made: the first stage's

@@ -27,7 +27,7 @@ use super::stream::{move_kept, ListMoves, NeighbourCursor, NeighbourTable, NONE}
 use super::{lower_bound, tile_in_range, ManageStats, Tile, TileGrid};
 use crate::coord::{reverse, Coord, MID, NEIGHBOURHOOD};
 use crate::grid::GridError;
-use crate::memory::grown_capacity;
+use crate::memory::{grown_capacity, resize_exact};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -137,28 +137,23 @@ impl TileGrid {
         } else {
             Some(filled(total, Tile::splat(0.0)))
         };
-        let (list, moves) = self.compact(&keep, &border_new, &created, &created_inside, arena);
+        let (list, moves) =
+            self.compact(&keep, &border_new, &created, &created_inside, total, arena);
         let (coords, arena, border, activity) = list;
         let arena = match arena {
             Some(a) => a,
             None => {
+                // Growing with a band's headroom, so that the next steps move within this
+                // arena instead of copying it into a larger one.
                 let mut values = std::mem::take(&mut self.arena);
-                if total > values.capacity() {
-                    // With the headroom of a growing band, so that the next steps move
-                    // within this arena instead of copying it into a larger one.
-                    values.reserve_exact(grown_capacity(total) - values.len());
-                }
-                if total > n {
-                    values.resize(total, Tile::splat(0.0));
-                }
+                resize_exact(&mut values, total.max(n), Tile::splat(0.0));
                 move_kept(&mut values, &moves.from);
                 values.truncate(total);
-                let g = self.gamma();
-                // The created tiles: ±γ by the sign their flags took (`created_tile`).
+                // The created tiles, by the sign their activity flags took.
                 values.par_iter_mut().zip(&moves.from).zip(&activity).for_each(
                     |((v, &from), &a)| {
                         if from == NONE {
-                            *v = Tile::splat(if a & INSIDE != 0 { -g } else { g });
+                            *v = self.created_tile(a & INSIDE != 0).0;
                         }
                     },
                 );
@@ -263,7 +258,7 @@ impl TileGrid {
     }
 
     /// Phase 3: the new list in list order (coordinates, values, border and activity
-    /// flags), its values written into `new_arena` (one tile per entry of the new list;
+    /// flags), `total` entries, its values written into `new_arena` (one tile per entry;
     /// `None`: the values are left to the caller), and where each tile went
     /// ([`ListMoves`]). Each chunk merges its kept tiles with the created tiles of its
     /// coordinate range; a prefix sum over the chunks' counts places every chunk's output,
@@ -275,9 +270,9 @@ impl TileGrid {
         border_new: &[AtomicU32],
         created: &[Coord],
         created_inside: &[bool],
+        total: usize,
         mut new_arena: Option<Vec<Tile>>,
     ) -> ((Vec<Coord>, Option<Vec<Tile>>, Vec<u32>, Vec<u32>), ListMoves) {
-        let total = keep.iter().filter(|&&k| k).count() + created.len();
         debug_assert!(new_arena.as_ref().is_none_or(|a| a.len() == total));
         let (coords, arena, activity) = (&self.coords[..], &self.arena[..], &self.activity[..]);
         let n = coords.len();

@@ -308,13 +308,8 @@ impl NeighbourTable {
         // The rows move within the table (as the values within the arena), then are
         // renumbered: no second table next to the first.
         let rows = &mut self.rows;
-        if coords.len() > rows.capacity() {
-            let want = crate::memory::grown_capacity(coords.len());
-            rows.reserve_exact(want - rows.len());
-        }
-        if coords.len() > rows.len() {
-            rows.resize(coords.len(), NeighbourRow::EMPTY);
-        }
+        let len = coords.len().max(rows.len());
+        crate::memory::resize_exact(rows, len, NeighbourRow::EMPTY);
         move_kept(rows, from);
         rows.truncate(coords.len());
         rows.par_iter_mut().zip(from).enumerate().with_min_len(Self::CHUNK).for_each(
