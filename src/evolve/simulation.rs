@@ -863,15 +863,15 @@ impl Simulation {
         if comm.map_or(empty, |c| !c.any(!empty)) {
             return true;
         }
-        let inside_measure = |values: &[f32]| {
-            let mut s = ExactSum::default();
+        // Over the band voxels only: φⁿ may leave out the values of ±γ.
+        let inside_measure = |s: &mut ExactSum, values: &[f32]| {
             for &v in values.iter().filter(|v| v.abs() < g) {
                 s.add((0.5 - v / h).clamp(0.0, 1.0));
             }
-            s
         };
-        let (now, before) =
-            (inside_measure(rep.owned_flat()), inside_measure(rep.owned_step_start()));
+        let (mut now, mut before) = (ExactSum::default(), ExactSum::default());
+        inside_measure(&mut now, rep.owned_flat());
+        rep.for_each_owned_step_start(&mut |v| inside_measure(&mut before, v));
         let [now, before] = comm.map_or([now, before], |c| c.sum_exact([now, before]));
         now.value() <= before.value()
     }

@@ -198,8 +198,8 @@ impl Representation for DenseRep {
         self.check_margin()
     }
 
-    fn step_start(&self) -> &[f32] {
-        self.undo.held(&self.phi_n, &self.out)
+    fn for_each_owned_step_start(&self, f: &mut dyn FnMut(&[f32])) {
+        f(self.undo.held(&self.phi_n, &self.out))
     }
 
     fn undo_step(&mut self) {

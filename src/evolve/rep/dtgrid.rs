@@ -268,8 +268,8 @@ impl Representation for DtRep {
         Ok(())
     }
 
-    fn step_start(&self) -> &[f32] {
-        self.undo.held(&self.phi_n, &self.out)
+    fn for_each_owned_step_start(&self, f: &mut dyn FnMut(&[f32])) {
+        f(self.undo.held(&self.phi_n, &self.out))
     }
 
     fn undo_step(&mut self) {

@@ -17,9 +17,9 @@
 //! when the new list's were built in a step buffer, see
 //! [`crate::storage::tiles::TileGrid::manage_tiles`]: φⁿ is put back into it).
 
-pub(crate) mod anchors;
 pub(crate) mod dense;
 pub(crate) mod dtgrid;
+pub(crate) mod packed;
 pub(crate) mod tiles;
 
 pub(crate) use crate::memory::resize_exact;
@@ -94,9 +94,10 @@ pub(crate) trait Representation: Send + Sync {
     /// (the DT-Grid: before its rebuilt grid replaces the current one). On an error the
     /// representation is as before the call.
     fn finish_step(&mut self, budget: &MemoryBudget) -> Result<(), EvolveError>;
-    /// φⁿ of the step in progress (flat order of the state before the step; empty when no
-    /// stage has run).
-    fn step_start(&self) -> &[f32];
+    /// Visits φⁿ of the step in progress on the units this rank owned before the step, in
+    /// slices of values (nothing when no stage has run). Values of exactly ±γ (outside the
+    /// band) may be left out.
+    fn for_each_owned_step_start(&self, f: &mut dyn FnMut(&[f32]));
     /// Puts back the state before the step in progress: values, stored set, flags.
     fn undo_step(&mut self);
     /// The step in progress stands: drops what [`Representation::undo_step`] needed.
@@ -127,11 +128,6 @@ pub(crate) trait Representation: Send + Sync {
     /// distributed).
     fn owned_flat(&self) -> &[f32] {
         self.flat()
-    }
-    /// [`Representation::step_start`] restricted to the units this rank owned before the
-    /// step.
-    fn owned_step_start(&self) -> &[f32] {
-        self.step_start()
     }
     /// Tiles (tiles, those this rank owns when distributed), points (DT-Grid) or voxels
     /// (dense) stored.

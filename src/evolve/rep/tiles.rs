@@ -2,10 +2,8 @@
 //! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
 //! (van der Laan et al. 2011, Sec. 4.7), tile management after each step (Sec. 4.6).
 
-use super::anchors::{self, TileAnchors};
-use super::{
-    growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation, Undo,
-};
+use super::packed::{self, PackedTiles};
+use super::{growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation};
 use crate::coord::Coord;
 use crate::distributed::{Comm, RankPart};
 use crate::evolve::dispatch::{
@@ -38,44 +36,47 @@ pub(crate) const TILE_GRID_BYTES: u64 =
 /// keeps while it decides, with a growing band's headroom.
 const MANAGE_BYTES_PER_TILE: u64 = 40;
 
-/// Bytes per tile of the stored anchors ([`TileAnchors`]) in the estimates: the two bit
+/// Bytes per tile of the stored anchors ([`PackedTiles`]) in the estimates: the two bit
 /// words and the start of each tile, and the values of the voxels next to the interface
 /// (about 8 a tile on spheres of radius 200 to 800 and in the morph scenario).
 const ANCHOR_BYTES_PER_TILE: u64 = 18 + 4 * 16;
 
-/// Bytes per tile the engine holds while it steps: the grid's own arrays, the double
-/// buffer with its activity flags, the band mask, the neighbour table's row, a third
-/// value array when the steps keep φⁿ beside the double buffer (see [`Buffers`]), and the
-/// larger of the anchors, which live through a renormalisation, and the arrays of tile
-/// management, which follows it. Tile management moves the values within the arena (or
-/// writes them into a free step buffer), so it adds no value array.
-///
-/// With forward Euler the renormalisation's sweeps write in place, so φⁿ stays in the
-/// double buffer; TVD-RK3's stages hold φⁿ beside the double buffer ([`value_arrays`]).
+/// Bytes per tile of φⁿ packed for the undo ([`PackedTiles`]) in the estimates: the two bit
+/// words and the start of each tile, and the band voxels' values, counted as half the
+/// tile's (27 a tile on a sphere of radius 800 at γ = 3).
+const PACKED_BYTES_PER_TILE: u64 = 18 + 4 * 32;
+
+/// Bytes per tile the engine holds while it steps: the grid's own arrays, the activity
+/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: the
+/// double buffer and φⁿ beside it; otherwise φⁿ packed, see [`TileUndo`]) with its
+/// activity flags, and the larger of the anchors, which live through a renormalisation,
+/// and the arrays of tile management, which follows it. Tile management moves the values
+/// within the arena (or writes them into a free step buffer), so it adds no value array.
 pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
     let tile = std::mem::size_of::<Tile>() as u64;
     let row = std::mem::size_of::<crate::storage::tiles::NeighbourRow>() as u64;
-    let mut b = TILE_GRID_BYTES + (tile + 4) + 8 + row;
-    let (phi_n, anchors) = value_arrays(keeps);
-    if phi_n {
-        b += tile + 4;
-    }
-    b + if anchors {
+    let b = TILE_GRID_BYTES + 4 + 8 + row + 4;
+    let b = b + if keeps.rk3 { 2 * tile } else { PACKED_BYTES_PER_TILE };
+    b + if keeps.anchors {
         ANCHOR_BYTES_PER_TILE.max(MANAGE_BYTES_PER_TILE)
     } else {
         MANAGE_BYTES_PER_TILE
     }
 }
 
-/// Whether the engine allocates the φⁿ buffer (with its flags) besides the double buffer,
-/// and whether it stores anchors: forward Euler keeps φⁿ in `out` (its sweeps write in
-/// place) when it stores anchors; otherwise as `keeps` says.
-fn value_arrays(keeps: StepKeeps) -> (bool, bool) {
-    if keeps.anchors && !keeps.rk3 {
-        (false, true)
-    } else {
-        (keeps.phi_n, keeps.anchors)
-    }
+/// Where the tile engine keeps φⁿ of the step (or the renormalisation) in progress, to
+/// undo it and for TVD-RK3's later stages.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum TileUndo {
+    /// No step in progress, or its first stage failed before changing anything.
+    #[default]
+    Nothing,
+    /// TVD-RK3: the φⁿ buffer holds it, whole, for the stages that read it.
+    PhiN,
+    /// Forward Euler and renormalisation: packed ([`Buffers::packed`]), the sweeps
+    /// writing in place. Outside the band a tile holds ±γ, so the packed φⁿ takes a
+    /// fraction of a value array (27 of 64 values a tile on a sphere of radius 800).
+    Packed,
 }
 
 /// The tile engine: the grid holds the current values; `out` is the double buffer the
@@ -84,9 +85,9 @@ fn value_arrays(keeps: StepKeeps) -> (bool, bool) {
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
 ///   management; checked in debug builds where it is read);
-/// * while a step is in progress, `undo` names the buffer holding φⁿ (with its activity
-///   flags: `activity` for `out`, `phi_n_activity` for `phi_n`) in the list order of the
-///   state before the step, and `prev` holds that state's grid when tile management has
+/// * while a step is in progress, `undo` names the buffer holding φⁿ (`phi_n` or
+///   `packed`; its activity flags are in `phi_n_activity`) in the list order of the state
+///   before the step, and `prev` holds that state's grid when tile management has
 ///   replaced it.
 #[derive(Clone)]
 pub(crate) struct TilesRep {
@@ -94,7 +95,7 @@ pub(crate) struct TilesRep {
     pub lanes: Lanes,
     table: NeighbourTable,
     buf: Buffers,
-    undo: Undo,
+    undo: TileUndo,
     /// Boxed: kept only while a step is in progress.
     prev: Option<Box<TileGrid>>,
     /// This rank's part of a distributed band (`None`: the whole band); see
@@ -105,10 +106,12 @@ pub(crate) struct TilesRep {
 /// The buffers of a step, one entry per tile in list order.
 #[derive(Clone, Default)]
 struct Buffers {
-    /// φⁿ and its activity flags (TVD-RK3).
+    /// φⁿ (TVD-RK3) and its activity flags (whenever a step is in progress).
     phi_n: Vec<Tile>,
     phi_n_activity: Vec<u32>,
-    /// The double buffer and the activity flags the sweep computes with it.
+    /// φⁿ packed (forward Euler and renormalisation; boxed: empty with TVD-RK3).
+    packed: Box<PackedTiles>,
+    /// The double buffer (TVD-RK3) and the activity flags a sweep computes.
     out: Vec<Tile>,
     activity: Vec<u32>,
     /// The band mask, one bit per voxel (bit `i` of a tile's word: voxel `i`'s box of φⁿ
@@ -117,21 +120,24 @@ struct Buffers {
     band: Vec<u64>,
     /// The renormalisation's anchors of φ⁰, stored where they hold a number (boxed: empty
     /// between renormalisations).
-    anchor: Box<TileAnchors>,
+    anchor: Box<PackedTiles>,
 }
 
 impl Buffers {
     /// Bytes they have to allocate to serve `tiles` tiles ([`step_bytes_per_tile`]'s
     /// arrays).
     fn growth(&self, tiles: usize, keeps: StepKeeps) -> u64 {
-        let mut b = growth_bytes(&self.out, tiles)
-            + growth_bytes(&self.band, tiles)
-            + growth_bytes(&self.activity, tiles);
-        let (phi_n, anchors) = value_arrays(keeps);
-        if phi_n {
-            b += growth_bytes(&self.phi_n, tiles) + growth_bytes(&self.phi_n_activity, tiles);
+        let mut b = growth_bytes(&self.band, tiles)
+            + growth_bytes(&self.activity, tiles)
+            + growth_bytes(&self.phi_n_activity, tiles);
+        if keeps.rk3 {
+            b += growth_bytes(&self.out, tiles) + growth_bytes(&self.phi_n, tiles);
+        } else {
+            // Packed anew at every step.
+            b += tiles as u64 * PACKED_BYTES_PER_TILE;
         }
-        if anchors && self.anchor.is_unallocated() {
+        if keeps.anchors {
+            // Dropped after every renormalisation.
             b += tiles as u64 * ANCHOR_BYTES_PER_TILE;
         }
         b
@@ -150,20 +156,18 @@ impl Buffers {
         resize_exact(&mut self.activity, tiles, 0);
     }
 
-    /// A tile buffer that does not hold φⁿ of the step in progress (`undo`): scratch
-    /// between steps (empty with forward Euler, whose double buffer holds φⁿ; tile
-    /// management then moves the values within the arena).
-    fn spare(&mut self, undo: Undo) -> &mut Vec<Tile> {
-        match undo {
-            Undo::Out => &mut self.phi_n,
-            Undo::Nothing | Undo::PhiN => &mut self.out,
-        }
+    /// A tile buffer that does not hold φⁿ of the step in progress: scratch between steps
+    /// (empty unless TVD-RK3 allocated it; tile management then moves the values within
+    /// the arena).
+    fn spare(&mut self) -> &mut Vec<Tile> {
+        &mut self.out
     }
 
     /// Bytes held, used or not.
     fn bytes(&self) -> usize {
         vec_bytes(&self.phi_n)
             + vec_bytes(&self.phi_n_activity)
+            + self.packed.bytes()
             + vec_bytes(&self.out)
             + vec_bytes(&self.band)
             + vec_bytes(&self.activity)
@@ -182,7 +186,7 @@ impl TilesRep {
             lanes,
             table,
             buf: Buffers::default(),
-            undo: Undo::Nothing,
+            undo: TileUndo::Nothing,
             prev: None,
             part: None,
         }
@@ -197,6 +201,17 @@ impl TilesRep {
     /// The list positions this rank owns (every tile when the band is not distributed).
     fn owned(&self) -> Range<usize> {
         self.part.as_ref().map_or(0..self.grid.len(), |p| p.owned.clone())
+    }
+
+    /// Keeps φⁿ, the state before the step (or the renormalisation at rest) begins, packed
+    /// with its activity flags, for [`Representation::undo_step`]; the sweeps then write in
+    /// place.
+    fn keep_step_start(&mut self) {
+        let gamma = self.grid.gamma();
+        self.buf.packed.pack(self.grid.values(), gamma);
+        self.buf.phi_n_activity.clear();
+        self.buf.phi_n_activity.extend_from_slice(self.grid.activity());
+        self.undo = TileUndo::Packed;
     }
 
     /// The values changed (a sweep was swapped in): the ghost tiles get their owners'
@@ -527,9 +542,9 @@ where
 }
 
 /// The anchor pass of a renormalisation ([`levelset_kernels::InterfaceAnchor`] over φ⁰)
-/// into [`TileAnchors`]: each chunk of tiles is computed as a [`TileSweep`]'s into a
+/// into [`PackedTiles`]: each chunk of tiles is computed as a [`TileSweep`]'s into a
 /// buffer of its own, and only the anchors of the voxels in the band mask that are not ±∞
-/// are kept (a sweep reads no other, see [`crate::evolve::rep::anchors`]). So the anchors
+/// are kept (a sweep reads no other, see [`crate::evolve::rep::packed`]). So the anchors
 /// take a few bytes per tile instead of a fourth value array.
 struct AnchorSweep<'a> {
     grid: &'a TileGrid,
@@ -538,7 +553,7 @@ struct AnchorSweep<'a> {
     band: &'a mut [u64],
     compute_mask: bool,
     owned: Range<usize>,
-    anchors: &'a mut TileAnchors,
+    anchors: &'a mut PackedTiles,
 }
 
 impl Sweep for AnchorSweep<'_> {
@@ -553,20 +568,20 @@ impl Sweep for AnchorSweep<'_> {
         let shared =
             Shared { grid, table, compute_mask, planar: false, owned: &owned, make: &make };
         anchors.resize(grid.len());
-        band.par_chunks_mut(anchors::GROUP).zip(anchors.groups_mut()).enumerate().try_for_each_init(
-            || (vec![Tile::splat(0.0); anchors::GROUP], vec![0u32; anchors::GROUP]),
+        band.par_chunks_mut(packed::GROUP).zip(anchors.groups_mut()).enumerate().try_for_each_init(
+            || (vec![Tile::splat(0.0); packed::GROUP], vec![0u32; packed::GROUP]),
             |(out, act), (c, (mask, mut group))| {
                 let len = mask.len();
                 let (out, act) = (&mut out[..len], &mut act[..len]);
                 let chunk = Chunk::<M, R> {
                     shared: &shared,
-                    start: c * anchors::GROUP,
+                    start: c * packed::GROUP,
                     out: &mut *out,
                     mask: &mut *mask,
                     act,
                 };
                 levelset_kernels::dispatch_default(simd, chunk)?;
-                group.fill(out, mask);
+                group.fill(out, mask.iter().copied(), f32::INFINITY);
                 Ok(())
             },
         )
@@ -597,6 +612,8 @@ struct InPlaceSweep<'a> {
     compute_mask: bool,
     activity: &'a mut [u32],
     owned: Range<usize>,
+    /// See [`TileSweep`].
+    planar: bool,
 }
 
 impl Sweep for InPlaceSweep<'_> {
@@ -607,12 +624,12 @@ impl Sweep for InPlaceSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, .. } = self;
+        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, planar, .. } = self;
         let n = grid.len();
         let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
         let len = n.div_ceil(tasks).max(TILE_CHUNK);
         let shared =
-            Shared { grid: &grid, table, compute_mask, planar: false, owned: &owned, make: &make };
+            Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
         let held: Vec<Vec<(usize, Tile)>> = band
             .par_chunks_mut(len)
             .zip(activity.par_chunks_mut(len))
@@ -930,13 +947,34 @@ impl Representation for TilesRep {
         last: bool,
     ) -> Result<(), EvolveError> {
         let n = self.grid.len();
+        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
+        let owned = self.owned();
+        let planar = p.lattice.is_some_and(|l| l.planar);
+        if p.stage == 1 && last {
+            // Forward Euler: φⁿ packed, the stage written in place.
+            self.keep_step_start();
+            self.buf.resize_flags(n);
+            let Buffers { band, activity, .. } = &mut self.buf;
+            let sweep = InPlaceSweep {
+                owned,
+                grid: self.grid.in_place(),
+                table: &self.table,
+                lanes: self.lanes,
+                band,
+                compute_mask: true,
+                activity,
+                planar,
+            };
+            dispatch(p, scheme, sweep)?;
+            self.grid.swap_activity(&mut self.buf.activity)?;
+            self.exchange_ghosts();
+            return Ok(());
+        }
         self.buf.resize(n);
         let p = StageParams {
             phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.buf.phi_n) },
             ..*p
         };
-        debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-        let owned = self.owned();
         let sweep = TileSweep {
             owned,
             grid: &self.grid,
@@ -946,21 +984,17 @@ impl Representation for TilesRep {
             band: &mut self.buf.band,
             compute_mask: p.stage == 1,
             activity: &mut self.buf.activity,
-            planar: p.lattice.is_some_and(|l| l.planar),
+            planar,
         };
         dispatch(&p, scheme, sweep)?;
         self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
         exchange_ghosts(&self.part, &mut self.grid);
         // `out` and `activity` now hold the previous values and their flags.
         if p.stage == 1 {
-            self.undo = if last {
-                Undo::Out
-            } else {
-                // Keep φⁿ for stages 2 and 3 (and for undoing the step).
-                std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
-                std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
-                Undo::PhiN
-            };
+            // Keep φⁿ for stages 2 and 3 (and for undoing the step).
+            std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
+            std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
+            self.undo = TileUndo::PhiN;
         }
         Ok(())
     }
@@ -986,13 +1020,16 @@ impl Representation for TilesRep {
             };
             dispatch_anchor(p.h, sweep)?;
         }
+        if self.undo == TileUndo::Nothing {
+            // At rest: φ⁰ packed for undoing the renormalisation.
+            self.keep_step_start();
+        }
         for s in 0..p.sweeps {
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
             // At rest, the single sweep computes the band mask of φ⁰ itself.
             let compute_mask = fresh && !anchored && s == 0;
-            if self.undo != Undo::Out {
-                // `out` is free: at rest (the first sweep then keeps φ⁰ there for undoing
-                // the renormalisation), or after TVD-RK3's stages, which keep φⁿ apart.
+            if self.undo == TileUndo::PhiN {
+                // After TVD-RK3's stages, which keep φⁿ apart: `out` is free.
                 self.buf.resize(n);
                 let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
                 let sweep = TileSweep {
@@ -1009,12 +1046,8 @@ impl Representation for TilesRep {
                 dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
             } else {
-                // `out` holds φⁿ for the undo (forward Euler, or the sweeps at rest after
-                // the first): the sweep writes into the grid behind itself instead of
-                // into a third value array. Measured on `levelset run sphere --size 2048
-                // --steps 3 --threads 2`: the peak resident memory 4.42 → 3.53 × the
-                // grid's bytes; at 256³ the run 5.7 % slower on 1 thread, 2.2 % on 2
-                // (docs/decisions/0033).
+                // φⁿ is packed: the sweep writes into the grid behind itself instead of
+                // into a second value array (docs/decisions/0033, 0043).
                 self.buf.resize_flags(n);
                 let Buffers { band, activity, anchor, .. } = &mut self.buf;
                 let sweep = InPlaceSweep {
@@ -1025,18 +1058,16 @@ impl Representation for TilesRep {
                     band,
                     compute_mask,
                     activity,
+                    planar: false,
                 };
                 dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_activity(&mut self.buf.activity)?;
             }
             self.exchange_ghosts();
-            if self.undo == Undo::Nothing {
-                self.undo = Undo::Out;
-            }
         }
         // The anchors live only through a renormalisation: tile management, next, has
         // their memory.
-        *self.buf.anchor = TileAnchors::default();
+        *self.buf.anchor = PackedTiles::default();
         Ok(())
     }
 
@@ -1051,7 +1082,7 @@ impl Representation for TilesRep {
         // its own (φⁿ is put back into it on undo). The table follows the list.
         // Where the spare is too small, the values move within the grid's arena, which
         // grows only past its capacity; the table's rows move within the table.
-        let spare = self.buf.spare(self.undo);
+        let spare = self.buf.spare();
         let arena_cap = spare.capacity().max(self.grid.value_capacity());
         let rows_cap = self.table.capacity();
         let growth = |cap: usize, n: usize, size: usize| {
@@ -1081,7 +1112,7 @@ impl Representation for TilesRep {
         };
         if let Some(prev) = prev {
             // A step in progress keeps the list its φⁿ belongs to.
-            if self.undo != Undo::Nothing && self.prev.is_none() {
+            if self.undo != TileUndo::Nothing && self.prev.is_none() {
                 self.prev = Some(Box::new(prev));
             }
         }
@@ -1091,7 +1122,7 @@ impl Representation for TilesRep {
             let cuts = part.cuts.clone();
             let grid = part.redistribute(&self.grid, cuts);
             let old = std::mem::replace(&mut self.grid, grid);
-            if self.undo != Undo::Nothing && self.prev.is_none() {
+            if self.undo != TileUndo::Nothing && self.prev.is_none() {
                 self.prev = Some(Box::new(old));
             }
             self.table.rebuild(self.grid.tile_coords());
@@ -1099,28 +1130,53 @@ impl Representation for TilesRep {
         Ok(())
     }
 
-    fn step_start(&self) -> &[f32] {
-        tile_flat(self.undo.held(&self.buf.phi_n, &self.buf.out))
+    fn for_each_owned_step_start(&self, f: &mut dyn FnMut(&[f32])) {
+        // φⁿ is in the order of the list before the step.
+        let coords = self.prev.as_ref().map_or(self.grid.tile_coords(), |g| g.tile_coords());
+        let owned = self.part.as_ref().map_or(0..coords.len(), |p| p.owned_in(coords));
+        match self.undo {
+            TileUndo::Nothing => {}
+            TileUndo::PhiN => f(tile_flat(&self.buf.phi_n[owned])),
+            // The voxels not stored hold ±γ.
+            TileUndo::Packed => owned.for_each(|p| f(self.buf.packed.stored_values(p))),
+        }
     }
 
     fn undo_step(&mut self) {
+        if self.undo == TileUndo::Nothing {
+            debug_assert!(self.prev.is_none(), "a list replaced without a step in progress");
+            return;
+        }
+        let mut values = match self.undo {
+            TileUndo::PhiN => std::mem::take(&mut self.buf.phi_n),
+            // Unpacked into the memory of the grid's values (the current list's, which
+            // tile management grew to hold the list before the step, or the list's own).
+            _ => self.grid.take_values(),
+        };
         if let Some(prev) = self.prev.take() {
             self.grid = *prev;
             self.table.rebuild(self.grid.tile_coords());
         }
-        let (values, activity) = match self.undo {
-            Undo::Nothing => return,
-            Undo::Out => (&mut self.buf.out, &mut self.buf.activity),
-            Undo::PhiN => (&mut self.buf.phi_n, &mut self.buf.phi_n_activity),
-        };
-        self.undo = Undo::Nothing;
+        if self.undo == TileUndo::Packed {
+            let packed = std::mem::take(&mut *self.buf.packed);
+            resize_exact(&mut values, packed.len(), Tile::splat(0.0));
+            packed.unpack(&mut values, self.grid.gamma());
+        }
         // φⁿ has one tile per entry of the list it was computed on (restored above).
-        self.grid.swap_values(values, activity).expect("φⁿ matches the list before the step");
+        self.grid
+            .swap_values(&mut values, &mut self.buf.phi_n_activity)
+            .expect("φⁿ matches the list before the step");
+        if self.undo == TileUndo::PhiN {
+            // The buffer stays for the next step.
+            self.buf.phi_n = values;
+        }
+        self.undo = TileUndo::Nothing;
     }
 
     fn commit_step(&mut self) {
-        self.undo = Undo::Nothing;
+        self.undo = TileUndo::Nothing;
         self.prev = None;
+        *self.buf.packed = PackedTiles::default();
     }
 
     fn kappa_bar_sums(&self, width: f32) -> Result<(ExactSum, ExactSum), EvolveError> {
@@ -1191,18 +1247,6 @@ impl Representation for TilesRep {
     fn owned_flat(&self) -> &[f32] {
         let owned = self.owned();
         tile_flat(&self.grid.values()[owned])
-    }
-
-    fn owned_step_start(&self) -> &[f32] {
-        let start = self.step_start();
-        let Some(p) = &self.part else { return start };
-        if start.is_empty() {
-            return start;
-        }
-        // φⁿ is in the order of the list before the step.
-        let coords = self.prev.as_ref().map_or(self.grid.tile_coords(), |g| g.tile_coords());
-        let owned = p.owned_in(coords);
-        &start[64 * owned.start..64 * owned.end]
     }
 
     fn value(&self, c: Coord) -> f32 {

@@ -181,6 +181,18 @@ impl TileGrid {
         self.border[pos]
     }
 
+    /// The activity flags of every tile, in list order.
+    pub(crate) fn activity(&self) -> &[u32] {
+        &self.activity
+    }
+
+    /// Takes the values out of the grid, which then holds none until
+    /// [`TileGrid::swap_values`] gives it a value array for its list (an undo that
+    /// rebuilds φⁿ in the memory of the values it replaces).
+    pub(crate) fn take_values(&mut self) -> Vec<Tile> {
+        std::mem::take(&mut self.arena)
+    }
+
     /// Activity flags of the tile at list position `pos` (see [`super::flags`]).
     #[inline]
     pub fn activity_flags(&self, pos: usize) -> u32 {
