@@ -31,6 +31,8 @@ struct Snapshot {
     /// The band's bounding box grown by `MARGIN`, and the value bits over it.
     region: Option<(Coord, Coord)>,
     values: Vec<u32>,
+    /// The tiles' activity flags (tile management reads them in the next step).
+    flags: Vec<u32>,
 }
 
 /// Voxels around the band's bounding box whose values are compared.
@@ -54,8 +56,10 @@ fn snapshot(sim: &Simulation) -> Snapshot {
             }
         }
     }
+    let mut flags = Vec::new();
     if let Some(t) = sim.tiles() {
         t.check_invariants().unwrap();
+        flags = (0..t.len()).map(|p| t.activity_flags(p)).collect();
     }
     Snapshot {
         checksum: sim.checksum(),
@@ -68,6 +72,7 @@ fn snapshot(sim: &Simulation) -> Snapshot {
         collapsed: sim.collapsed(),
         region,
         values,
+        flags,
     }
 }
 

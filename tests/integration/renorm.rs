@@ -265,11 +265,12 @@ fn a_renormalization_that_does_not_fit_changes_nothing() {
         let m = sim.measure().unwrap();
         let sum = sim.checksum();
         // Room for the grid (and for building it next to its first list), not for the
-        // sweeps' buffers: the double buffer, φ⁰, the band mask and the anchors.
-        // (The DT-Grid's rebuild scratch is part of its work bytes.)
+        // sweeps' buffers: on tiles φ⁰ packed (about half a value array), the flags, the
+        // band mask and the anchors; on the DT-Grid the double buffer and φ⁰. (The DT-Grid's
+        // rebuild scratch is part of its work bytes.)
         let limit = match kind {
             GridKind::DtGrid => (m.bytes + m.work_bytes) as u64,
-            _ => 2 * (m.bytes + m.work_bytes) as u64,
+            _ => (m.bytes + m.work_bytes + m.bytes / 2) as u64,
         };
         let settings = Settings { memory_limit: Some(limit), ..Settings::default() };
         let mut tight =
