@@ -10,8 +10,9 @@
 //! # Atomic steps
 //! A step is *begun* by its first stage and ends with [`Representation::commit_step`] or
 //! [`Representation::undo_step`]. Until then the representation keeps what it needs to
-//! put the state before the step back: φⁿ (the double buffer the first stage swapped
-//! out, or the φⁿ buffer of TVD-RK3, so no copy is made) and, when the band maintenance of
+//! put the state before the step back: φⁿ (on the DT-Grid and the dense reference the
+//! double buffer the first stage swapped out, or the φⁿ buffer of TVD-RK3, so no copy is
+//! made; on tiles forward Euler's φⁿ packed, see [`tiles`]) and, when the band maintenance of
 //! [`Representation::finish_step`] replaced the tile list or the DT-Grid, the previous one
 //! (which the replacement would otherwise drop; the tile list's without values of its own
 //! when the new list's were built in a step buffer, see
@@ -258,8 +259,8 @@ pub(crate) fn growth_bytes<T>(v: &Vec<T>, n: usize) -> u64 {
     ((grown_capacity(n) - v.capacity()) * std::mem::size_of::<T>()) as u64
 }
 
-/// Which buffer holds φⁿ while a step is in progress (no copy is made: the first stage's
-/// double buffer, swapped out of the grid, is kept).
+/// Which buffer of the DT-Grid or the dense reference holds φⁿ while a step is in progress
+/// (no copy is made: the first stage's double buffer, swapped out of the grid, is kept).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) enum Undo {
     /// No step in progress, or its first stage failed before changing anything.

@@ -79,8 +79,9 @@ enum TileUndo {
     Packed,
 }
 
-/// The tile engine: the grid holds the current values; `out` is the double buffer the
-/// sweep writes in list order (Sec. 4.7), swapped into the grid after each stage.
+/// The tile engine: the grid holds the current values; TVD-RK3's stages write into the
+/// double buffer `out` in list order (Sec. 4.7), swapped into the grid after each stage;
+/// forward Euler's stage and the renormalisation's sweeps write into the grid in place.
 ///
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
