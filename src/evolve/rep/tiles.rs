@@ -47,9 +47,9 @@ const ANCHOR_BYTES_PER_TILE: u64 = 18 + 4 * 16;
 const PACKED_BYTES_PER_TILE: u64 = 18 + 4 * 32;
 
 /// Bytes per tile the engine holds while it steps: the grid's own arrays, the activity
-/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: the
-/// double buffer and φⁿ beside it; otherwise φⁿ packed, see [`TileUndo`]) with its
-/// activity flags, and the larger of the anchors, which live through a renormalisation,
+/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: φⁿ
+/// whole and the double buffer its renormalisation sweeps write; otherwise φⁿ packed, see
+/// [`TileUndo`]) with its activity flags, and the larger of the anchors, which live through a renormalisation,
 /// and the arrays of tile management, which follows it. Tile management moves the values
 /// within the arena (or writes them into a free step buffer), so it adds no value array.
 pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
@@ -71,7 +71,8 @@ enum TileUndo {
     /// No step in progress, or its first stage failed before changing anything.
     #[default]
     Nothing,
-    /// TVD-RK3: the φⁿ buffer holds it, whole, for the stages that read it.
+    /// TVD-RK3: the φⁿ buffer holds a copy, whole, for the stages that read it; the stages
+    /// write in place, the renormalisation's sweeps into the double buffer `out`.
     PhiN,
     /// Forward Euler and renormalisation: packed ([`Buffers::packed`]), the sweeps
     /// writing in place. Outside the band a tile holds ±γ, so the packed φⁿ takes a
@@ -79,9 +80,10 @@ enum TileUndo {
     Packed,
 }
 
-/// The tile engine: the grid holds the current values; TVD-RK3's stages write into the
-/// double buffer `out` in list order (Sec. 4.7), swapped into the grid after each stage;
-/// forward Euler's stage and the renormalisation's sweeps write into the grid in place.
+/// The tile engine: the grid holds the current values. Every stage, and every sweep of a
+/// renormalisation whose φⁿ is packed, writes into the grid in place ([`InPlaceSweep`]);
+/// after TVD-RK3's stages the renormalisation's sweeps write into the double buffer `out`
+/// in list order (Sec. 4.7), swapped into the grid after each sweep.
 ///
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
@@ -112,7 +114,8 @@ struct Buffers {
     phi_n_activity: Vec<u32>,
     /// φⁿ packed (forward Euler and renormalisation; boxed: empty with TVD-RK3).
     packed: Box<PackedTiles>,
-    /// The double buffer (TVD-RK3) and the activity flags a sweep computes.
+    /// The double buffer (renormalisation after TVD-RK3) and the activity flags a sweep
+    /// computes.
     out: Vec<Tile>,
     activity: Vec<u32>,
     /// The band mask, one bit per voxel (bit `i` of a tile's word: voxel `i`'s box of φⁿ
@@ -949,54 +952,38 @@ impl Representation for TilesRep {
     ) -> Result<(), EvolveError> {
         let n = self.grid.len();
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-        let owned = self.owned();
-        let planar = p.lattice.is_some_and(|l| l.planar);
-        if p.stage == 1 && last {
-            // Forward Euler: φⁿ packed, the stage written in place.
-            self.keep_step_start();
-            self.buf.resize_flags(n);
-            let Buffers { band, activity, .. } = &mut self.buf;
-            let sweep = InPlaceSweep {
-                owned,
-                grid: self.grid.in_place(),
-                table: &self.table,
-                lanes: self.lanes,
-                band,
-                compute_mask: true,
-                activity,
-                planar,
-            };
-            dispatch(p, scheme, sweep)?;
-            self.grid.swap_activity(&mut self.buf.activity)?;
-            self.exchange_ghosts();
-            return Ok(());
+        if p.stage == 1 {
+            if last {
+                // Forward Euler: φⁿ packed.
+                self.keep_step_start();
+            } else {
+                // TVD-RK3: φⁿ whole, which stages 2 and 3 read, with its flags.
+                let Buffers { phi_n, phi_n_activity, .. } = &mut self.buf;
+                resize_exact(phi_n, n, Tile::splat(0.0));
+                phi_n.copy_from_slice(self.grid.values());
+                phi_n_activity.clear();
+                phi_n_activity.extend_from_slice(self.grid.activity());
+                self.undo = TileUndo::PhiN;
+            }
         }
-        self.buf.resize(n);
-        let p = StageParams {
-            phi_n: if p.stage == 1 { &[] } else { tile_flat(&self.buf.phi_n) },
-            ..*p
-        };
-        let sweep = TileSweep {
+        // Every stage writes in place: φⁿ is held to undo a stage that fails part-way.
+        self.buf.resize_flags(n);
+        let owned = self.owned();
+        let Buffers { phi_n, band, activity, .. } = &mut self.buf;
+        let p = StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(phi_n) }, ..*p };
+        let sweep = InPlaceSweep {
             owned,
-            grid: &self.grid,
+            grid: self.grid.in_place(),
             table: &self.table,
             lanes: self.lanes,
-            out: &mut self.buf.out,
-            band: &mut self.buf.band,
+            band,
             compute_mask: p.stage == 1,
-            activity: &mut self.buf.activity,
-            planar,
+            activity,
+            planar: p.lattice.is_some_and(|l| l.planar),
         };
         dispatch(&p, scheme, sweep)?;
-        self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
-        exchange_ghosts(&self.part, &mut self.grid);
-        // `out` and `activity` now hold the previous values and their flags.
-        if p.stage == 1 {
-            // Keep φⁿ for stages 2 and 3 (and for undoing the step).
-            std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
-            std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
-            self.undo = TileUndo::PhiN;
-        }
+        self.grid.swap_activity(&mut self.buf.activity)?;
+        self.exchange_ghosts();
         Ok(())
     }
 
