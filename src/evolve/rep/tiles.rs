@@ -47,9 +47,9 @@ const ANCHOR_BYTES_PER_TILE: u64 = 18 + 4 * 16;
 const PACKED_BYTES_PER_TILE: u64 = 18 + 4 * 32;
 
 /// Bytes per tile the engine holds while it steps: the grid's own arrays, the activity
-/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: φⁿ
-/// whole and the double buffer its renormalisation sweeps write; otherwise φⁿ packed, see
-/// [`TileUndo`]) with its activity flags, and the larger of the anchors, which live through a renormalisation,
+/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: the
+/// double buffer and φⁿ whole beside it; otherwise φⁿ packed, see [`TileUndo`]) with its
+/// activity flags, and the larger of the anchors, which live through a renormalisation,
 /// and the arrays of tile management, which follows it. Tile management moves the values
 /// within the arena (or writes them into a free step buffer), so it adds no value array.
 pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
@@ -71,8 +71,7 @@ enum TileUndo {
     /// No step in progress, or its first stage failed before changing anything.
     #[default]
     Nothing,
-    /// TVD-RK3: the φⁿ buffer holds a copy, whole, for the stages that read it; the stages
-    /// write in place, the renormalisation's sweeps into the double buffer `out`.
+    /// TVD-RK3: the φⁿ buffer holds it, whole, for the stages that read it.
     PhiN,
     /// Forward Euler and renormalisation: packed ([`Buffers::packed`]), the sweeps
     /// writing in place. Outside the band a tile holds ±γ, so the packed φⁿ takes a
@@ -80,10 +79,11 @@ enum TileUndo {
     Packed,
 }
 
-/// The tile engine: the grid holds the current values. Every stage, and every sweep of a
-/// renormalisation whose φⁿ is packed, writes into the grid in place ([`InPlaceSweep`]);
-/// after TVD-RK3's stages the renormalisation's sweeps write into the double buffer `out`
-/// in list order (Sec. 4.7), swapped into the grid after each sweep.
+/// The tile engine: the grid holds the current values. TVD-RK3's stages, and the
+/// renormalisation's sweeps after them, write into the double buffer `out` in list order
+/// (Sec. 4.7), swapped into the grid after each sweep; forward Euler's stage, and every
+/// sweep of a renormalisation whose φⁿ is packed, write into the grid in place
+/// ([`InPlaceSweep`]).
 ///
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
@@ -114,8 +114,7 @@ struct Buffers {
     phi_n_activity: Vec<u32>,
     /// φⁿ packed (forward Euler and renormalisation; boxed: empty with TVD-RK3).
     packed: Box<PackedTiles>,
-    /// The double buffer (renormalisation after TVD-RK3) and the activity flags a sweep
-    /// computes.
+    /// The double buffer (TVD-RK3) and the activity flags a sweep computes.
     out: Vec<Tile>,
     activity: Vec<u32>,
     /// The band mask, one bit per voxel (bit `i` of a tile's word: voxel `i`'s box of φⁿ
@@ -397,52 +396,14 @@ impl TilesRep {
     }
 }
 
-struct TileSweep<'a> {
-    grid: &'a TileGrid,
-    table: &'a NeighbourTable,
-    lanes: Lanes,
-    out: &'a mut [Tile],
-    band: &'a mut [u64],
-    /// Compute the band mask from the input (stage 1) or read it (stages 2, 3).
-    compute_mask: bool,
-    activity: &'a mut [u32],
-    /// The list positions to compute (this rank's tiles when distributed): the others
-    /// (ghost tiles, which the exchange after the sweep overwrites) keep their values.
-    owned: Range<usize>,
-    /// A planar lattice's step: each tile's first z-slice is computed and copied into the
-    /// other three (the level set is extruded along z; see [`crate::evolve::Lattice::planar`]).
-    planar: bool,
-}
-
-impl Sweep for TileSweep<'_> {
-    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: crate::evolve::dispatch::Reach,
-    {
-        let simd = self.lanes == Lanes::Simd;
-        let TileSweep { grid, table, out, band, compute_mask, activity, owned, planar, .. } = self;
-        let shared = Shared { grid, table, compute_mask, planar, owned: &owned, make: &make };
-        out.par_chunks_mut(TILE_CHUNK)
-            .zip(band.par_chunks_mut(TILE_CHUNK))
-            .zip(activity.par_chunks_mut(TILE_CHUNK))
-            .enumerate()
-            .try_for_each(|(c, ((out, mask), act))| {
-                let chunk =
-                    Chunk::<M, R> { shared: &shared, start: c * TILE_CHUNK, out, mask, act };
-                levelset_kernels::dispatch_default(simd, chunk)
-            })
-    }
-}
-
 /// What every chunk of a tile sweep reads: the tiles from `grid` (a [`TileGrid`], or the
 /// [`InPlaceTiles`] of one that an in-place sweep overwrites).
 struct Shared<'a, M, S> {
     grid: &'a S,
     table: &'a NeighbourTable,
     compute_mask: bool,
-    /// Compute the first z-slice of each tile and copy it (see [`TileSweep`]).
+    /// A planar lattice's step: each tile's first z-slice is computed and copied into the
+    /// other three (the level set is extruded along z; see [`crate::evolve::Lattice::planar`]).
     planar: bool,
     owned: &'a Range<usize>,
     make: &'a M,
@@ -546,7 +507,7 @@ where
 }
 
 /// The anchor pass of a renormalisation ([`levelset_kernels::InterfaceAnchor`] over φ⁰)
-/// into [`PackedTiles`]: each chunk of tiles is computed as a [`TileSweep`]'s into a
+/// into [`PackedTiles`]: each chunk of tiles is computed as a double-buffered sweep's into a
 /// buffer of its own, and only the anchors of the voxels in the band mask that are not ±∞
 /// are kept (a sweep reads no other, see [`crate::evolve::rep::packed`]). So the anchors
 /// take a few bytes per tile instead of a fourth value array.
@@ -605,7 +566,8 @@ const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 /// cut into a few long tasks; a tile read by another task's tiles (within a tile of the
 /// cut) is written after all tasks end. Every tile is computed from the values before the
 /// sweep, so the result is bit for bit the double-buffered sweep's, on any number of
-/// threads and tasks. Holds the band mask and the activity flags as [`TileSweep`] does;
+/// threads and tasks. Holds the band mask (computed from the input in stage 1, read
+/// otherwise) and the activity flags;
 /// the activity flags are swapped in afterwards ([`TileGrid::swap_activity`]). A failure
 /// part-way leaves the grid part-written: only for a step that holds φⁿ to undo it.
 struct InPlaceSweep<'a> {
@@ -615,9 +577,15 @@ struct InPlaceSweep<'a> {
     band: &'a mut [u64],
     compute_mask: bool,
     activity: &'a mut [u32],
+    /// The list positions to compute (this rank's tiles when distributed): the others
+    /// (ghost tiles, which the exchange after the sweep overwrites) keep their values.
     owned: Range<usize>,
-    /// See [`TileSweep`].
+    /// A planar lattice's step (see [`Shared`]).
     planar: bool,
+    /// Double-buffered instead (Sec. 4.7): the results go into this buffer, one tile per
+    /// list position, in chunks of [`TILE_CHUNK`] tiles, and the grid is only read. One
+    /// sweep type for both routes compiles each kernel once for them.
+    out: Option<&'a mut [Tile]>,
 }
 
 impl Sweep for InPlaceSweep<'_> {
@@ -628,8 +596,24 @@ impl Sweep for InPlaceSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, planar, .. } = self;
+        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } =
+            self;
         let n = grid.len();
+        if let Some(out) = out {
+            let shared =
+                Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
+            return out
+                .par_chunks_mut(TILE_CHUNK)
+                .zip(band.par_chunks_mut(TILE_CHUNK))
+                .zip(activity.par_chunks_mut(TILE_CHUNK))
+                .enumerate()
+                .try_for_each(|(c, ((out, mask), act))| {
+                    let start = c * TILE_CHUNK;
+                    let out = Some(out);
+                    let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act, out };
+                    levelset_kernels::dispatch_default(simd, chunk).map(|_| ())
+                });
+        }
         let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
         let len = n.div_ceil(tasks).max(TILE_CHUNK);
         let shared =
@@ -640,7 +624,7 @@ impl Sweep for InPlaceSweep<'_> {
             .enumerate()
             .map(|(c, (mask, act))| {
                 let start = c * len;
-                let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act };
+                let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act, out: None };
                 levelset_kernels::dispatch_default(simd, chunk)
             })
             .collect::<Result<_, _>>()?;
@@ -656,12 +640,14 @@ impl Sweep for InPlaceSweep<'_> {
 }
 
 /// One task of an [`InPlaceSweep`]: the tiles from list position `start`. Returns the
-/// new values of its tiles that other tasks read, to be written after every task ends.
+/// new values of its tiles that other tasks read, to be written after every task ends
+/// (none when double-buffered into `out`).
 struct InPlaceChunk<'a, 'c, M, const R: usize> {
     shared: &'a Shared<'a, M, InPlaceTiles<'a>>,
     start: usize,
     mask: &'c mut [u64],
     act: &'c mut [u32],
+    out: Option<&'c mut [Tile]>,
 }
 
 impl<K, M, const R: usize> LaneFn for InPlaceChunk<'_, '_, M, R>
@@ -673,7 +659,7 @@ where
 
     #[inline(always)]
     fn call<L: Lane>(self) -> Self::Output {
-        let InPlaceChunk { shared, start, mask, act } = self;
+        let InPlaceChunk { shared, start, mask, act, mut out } = self;
         let (grid, table) = (shared.grid, shared.table);
         let end = start + act.len();
         let mut block = PaddedBlock::<R>::new();
@@ -681,21 +667,44 @@ where
         // Computed tiles waiting for their last reader.
         let mut waiting = Waiting::default();
         let mut held = Vec::new();
+        // Double-buffered: prefetch across the chunk's end (the grid is only read).
+        let prefetch_end = if out.is_some() { table.len() } else { end };
         for (i, pos) in (start..end).enumerate() {
-            // No prefetch beyond the task: another task may be writing there.
-            let t = waiting.slot();
-            if sweep_tile::<L, K, M, _, R>(shared, &mut block, &mut m, pos, end, &mut mask[i], t)? {
+            // In place, no prefetch beyond the task: another task may be writing there.
+            let t = match out.as_deref_mut() {
+                Some(o) => &mut o[i],
+                None => waiting.slot(),
+            };
+            let computed = sweep_tile::<L, K, M, _, R>(
+                shared,
+                &mut block,
+                &mut m,
+                pos,
+                prefetch_end,
+                &mut mask[i],
+                t,
+            )?;
+            if computed {
                 act[i] = compute_activity(t, grid.gamma());
+            } else {
+                // Not computed: the tile keeps its values and flags.
+                act[i] = grid.activity(pos);
+            }
+            if let Some(o) = out.as_deref_mut() {
+                if !computed {
+                    o[i] = Tile(*grid.part(pos));
+                }
+                continue;
+            }
+            if computed {
                 // The tiles that read this one: its neighbours and itself.
                 let (first, last) = table.row(pos).extent(pos);
+                let t = waiting.slot();
                 if first < start || last >= end {
                     held.push((pos, *t));
                 } else {
                     waiting.push(pos, last);
                 }
-            } else {
-                // Not computed: the tile keeps its values and flags.
-                act[i] = grid.activity(pos);
             }
             while let Some((p, v)) = waiting.pop_until(pos) {
                 // SAFETY: every tile that reads `p` is in this task (`first >= start`,
@@ -952,24 +961,33 @@ impl Representation for TilesRep {
     ) -> Result<(), EvolveError> {
         let n = self.grid.len();
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-        if p.stage == 1 {
-            if last {
-                // Forward Euler: φⁿ packed.
-                self.keep_step_start();
-            } else {
-                // TVD-RK3: φⁿ whole, which stages 2 and 3 read, with its flags.
-                let Buffers { phi_n, phi_n_activity, .. } = &mut self.buf;
-                resize_exact(phi_n, n, Tile::splat(0.0));
-                phi_n.copy_from_slice(self.grid.values());
-                phi_n_activity.clear();
-                phi_n_activity.extend_from_slice(self.grid.activity());
-                self.undo = TileUndo::PhiN;
-            }
-        }
-        // Every stage writes in place: φⁿ is held to undo a stage that fails part-way.
-        self.buf.resize_flags(n);
         let owned = self.owned();
-        let Buffers { phi_n, band, activity, .. } = &mut self.buf;
+        let planar = p.lattice.is_some_and(|l| l.planar);
+        if p.stage == 1 && last {
+            // Forward Euler: φⁿ packed, the stage written in place.
+            self.keep_step_start();
+            self.buf.resize_flags(n);
+            let Buffers { band, activity, .. } = &mut self.buf;
+            let sweep = InPlaceSweep {
+                owned,
+                grid: self.grid.in_place(),
+                table: &self.table,
+                lanes: self.lanes,
+                band,
+                compute_mask: true,
+                activity,
+                planar,
+                out: None,
+            };
+            dispatch(p, scheme, sweep)?;
+            self.grid.swap_activity(&mut self.buf.activity)?;
+            self.exchange_ghosts();
+            return Ok(());
+        }
+        // TVD-RK3: double-buffered.
+        let first = p.stage == 1;
+        self.buf.resize(n);
+        let Buffers { phi_n, out, band, activity, .. } = &mut self.buf;
         let p = StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(phi_n) }, ..*p };
         let sweep = InPlaceSweep {
             owned,
@@ -979,11 +997,19 @@ impl Representation for TilesRep {
             band,
             compute_mask: p.stage == 1,
             activity,
-            planar: p.lattice.is_some_and(|l| l.planar),
+            planar,
+            out: Some(out),
         };
         dispatch(&p, scheme, sweep)?;
-        self.grid.swap_activity(&mut self.buf.activity)?;
-        self.exchange_ghosts();
+        self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+        exchange_ghosts(&self.part, &mut self.grid);
+        // `out` and `activity` now hold the previous values and their flags.
+        if first {
+            // Keep φⁿ for stages 2 and 3 (and for undoing the step).
+            std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
+            std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
+            self.undo = TileUndo::PhiN;
+        }
         Ok(())
     }
 
@@ -1020,16 +1046,16 @@ impl Representation for TilesRep {
                 // After TVD-RK3's stages, which keep φⁿ apart: `out` is free.
                 self.buf.resize(n);
                 let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
-                let sweep = TileSweep {
+                let sweep = InPlaceSweep {
                     owned: owned.clone(),
-                    grid: &self.grid,
+                    grid: self.grid.in_place(),
                     table: &self.table,
                     lanes: self.lanes,
-                    out,
                     band,
                     compute_mask,
                     activity,
                     planar: false,
+                    out: Some(out),
                 };
                 dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
@@ -1047,6 +1073,7 @@ impl Representation for TilesRep {
                     compute_mask,
                     activity,
                     planar: false,
+                    out: None,
                 };
                 dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_activity(&mut self.buf.activity)?;
