@@ -659,22 +659,25 @@ where
 
     #[inline(always)]
     fn call<L: Lane>(self) -> Self::Output {
-        let InPlaceChunk { shared, start, mask, act, mut out } = self;
-        let (grid, table) = (shared.grid, shared.table);
+        let InPlaceChunk { shared, start, mask, act, out } = self;
         let end = start + act.len();
+        // Double-buffered: prefetch across the chunk's end (the grid is only read); in
+        // place, not beyond the task: another task may be writing there.
+        let prefetch_end = if out.is_some() { shared.table.len() } else { end };
+        let mut task = Task {
+            grid: shared.grid,
+            table: shared.table,
+            start,
+            end,
+            out,
+            act,
+            waiting: Waiting::default(),
+            held: Vec::new(),
+        };
         let mut block = PaddedBlock::<R>::new();
         let mut m = [0.0f32; 64];
-        // Computed tiles waiting for their last reader.
-        let mut waiting = Waiting::default();
-        let mut held = Vec::new();
-        // Double-buffered: prefetch across the chunk's end (the grid is only read).
-        let prefetch_end = if out.is_some() { table.len() } else { end };
         for (i, pos) in (start..end).enumerate() {
-            // In place, no prefetch beyond the task: another task may be writing there.
-            let t = match out.as_deref_mut() {
-                Some(o) => &mut o[i],
-                None => waiting.slot(),
-            };
+            let t = task.slot(i);
             let computed = sweep_tile::<L, K, M, _, R>(
                 shared,
                 &mut block,
@@ -684,40 +687,82 @@ where
                 &mut mask[i],
                 t,
             )?;
-            if computed {
-                act[i] = compute_activity(t, grid.gamma());
-            } else {
-                // Not computed: the tile keeps its values and flags.
-                act[i] = grid.activity(pos);
-            }
-            if let Some(o) = out.as_deref_mut() {
-                if !computed {
-                    o[i] = Tile(*grid.part(pos));
-                }
-                continue;
-            }
-            if computed {
-                // The tiles that read this one: its neighbours and itself.
-                let (first, last) = table.row(pos).extent(pos);
-                let t = waiting.slot();
-                if first < start || last >= end {
-                    held.push((pos, *t));
-                } else {
-                    waiting.push(pos, last);
-                }
-            }
-            while let Some((p, v)) = waiting.pop_until(pos) {
-                // SAFETY: every tile that reads `p` is in this task (`first >= start`,
-                // `last < end`), so no other task reads it, and all of them up to its
-                // last reader (`<= pos`) have been gathered; no later gather reads it.
-                unsafe { grid.write(p, v) };
-            }
+            task.after(i, pos, computed);
         }
-        while let Some((p, v)) = waiting.pop_until(usize::MAX) {
-            // SAFETY: as above: every tile of the task has been computed.
+        Ok(task.finish())
+    }
+}
+
+/// What a task of an [`InPlaceSweep`] does around each tile's kernel, apart from the
+/// kernel's type: compiled once for every kernel.
+struct Task<'a, 'c> {
+    grid: &'a InPlaceTiles<'a>,
+    table: &'a NeighbourTable,
+    start: usize,
+    end: usize,
+    out: Option<&'c mut [Tile]>,
+    act: &'c mut [u32],
+    /// Computed tiles waiting for their last reader.
+    waiting: Waiting,
+    /// Computed tiles that another task reads.
+    held: Vec<(usize, Tile)>,
+}
+
+impl Task<'_, '_> {
+    /// Where the kernel writes the task's tile `i`: its entry of `out`, or the ring.
+    #[inline(never)]
+    fn slot(&mut self, i: usize) -> &mut Tile {
+        match self.out.as_deref_mut() {
+            Some(o) => &mut o[i],
+            None => self.waiting.slot(),
+        }
+    }
+
+    /// After the kernel of the task's tile `i` (list position `pos`), which wrote its
+    /// [`Task::slot`] if `computed`: the activity flags; a tile not computed keeps its
+    /// values and flags. In place, the tiles whose readers are all done are written.
+    #[inline(never)]
+    fn after(&mut self, i: usize, pos: usize, computed: bool) {
+        let grid = self.grid;
+        if let Some(o) = self.out.as_deref_mut() {
+            if computed {
+                self.act[i] = compute_activity(&o[i], grid.gamma());
+            } else {
+                self.act[i] = grid.activity(pos);
+                o[i] = Tile(*grid.part(pos));
+            }
+            return;
+        }
+        if computed {
+            let t = self.waiting.slot();
+            self.act[i] = compute_activity(t, grid.gamma());
+            // The tiles that read this one: its neighbours and itself.
+            let (first, last) = self.table.row(pos).extent(pos);
+            if first < self.start || last >= self.end {
+                self.held.push((pos, *t));
+            } else {
+                self.waiting.push(pos, last);
+            }
+        } else {
+            self.act[i] = grid.activity(pos);
+        }
+        while let Some((p, v)) = self.waiting.pop_until(pos) {
+            // SAFETY: every tile that reads `p` is in this task (`first >= start`,
+            // `last < end`), so no other task reads it, and all of them up to its
+            // last reader (`<= pos`) have been gathered; no later gather reads it.
             unsafe { grid.write(p, v) };
         }
-        Ok(held)
+    }
+
+    /// Writes the tiles still waiting (every tile of the task has been computed) and
+    /// returns the held ones.
+    #[inline(never)]
+    fn finish(mut self) -> Vec<(usize, Tile)> {
+        while let Some((p, v)) = self.waiting.pop_until(usize::MAX) {
+            // SAFETY: as in `after`: every tile of the task has been computed.
+            unsafe { self.grid.write(p, v) };
+        }
+        self.held
     }
 }
 
