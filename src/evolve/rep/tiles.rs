@@ -159,13 +159,6 @@ impl Buffers {
         resize_exact(&mut self.activity, tiles, 0);
     }
 
-    /// A tile buffer that does not hold φⁿ of the step in progress: scratch between steps
-    /// (empty unless TVD-RK3 allocated it; tile management then moves the values within
-    /// the arena).
-    fn spare(&mut self) -> &mut Vec<Tile> {
-        &mut self.out
-    }
-
     /// Bytes held, used or not.
     fn bytes(&self) -> usize {
         vec_bytes(&self.phi_n)
@@ -599,9 +592,9 @@ impl Sweep for InPlaceSweep<'_> {
         let InPlaceSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } =
             self;
         let n = grid.len();
+        let shared =
+            Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
         if let Some(out) = out {
-            let shared =
-                Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
             return out
                 .par_chunks_mut(TILE_CHUNK)
                 .zip(band.par_chunks_mut(TILE_CHUNK))
@@ -616,8 +609,6 @@ impl Sweep for InPlaceSweep<'_> {
         }
         let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
         let len = n.div_ceil(tasks).max(TILE_CHUNK);
-        let shared =
-            Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
         let held: Vec<Vec<(usize, Tile)>> = band
             .par_chunks_mut(len)
             .zip(activity.par_chunks_mut(len))
@@ -1008,44 +999,34 @@ impl Representation for TilesRep {
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
         let owned = self.owned();
         let planar = p.lattice.is_some_and(|l| l.planar);
-        if p.stage == 1 && last {
-            // Forward Euler: φⁿ packed, the stage written in place.
+        // Forward Euler: φⁿ packed, the stage written in place. TVD-RK3: double-buffered,
+        // for its later stages read φⁿ whole.
+        let (first, euler) = (p.stage == 1, p.stage == 1 && last);
+        if euler {
             self.keep_step_start();
             self.buf.resize_flags(n);
-            let Buffers { band, activity, .. } = &mut self.buf;
-            let sweep = InPlaceSweep {
-                owned,
-                grid: self.grid.in_place(),
-                table: &self.table,
-                lanes: self.lanes,
-                band,
-                compute_mask: true,
-                activity,
-                planar,
-                out: None,
-            };
-            dispatch(p, scheme, sweep)?;
-            self.grid.swap_activity(&mut self.buf.activity)?;
-            self.exchange_ghosts();
-            return Ok(());
+        } else {
+            self.buf.resize(n);
         }
-        // TVD-RK3: double-buffered.
-        let first = p.stage == 1;
-        self.buf.resize(n);
         let Buffers { phi_n, out, band, activity, .. } = &mut self.buf;
-        let p = StageParams { phi_n: if p.stage == 1 { &[] } else { tile_flat(phi_n) }, ..*p };
+        let p = StageParams { phi_n: if first { &[] } else { tile_flat(phi_n) }, ..*p };
         let sweep = InPlaceSweep {
             owned,
             grid: self.grid.in_place(),
             table: &self.table,
             lanes: self.lanes,
             band,
-            compute_mask: p.stage == 1,
+            compute_mask: first,
             activity,
             planar,
-            out: Some(out),
+            out: (!euler).then_some(&mut out[..]),
         };
         dispatch(&p, scheme, sweep)?;
+        if euler {
+            self.grid.swap_activity(&mut self.buf.activity)?;
+            self.exchange_ghosts();
+            return Ok(());
+        }
         self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
         exchange_ghosts(&self.part, &mut self.grid);
         // `out` and `activity` now hold the previous values and their flags.
@@ -1087,40 +1068,31 @@ impl Representation for TilesRep {
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
             // At rest, the single sweep computes the band mask of φ⁰ itself.
             let compute_mask = fresh && !anchored && s == 0;
-            if self.undo == TileUndo::PhiN {
-                // After TVD-RK3's stages, which keep φⁿ apart: `out` is free.
+            // After TVD-RK3's stages, which keep φⁿ apart, `out` is free: double-buffered.
+            // When φⁿ is packed, the sweep writes into the grid behind itself instead of
+            // into a second value array (docs/decisions/0033, 0043).
+            let double = self.undo == TileUndo::PhiN;
+            if double {
                 self.buf.resize(n);
-                let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
-                let sweep = InPlaceSweep {
-                    owned: owned.clone(),
-                    grid: self.grid.in_place(),
-                    table: &self.table,
-                    lanes: self.lanes,
-                    band,
-                    compute_mask,
-                    activity,
-                    planar: false,
-                    out: Some(out),
-                };
-                dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
+            } else {
+                self.buf.resize_flags(n);
+            }
+            let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
+            let sweep = InPlaceSweep {
+                owned: owned.clone(),
+                grid: self.grid.in_place(),
+                table: &self.table,
+                lanes: self.lanes,
+                band,
+                compute_mask,
+                activity,
+                planar: false,
+                out: double.then_some(&mut out[..]),
+            };
+            dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
+            if double {
                 self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
             } else {
-                // φⁿ is packed: the sweep writes into the grid behind itself instead of
-                // into a second value array (docs/decisions/0033, 0043).
-                self.buf.resize_flags(n);
-                let Buffers { band, activity, anchor, .. } = &mut self.buf;
-                let sweep = InPlaceSweep {
-                    owned: owned.clone(),
-                    grid: self.grid.in_place(),
-                    table: &self.table,
-                    lanes: self.lanes,
-                    band,
-                    compute_mask,
-                    activity,
-                    planar: false,
-                    out: None,
-                };
-                dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
                 self.grid.swap_activity(&mut self.buf.activity)?;
             }
             self.exchange_ghosts();
@@ -1137,12 +1109,13 @@ impl Representation for TilesRep {
         // (which a step in progress keeps until it stands); the step buffers grow to the
         // new list in the next step, which admits them before its first stage.
         debug_assert_eq!(self.table.len(), self.grid.len(), "stale neighbour table");
-        // The new list's values go into the memory of the step buffer that does not hold
-        // φⁿ, when it is large enough; the list before the step then keeps no values of
-        // its own (φⁿ is put back into it on undo). The table follows the list.
-        // Where the spare is too small, the values move within the grid's arena, which
-        // grows only past its capacity; the table's rows move within the table.
-        let spare = self.buf.spare();
+        // The new list's values go into the memory of `out`, which never holds φⁿ of the
+        // step in progress (it is empty unless TVD-RK3 allocated it), when it is large
+        // enough; the list before the step then keeps no values of its own (φⁿ is put back
+        // into it on undo). The table follows the list. Where the spare is too small, the
+        // values move within the grid's arena, which grows only past its capacity; the
+        // table's rows move within the table.
+        let spare = &mut self.buf.out;
         let arena_cap = spare.capacity().max(self.grid.value_capacity());
         let rows_cap = self.table.capacity();
         let growth = |cap: usize, n: usize, size: usize| {
