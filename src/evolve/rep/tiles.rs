@@ -83,7 +83,7 @@ enum TileUndo {
 /// renormalisation's sweeps after them, write into the double buffer `out` in list order
 /// (Sec. 4.7), swapped into the grid after each sweep; forward Euler's stage, and every
 /// sweep of a renormalisation whose φⁿ is packed, write into the grid in place
-/// ([`InPlaceSweep`]).
+/// ([`TileSweep`]).
 ///
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
@@ -546,24 +546,27 @@ impl Sweep for AnchorSweep<'_> {
     }
 }
 
-/// Parallel tasks per thread of an in-place sweep: a task's first and last z-slabs of
-/// tiles are read by its neighbours' tasks and wait for the end of the sweep (see
-/// [`InPlaceSweep`]), so fewer, longer tasks hold fewer tiles aside.
+/// Parallel tasks per thread of a [`TileSweep`] in place: a task's first and last z-slabs
+/// of tiles are read by its neighbours' tasks and wait for the end of the sweep, so fewer,
+/// longer tasks hold fewer tiles aside.
 const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 
-/// A sweep that writes its results into the grid it reads (van der Laan et al. 2011,
-/// Sec. 4.7, without the double buffer; the streaming of a band through its stencil,
+/// A sweep of the tile list, by one of two routes. Given `out`, double-buffered (van der
+/// Laan et al. 2011, Sec. 4.7): the results go into `out` in chunks of [`TILE_CHUNK`]
+/// tiles, and the grid is only read. Otherwise in place, into the grid it reads (Sec. 4.7
+/// without the double buffer; the streaming of a band through its stencil,
 /// Nielsen & Museth 2006, Sec. 3.3): a tile's new values wait in a queue until every
 /// tile that reads it (its neighbours and itself) has been computed, which in list order
 /// is about a z-slab of tiles later, and are then written into the arena. The list is
 /// cut into a few long tasks; a tile read by another task's tiles (within a tile of the
 /// cut) is written after all tasks end. Every tile is computed from the values before the
 /// sweep, so the result is bit for bit the double-buffered sweep's, on any number of
-/// threads and tasks. Holds the band mask (computed from the input in stage 1, read
-/// otherwise) and the activity flags;
-/// the activity flags are swapped in afterwards ([`TileGrid::swap_activity`]). A failure
-/// part-way leaves the grid part-written: only for a step that holds φⁿ to undo it.
-struct InPlaceSweep<'a> {
+/// threads and tasks; a failure part-way leaves the grid part-written, so the route is
+/// only for a step that holds φⁿ to undo it. Either route holds the band mask (computed
+/// from the input in stage 1, read otherwise) and the activity flags, which are swapped
+/// in afterwards ([`TileGrid::swap_activity`], or with `out` by
+/// [`TileGrid::swap_values`]). One sweep type for both routes compiles each kernel once.
+struct TileSweep<'a> {
     grid: InPlaceTiles<'a>,
     table: &'a NeighbourTable,
     lanes: Lanes,
@@ -575,13 +578,11 @@ struct InPlaceSweep<'a> {
     owned: Range<usize>,
     /// A planar lattice's step (see [`Shared`]).
     planar: bool,
-    /// Double-buffered instead (Sec. 4.7): the results go into this buffer, one tile per
-    /// list position, in chunks of [`TILE_CHUNK`] tiles, and the grid is only read. One
-    /// sweep type for both routes compiles each kernel once for them.
+    /// The double buffer, one tile per list position; `None`: in place.
     out: Option<&'a mut [Tile]>,
 }
 
-impl Sweep for InPlaceSweep<'_> {
+impl Sweep for TileSweep<'_> {
     fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
@@ -589,8 +590,7 @@ impl Sweep for InPlaceSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let InPlaceSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } =
-            self;
+        let TileSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } = self;
         let n = grid.len();
         let shared =
             Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
@@ -603,7 +603,7 @@ impl Sweep for InPlaceSweep<'_> {
                 .try_for_each(|(c, ((out, mask), act))| {
                     let start = c * TILE_CHUNK;
                     let out = Some(out);
-                    let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act, out };
+                    let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out };
                     levelset_kernels::dispatch_default(simd, chunk).map(|_| ())
                 });
         }
@@ -615,7 +615,7 @@ impl Sweep for InPlaceSweep<'_> {
             .enumerate()
             .map(|(c, (mask, act))| {
                 let start = c * len;
-                let chunk = InPlaceChunk::<M, R> { shared: &shared, start, mask, act, out: None };
+                let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out: None };
                 levelset_kernels::dispatch_default(simd, chunk)
             })
             .collect::<Result<_, _>>()?;
@@ -630,10 +630,10 @@ impl Sweep for InPlaceSweep<'_> {
     }
 }
 
-/// One task of an [`InPlaceSweep`]: the tiles from list position `start`. Returns the
+/// One task of a [`TileSweep`]: the tiles from list position `start`. Returns the
 /// new values of its tiles that other tasks read, to be written after every task ends
 /// (none when double-buffered into `out`).
-struct InPlaceChunk<'a, 'c, M, const R: usize> {
+struct SweepChunk<'a, 'c, M, const R: usize> {
     shared: &'a Shared<'a, M, InPlaceTiles<'a>>,
     start: usize,
     mask: &'c mut [u64],
@@ -641,7 +641,7 @@ struct InPlaceChunk<'a, 'c, M, const R: usize> {
     out: Option<&'c mut [Tile]>,
 }
 
-impl<K, M, const R: usize> LaneFn for InPlaceChunk<'_, '_, M, R>
+impl<K, M, const R: usize> LaneFn for SweepChunk<'_, '_, M, R>
 where
     K: VoxelKernel,
     M: Fn(Range<usize>) -> K + Sync,
@@ -650,7 +650,7 @@ where
 
     #[inline(always)]
     fn call<L: Lane>(self) -> Self::Output {
-        let InPlaceChunk { shared, start, mask, act, out } = self;
+        let SweepChunk { shared, start, mask, act, out } = self;
         let end = start + act.len();
         // Double-buffered: prefetch across the chunk's end (the grid is only read); in
         // place, not beyond the task: another task may be writing there.
@@ -684,7 +684,7 @@ where
     }
 }
 
-/// What a task of an [`InPlaceSweep`] does around each tile's kernel, apart from the
+/// What a task of a [`TileSweep`] does around each tile's kernel, apart from the
 /// kernel's type: compiled once for every kernel.
 struct Task<'a, 'c> {
     grid: &'a InPlaceTiles<'a>,
@@ -1010,7 +1010,7 @@ impl Representation for TilesRep {
         }
         let Buffers { phi_n, out, band, activity, .. } = &mut self.buf;
         let p = StageParams { phi_n: if first { &[] } else { tile_flat(phi_n) }, ..*p };
-        let sweep = InPlaceSweep {
+        let sweep = TileSweep {
             owned,
             grid: self.grid.in_place(),
             table: &self.table,
@@ -1028,7 +1028,7 @@ impl Representation for TilesRep {
             return Ok(());
         }
         self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
-        exchange_ghosts(&self.part, &mut self.grid);
+        self.exchange_ghosts();
         // `out` and `activity` now hold the previous values and their flags.
         if first {
             // Keep φⁿ for stages 2 and 3 (and for undoing the step).
@@ -1078,7 +1078,7 @@ impl Representation for TilesRep {
                 self.buf.resize_flags(n);
             }
             let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
-            let sweep = InPlaceSweep {
+            let sweep = TileSweep {
                 owned: owned.clone(),
                 grid: self.grid.in_place(),
                 table: &self.table,
