@@ -217,6 +217,29 @@ impl TilesRep {
         exchange_ghosts(&self.part, &mut self.grid)
     }
 
+    /// The step buffers a [`TileSweep`] of the `n` tiles needs: `out` as well when
+    /// `double`-buffered, the band mask and flags only in place.
+    fn size_for_sweep(&mut self, n: usize, double: bool) {
+        if double {
+            self.buf.resize(n);
+        } else {
+            self.buf.resize_flags(n);
+        }
+    }
+
+    /// Takes a finished [`TileSweep`]'s results into the grid, then exchanges the ghost
+    /// tiles: `double`-buffered, its values and flags (`out` and `activity` then hold the
+    /// previous ones); in place, its flags.
+    fn take_sweep(&mut self, double: bool) -> Result<(), EvolveError> {
+        if double {
+            self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
+        } else {
+            self.grid.swap_activity(&mut self.buf.activity)?;
+        }
+        self.exchange_ghosts();
+        Ok(())
+    }
+
     /// Whether tile z `tz` is this rank's (always, when the band is not distributed).
     fn owns_z(&self, tz: i32) -> bool {
         self.part.as_ref().is_none_or(|p| {
@@ -1004,10 +1027,8 @@ impl Representation for TilesRep {
         let (first, euler) = (p.stage == 1, p.stage == 1 && last);
         if euler {
             self.keep_step_start();
-            self.buf.resize_flags(n);
-        } else {
-            self.buf.resize(n);
         }
+        self.size_for_sweep(n, !euler);
         let Buffers { phi_n, out, band, activity, .. } = &mut self.buf;
         let p = StageParams { phi_n: if first { &[] } else { tile_flat(phi_n) }, ..*p };
         let sweep = TileSweep {
@@ -1022,16 +1043,10 @@ impl Representation for TilesRep {
             out: (!euler).then_some(&mut out[..]),
         };
         dispatch(&p, scheme, sweep)?;
-        if euler {
-            self.grid.swap_activity(&mut self.buf.activity)?;
-            self.exchange_ghosts();
-            return Ok(());
-        }
-        self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
-        self.exchange_ghosts();
-        // `out` and `activity` now hold the previous values and their flags.
-        if first {
-            // Keep φⁿ for stages 2 and 3 (and for undoing the step).
+        self.take_sweep(!euler)?;
+        if first && !euler {
+            // `out` and `activity` now hold φⁿ and its flags: kept for stages 2 and 3 (and
+            // for undoing the step).
             std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
             std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
             self.undo = TileUndo::PhiN;
@@ -1072,11 +1087,7 @@ impl Representation for TilesRep {
             // When φⁿ is packed, the sweep writes into the grid behind itself instead of
             // into a second value array (docs/decisions/0033, 0043).
             let double = self.undo == TileUndo::PhiN;
-            if double {
-                self.buf.resize(n);
-            } else {
-                self.buf.resize_flags(n);
-            }
+            self.size_for_sweep(n, double);
             let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
             let sweep = TileSweep {
                 owned: owned.clone(),
@@ -1090,12 +1101,7 @@ impl Representation for TilesRep {
                 out: double.then_some(&mut out[..]),
             };
             dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
-            if double {
-                self.grid.swap_values(&mut self.buf.out, &mut self.buf.activity)?;
-            } else {
-                self.grid.swap_activity(&mut self.buf.activity)?;
-            }
-            self.exchange_ghosts();
+            self.take_sweep(double)?;
         }
         // The anchors live only through a renormalisation: tile management, next, has
         // their memory.
