@@ -131,7 +131,7 @@ fn enright_matches_one_process() {
 fn rebalancing_keeps_a_growing_sphere_balanced() {
     // A sphere grows while it drifts upwards: its tiles move into the upper slabs, across
     // the cuts the first balance placed.
-    let shape = Shape::Sphere { center: [0.0, 0.0, -10.0], radius: 48.0 };
+    let shape = Shape::Sphere { center: [0.0, 0.0, -10.0], radius: 40.0 };
     let flow =
         Flow::normal_speed(Speed::Constant(0.5)).with_velocity(Velocity::Constant([0.0, 0.0, 1.0]));
     let settings = Settings::default();

@@ -614,43 +614,65 @@ impl Sweep for TileSweep<'_> {
     {
         let simd = self.lanes == Lanes::Simd;
         let TileSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } = self;
-        let n = grid.len();
         let shared =
             Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
-        if let Some(out) = out {
-            return out
-                .par_chunks_mut(TILE_CHUNK)
-                .zip(band.par_chunks_mut(TILE_CHUNK))
-                .zip(activity.par_chunks_mut(TILE_CHUNK))
-                .enumerate()
-                .try_for_each(|(c, ((out, mask), act))| {
-                    let start = c * TILE_CHUNK;
-                    let out = Some(out);
-                    let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out };
-                    levelset_kernels::dispatch_default(simd, chunk).map(|_| ())
-                });
-        }
-        let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
-        let len = n.div_ceil(tasks).max(TILE_CHUNK);
-        let held: Vec<Vec<(usize, Tile)>> = band
-            .par_chunks_mut(len)
-            .zip(activity.par_chunks_mut(len))
-            .enumerate()
-            .map(|(c, (mask, act))| {
-                let start = c * len;
-                let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out: None };
-                levelset_kernels::dispatch_default(simd, chunk)
-            })
-            .collect::<Result<_, _>>()?;
-        held.par_iter().for_each(|tiles| {
-            for (pos, t) in tiles {
-                // SAFETY: every task has ended, so no gather reads any tile; each position
-                // is held by one task only.
-                unsafe { grid.write(*pos, t) };
-            }
-        });
-        Ok(())
+        let run = |start: usize, mask: &mut [u64], act: &mut [u32], out: Option<&mut [Tile]>| {
+            let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out };
+            levelset_kernels::dispatch_default(simd, chunk)
+        };
+        run_sweep_tasks(&grid, band, activity, out, &run)
     }
+}
+
+/// A task of a [`TileSweep`] as [`run_sweep_tasks`] calls it: the tiles from list position
+/// `start` (their band-mask words, activity flags and, double-buffered, output tiles).
+type SweepTaskFn<'f> = dyn Fn(
+        usize,
+        &mut [u64],
+        &mut [u32],
+        Option<&mut [Tile]>,
+    ) -> Result<Vec<(usize, Tile)>, EvolveError>
+    + Sync
+    + 'f;
+
+/// The tasks of a [`TileSweep`] on the current rayon pool: chunks of [`TILE_CHUNK`] tiles
+/// double-buffered into `out`; in place, [`IN_PLACE_TASKS_PER_THREAD`] tasks per thread,
+/// whose held tiles are written after every task has ended. Apart from the kernel's type
+/// (`task` is called through a pointer once per task): rayon's machinery is compiled once,
+/// not once for every kernel, lane type and instruction-set level.
+fn run_sweep_tasks(
+    grid: &InPlaceTiles<'_>,
+    band: &mut [u64],
+    activity: &mut [u32],
+    out: Option<&mut [Tile]>,
+    task: &SweepTaskFn<'_>,
+) -> Result<(), EvolveError> {
+    if let Some(out) = out {
+        return out
+            .par_chunks_mut(TILE_CHUNK)
+            .zip(band.par_chunks_mut(TILE_CHUNK))
+            .zip(activity.par_chunks_mut(TILE_CHUNK))
+            .enumerate()
+            .try_for_each(|(c, ((out, mask), act))| {
+                task(c * TILE_CHUNK, mask, act, Some(out)).map(|_| ())
+            });
+    }
+    let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
+    let len = grid.len().div_ceil(tasks).max(TILE_CHUNK);
+    let held: Vec<Vec<(usize, Tile)>> = band
+        .par_chunks_mut(len)
+        .zip(activity.par_chunks_mut(len))
+        .enumerate()
+        .map(|(c, (mask, act))| task(c * len, mask, act, None))
+        .collect::<Result<_, _>>()?;
+    held.par_iter().for_each(|tiles| {
+        for (pos, t) in tiles {
+            // SAFETY: every task has ended, so no gather reads any tile; each position
+            // is held by one task only.
+            unsafe { grid.write(*pos, t) };
+        }
+    });
+    Ok(())
 }
 
 /// One task of a [`TileSweep`]: the tiles from list position `start`. Returns the

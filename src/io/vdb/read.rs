@@ -220,6 +220,7 @@ struct Tree {
     leaves: Vec<([i32; 3], Vec<u64>)>,
 }
 
+#[inline]
 fn add(o: [i32; 3], d: [i32; 3]) -> [i32; 3] {
     [o[0] + d[0], o[1] + d[1], o[2] + d[2]]
 }
@@ -228,13 +229,20 @@ fn coord(c: [i32; 3]) -> Coord {
     Coord::new(c[0], c[1], c[2])
 }
 
-/// Refuses a NaN, and an active tile whose value lies inside the band.
-fn check_tile(v: f32, active: bool, at: [i32; 3], ctx: &Ctx, span: u32) -> Res<()> {
+/// Refuses a NaN, and an active tile whose value lies inside the band. `at` gives the tile's origin, asked for only to name it in an error: a node's tiles are
+/// checked in a loop over its 32³ or 16³ slots.
+fn check_tile(
+    v: f32,
+    active: bool,
+    at: impl FnOnce() -> [i32; 3],
+    ctx: &Ctx,
+    span: u32,
+) -> Res<()> {
     if v.is_nan() {
-        return Err(VdbError::NaN { coord: coord(at) });
+        return Err(VdbError::NaN { coord: coord(at()) });
     }
     if active && v.abs() < ctx.background[0] {
-        let n = 1u64 << span;
+        let (n, at) = (1u64 << span, at());
         return Err(VdbError::Unsupported(format!(
             "an active tile of {n}³ voxels at {} with the value {v} inside the band: a level \
              set keeps its band in leaf voxels (convert it with OpenVDB's \
@@ -261,12 +269,12 @@ fn read_internal(
     let values = read_values(r, ctx, n, &active)?;
     let mut inside = vec![0u64; n / 64];
     for (i, &v) in values.iter().enumerate() {
-        let at = add(origin, slot_offset(i, log2, child_total));
+        let at = || add(origin, slot_offset(i, log2, child_total));
         if bit(&child, i) {
             if bit(&active, i) {
                 return corrupt(format!(
                     "a slot at {} is both a child and an active tile",
-                    coord(at)
+                    coord(at())
                 ));
             }
             continue;
@@ -547,7 +555,7 @@ pub(super) fn decode(bytes: &[u8], want: Option<&str>) -> Res<(TileGrid, VdbInfo
         if !aligned(o) {
             return corrupt(format!("a root tile at {} off the 4096-voxel grid", coord(o)));
         }
-        check_tile(v, active, o, &ctx, UPPER_TOTAL)?;
+        check_tile(v, active, || o, &ctx, UPPER_TOTAL)?;
         if tree.root_tiles.insert(o, v < 0.0).is_some() {
             return corrupt(format!("two root tiles at {}", coord(o)));
         }

@@ -28,6 +28,7 @@ pub(super) fn slot(c: [i32; 3], log2: u32, child_total: u32) -> usize {
 }
 
 /// The voxel offset of slot `n` (inverse of [`slot`]) from its node's origin.
+#[inline]
 pub(super) fn slot_offset(n: usize, log2: u32, child_total: u32) -> [i32; 3] {
     let m = (1usize << log2) - 1;
     let axis = |shift: u32| (((n >> shift) & m) as i32) << child_total;
@@ -40,6 +41,7 @@ pub(super) fn node_origin(c: [i32; 3], total: u32) -> [i32; 3] {
     [c[0] & m, c[1] & m, c[2] & m]
 }
 
+#[inline]
 pub(super) fn bit(mask: &[u64], i: usize) -> bool {
     mask[i >> 6] >> (i & 63) & 1 != 0
 }
