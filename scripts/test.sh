@@ -30,11 +30,12 @@ echo "== [${SECONDS}s] installing the Python test requirements (in the backgroun
 pip_pid=$!
 trap 'kill "$pip_pid" 2>/dev/null || true' EXIT
 
-echo "== [${SECONDS}s] Rust tests, with MPI (distributed runs under mpirun on 2 and 3 ranks)"
+echo "== [${SECONDS}s] Rust tests, with MPI (distributed runs under mpirun on 2 and 3 ranks): the build"
 # The `suite` profile (the test profile's settings) is the wheel's too: the wheel's build
 # below reuses the library and the dependencies this build compiled. The Python crate holds
 # no Rust test; selected here, it makes the features resolve as for the wheel's build.
-cargo test --profile suite --workspace --locked --features levelset-cli/mpi "$@"
+# Everything is built before anything runs: the Rust tests, then the wheel.
+cargo test --profile suite --workspace --locked --features levelset-cli/mpi --no-run "$@"
 
 if ! wait "$pip_pid"; then
   cat target/py-venv-install.log >&2
@@ -42,7 +43,7 @@ if ! wait "$pip_pid"; then
   exit 1
 fi
 
-echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux), tested where no Rust is"
+echo "== [${SECONDS}s] the Python package as a wheel (maturin: abi3, manylinux)"
 rm -rf target/wheels
 # Its build's output is kept (target/wheels/build.log): CI checks from it that the library
 # was not compiled a second time.
@@ -50,8 +51,11 @@ mkdir -p target/wheels
 "$venv/bin/maturin" build --profile suite --locked --manifest-path python/Cargo.toml \
   --out target/wheels 2>&1 | tee target/wheels/build.log
 wheel=$(ls target/wheels/sparse_levelset-*-abi3-manylinux*.whl)
-# The wheel replaces whatever the environment held of the package (the docs' scripts run
-# there too); `pip check` then verifies that what the wheel declares it needs is installed.
+
+echo "== [${SECONDS}s] Rust tests: the run"
+cargo test --profile suite --workspace --locked --features levelset-cli/mpi "$@"
+
+echo "== [${SECONDS}s] the wheel, tested where no Rust is"
 "$venv/bin/python" -m pip install -q --force-reinstall --no-deps "$wheel"
 "$venv/bin/python" -m pip check
 # The tests see the environment and the system's programs only (OpenVDB's tools, mpirun):
