@@ -229,8 +229,9 @@ fn coord(c: [i32; 3]) -> Coord {
     Coord::new(c[0], c[1], c[2])
 }
 
-/// Refuses a NaN, and an active tile whose value lies inside the band. `at` gives the tile's origin, asked for only to name it in an error: a node's tiles are
-/// checked in a loop over its 32³ or 16³ slots.
+/// Refuses a NaN, and an active tile whose value lies inside the band. `at` gives the
+/// tile's origin, asked for only to name it in an error: a node's tiles are checked in a
+/// loop over its 32³ or 16³ slots.
 fn check_tile(
     v: f32,
     active: bool,
