@@ -4,7 +4,8 @@
 # the virtual environment target/py-venv, which holds the reference libraries the tests
 # compare against: python/requirements-test.txt), built in the same `suite` profile as the
 # Rust tests so that it reuses their compiled library, and its pytest suite, run on that wheel
-# installed in the same environment with no Rust toolchain on PATH. The `.vdb`
+# installed in the same environment with no Rust toolchain on PATH. Both are built before
+# either runs. The `.vdb`
 # cross-checks run Debian's OpenVDB, installed with apt-get when missing
 # (scripts/system-deps.sh), as are OpenMPI and libclang for the distributed runs' tests:
 # the Rust tests are built once, with the CLI's `mpi` feature
