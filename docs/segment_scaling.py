@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""How `levelset segment` scales from one thread to two on one volume, on images made elsewhere.
+
+    target/py-venv/bin/python docs/segment_scaling.py                 # phantoms2, 128³, SNR 2
+    target/py-venv/bin/python docs/segment_scaling.py --mni           # and the MNI T1
+    target/py-venv/bin/python docs/segment_scaling.py --kinds torus --repeat 9 --json OUT.json
+
+The images come from the second phantom generator, docs/validation/phantoms2.py (NumPy and
+SciPy, nothing shared with `levelset phantom`; written into --work if missing), and with
+--mni from the MNI ICBM152 2009a T1 that nilearn's wheel ships (docs/data/fetch_mni.py, run
+first into target/validation/mni), its white matter from seeds file A. Each method runs with
+its default parameters from the generator's seeds (threshold with the seeds file's window),
+`--threads 1` and `--threads 2` in turn, --repeat times each; the fastest `seconds` of
+`levelset segment --json` is kept (the whole segmentation: feature images, steps, sums,
+stopping tests; not reading or writing the files). The table gives both times, their ratio and
+the Dice against the truth (the same on both thread counts: the results are bitwise
+identical).
+"""
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+
+DOCS = pathlib.Path(__file__).resolve().parent
+ROOT = DOCS.parent
+METHODS = ["threshold", "gac", "chan-vese"]
+
+
+def seed_args(seeds_file):
+    doc = json.loads(pathlib.Path(seeds_file).read_text())
+    args = []
+    for s in doc["seeds"]:
+        c = s["center"]
+        args += ["--seed", f"{c[0]},{c[1]},{c[2]}:{s['radius']}"]
+    window = []
+    if doc.get("lower") is not None:
+        window += ["--lower", str(doc["lower"])]
+    if doc.get("upper") is not None:
+        window += ["--upper", str(doc["upper"])]
+    return args, window
+
+
+def cases(args):
+    work = args.work
+    for kind in args.kinds:
+        name = f"{kind}-snr{args.snr:g}"
+        image = work / f"{name}.nii.gz"
+        if not image.exists():
+            subprocess.run([sys.executable, str(DOCS / "validation" / "phantoms2.py"), "-o",
+                            str(work), "--size", str(args.size), "--snr", str(args.snr),
+                            "--kinds", kind], check=True)
+        yield (f"{name} {args.size}³", image, work / f"{name}-truth.nii.gz",
+               *seed_args(work / f"{name}-seeds.json"))
+    if args.mni:
+        mni = ROOT / "target" / "validation" / "mni"
+        image = mni / "mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz"
+        if not image.exists():
+            sys.exit(f"error: {image} is missing; run python3 docs/data/fetch_mni.py first")
+        yield ("MNI T1 white matter", image, mni / "wm-truth.nii.gz",
+               *seed_args(mni / "wm-seeds-A.json"))
+
+
+def run(levelset, image, truth, seeds, window, method, threads, out):
+    cmd = [str(levelset), "segment", str(image), "--method", method, *seeds,
+           "-o", str(out), "--truth", str(truth), "--threads", str(threads), "--json"]
+    if method == "threshold":
+        cmd += window
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"error: {' '.join(cmd)} failed:\n{done.stderr}")
+    return json.loads(done.stdout)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--levelset", type=pathlib.Path, default=ROOT / "target/release/levelset")
+    ap.add_argument("--work", type=pathlib.Path, default=ROOT / "target/segscale",
+                    help="phantoms and masks (default target/segscale)")
+    ap.add_argument("--size", type=int, default=128, help="n of the n³ phantoms (default 128)")
+    ap.add_argument("--snr", type=float, default=2.0, help="the phantoms' SNR (default 2)")
+    ap.add_argument("--kinds", nargs="+", default=["blobs", "torus"],
+                    help="phantoms2.py kinds (default blobs torus)")
+    ap.add_argument("--methods", nargs="+", default=METHODS, choices=METHODS)
+    ap.add_argument("--mni", action="store_true", help="also the MNI T1's white matter")
+    ap.add_argument("--repeat", type=int, default=5, help="runs per thread count (default 5)")
+    ap.add_argument("--json", type=pathlib.Path, help="also write the rows here")
+    args = ap.parse_args()
+    if not args.levelset.exists():
+        sys.exit(f"error: {args.levelset} is missing (cargo build --release -p levelset-cli)")
+    args.work.mkdir(parents=True, exist_ok=True)
+    rows = []
+    print("| image | method | 1 thread, s | 2 threads, s | 2 threads / 1 | Dice |")
+    print("|---|---|---|---|---|---|")
+    for name, image, truth, seeds, window in cases(args):
+        for method in args.methods:
+            best, dice = {1: None, 2: None}, None
+            for _ in range(args.repeat):
+                for threads in (1, 2):
+                    r = run(args.levelset, image, truth, seeds, window, method, threads,
+                            args.work / f"mask-{method}-{threads}t.nii.gz")
+                    s = r["seconds"]
+                    best[threads] = s if best[threads] is None else min(best[threads], s)
+                    dice = r.get("dice")
+            ratio = best[1] / best[2]
+            rows.append({"image": name, "method": method, "seconds_1": best[1],
+                         "seconds_2": best[2], "ratio": ratio, "dice": dice})
+            print(f"| {name} | {method} | {best[1]:.3f} | {best[2]:.3f} | {ratio:.2f} |"
+                  f" {dice:.4f} |", flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
