@@ -25,20 +25,22 @@ import sys
 
 DOCS = pathlib.Path(__file__).resolve().parent
 ROOT = DOCS.parent
+sys.path.insert(0, str(DOCS))
+import segmentation_bench as segbench  # noqa: E402  (the seeds files' reader)
+
 METHODS = ["threshold", "gac", "chan-vese"]
 
 
 def seed_args(seeds_file):
-    doc = json.loads(pathlib.Path(seeds_file).read_text())
-    args = []
-    for s in doc["seeds"]:
-        c = s["center"]
-        args += ["--seed", f"{c[0]},{c[1]},{c[2]}:{s['radius']}"]
+    """The seeds file's seeds as `--seed` arguments, and its threshold window as `--lower` /
+    `--upper` (read by docs/segmentation_bench.py's reader)."""
+    seeds, lower, upper = segbench.read_seeds(pathlib.Path(seeds_file))
+    args = [a for s in seeds for a in ("--seed", segbench.seed_arg(s))]
     window = []
-    if doc.get("lower") is not None:
-        window += ["--lower", str(doc["lower"])]
-    if doc.get("upper") is not None:
-        window += ["--upper", str(doc["upper"])]
+    if lower is not None:
+        window += ["--lower", str(lower)]
+    if upper is not None:
+        window += ["--upper", str(upper)]
     return args, window
 
 

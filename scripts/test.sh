@@ -57,6 +57,8 @@ echo "== [${SECONDS}s] Rust tests: the run"
 cargo test --profile suite --workspace --locked --features levelset-cli/mpi "$@"
 
 echo "== [${SECONDS}s] the wheel, tested where no Rust is"
+# The wheel replaces whatever the environment held of the package (the docs' scripts run
+# there too); `pip check` then verifies that what the wheel declares it needs is installed.
 "$venv/bin/python" -m pip install -q --force-reinstall --no-deps "$wheel"
 "$venv/bin/python" -m pip check
 # The tests see the environment and the system's programs only (OpenVDB's tools, mpirun):
