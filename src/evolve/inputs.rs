@@ -71,6 +71,27 @@ impl Default for Inputs {
 /// Values per parallel task of the scans over per-voxel arrays (64 tiles).
 const CHUNK: usize = 4096;
 
+/// The voxels the sweeps read of a task's `CHUNK` values, as (unit, read): the first
+/// `read` of every `unit` ([`Representation::read_slices`]; every voxel when `None`).
+fn read_part(slices: Option<(usize, usize)>) -> (usize, usize) {
+    let (unit, read) = slices.unwrap_or((CHUNK, CHUNK));
+    debug_assert!(CHUNK.is_multiple_of(unit) && read <= unit, "units within a task");
+    (unit, read)
+}
+
+/// The parts of `c` (a task's values) that the sweeps read (see [`read_part`]).
+fn read_parts(c: &[f32], (unit, read): (usize, usize)) -> impl Iterator<Item = &[f32]> {
+    c.chunks(unit).map(move |u| &u[..read.min(u.len())])
+}
+
+/// [`read_parts`] of a mutable task.
+fn read_parts_mut(c: &mut [f32], (unit, read): (usize, usize)) -> impl Iterator<Item = &mut [f32]> {
+    c.chunks_mut(unit).map(move |u| {
+        let n = read.min(u.len());
+        &mut u[..n]
+    })
+}
+
 impl Inputs {
     /// Bytes held, used or not.
     pub fn bytes(&self) -> usize {
@@ -122,6 +143,7 @@ impl Inputs {
         let kappa_bar = kappa_bar(rep, flow, settings)?;
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
+        let part = read_part(rep.read_slices(planar(settings)));
         self.fill_speed(rep, &flow.speed, settings, t, first, add);
         let written = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
         let curvature_ok = self.fill_curvature(rep, flow, settings, t, first);
@@ -129,7 +151,10 @@ impl Inputs {
         // choice and an infinity would turn into NaN and then −γ. (Arrays are checked
         // when written; a scale in every stage.)
         let finite = |v: &[f32]| {
-            in_pool(pool, || v.par_chunks(CHUNK).all(|c| c.iter().all(|x| x.is_finite())))
+            in_pool(pool, || {
+                v.par_chunks(CHUNK)
+                    .all(|c| read_parts(c, part).all(|c| c.iter().all(|x| x.is_finite())))
+            })
         };
         let velocity_ok = self.velocity_scale.is_finite()
             && match written {
@@ -144,7 +169,9 @@ impl Inputs {
         Ok(kappa_bar)
     }
 
-    /// Normal speed F = base + `add`, uniform (no per-voxel array) for a constant F.
+    /// Normal speed F = base + `add`, uniform (no per-voxel array) for a constant F; at
+    /// the voxels the sweeps read ([`Representation::read_slices`]: the others are left as
+    /// they are).
     fn fill_speed(
         &mut self,
         rep: &dyn Representation,
@@ -155,6 +182,7 @@ impl Inputs {
         add: f32,
     ) {
         let (pool, planar) = (&settings.pool, planar(settings));
+        let part = read_part(rep.read_slices(planar));
         let n = rep.flat().len();
         self.uniform_speed = None;
         if !matches!(speed, Speed::Constant(_)) {
@@ -173,7 +201,11 @@ impl Inputs {
                 }
                 let (speed, base) = (&mut self.speed, &self.base);
                 in_pool(pool, || {
-                    speed.par_iter_mut().zip(base.par_iter()).for_each(|(s, &b)| *s = b + add)
+                    speed.par_chunks_mut(CHUNK).zip(base.par_chunks(CHUNK)).for_each(|(s, b)| {
+                        for (s, b) in read_parts_mut(s, part).zip(read_parts(b, part)) {
+                            s.iter_mut().zip(b).for_each(|(s, &b)| *s = b + add);
+                        }
+                    })
                 });
             }
             Speed::MorphTo(target) => {
@@ -188,10 +220,19 @@ impl Inputs {
                 let (speed, base) = (&mut self.speed, &self.base);
                 in_pool(pool, || {
                     speed
-                        .par_iter_mut()
-                        .zip(rep.flat().par_iter())
-                        .zip(base.par_iter())
-                        .for_each(|((s, &phi), &psi)| *s = (phi - psi) + add)
+                        .par_chunks_mut(CHUNK)
+                        .zip(rep.flat().par_chunks(CHUNK))
+                        .zip(base.par_chunks(CHUNK))
+                        .for_each(|((s, phi), psi)| {
+                            let parts = read_parts_mut(s, part)
+                                .zip(read_parts(phi, part))
+                                .zip(read_parts(psi, part));
+                            for ((s, phi), psi) in parts {
+                                for ((s, &phi), &psi) in s.iter_mut().zip(phi).zip(psi) {
+                                    *s = (phi - psi) + add;
+                                }
+                            }
+                        })
                 });
             }
         }
@@ -199,7 +240,8 @@ impl Inputs {
 
     /// ε Z(x) per voxel, times the lattice's curvature factor, when the flow has a
     /// curvature field (sampled in stage 1, and in every stage when it depends on time);
-    /// returns whether every sample is finite and ≥ 0.
+    /// returns whether every sample the sweeps read ([`Representation::read_slices`]) is
+    /// finite and ≥ 0.
     fn fill_curvature(
         &mut self,
         rep: &dyn Representation,
@@ -209,6 +251,7 @@ impl Inputs {
         first: bool,
     ) -> bool {
         let pool = &settings.pool;
+        let part = read_part(rep.read_slices(planar(settings)));
         let factor = settings.lattice.map_or(1.0, |l| l.curvature_factor());
         let Some(z) = &flow.curvature_field else {
             self.curvature.clear();
@@ -226,9 +269,11 @@ impl Inputs {
             curvature
                 .par_chunks_mut(CHUNK)
                 .map(|c| {
-                    let ok = c.iter().all(|v| v.is_finite() && *v >= 0.0);
-                    c.iter_mut().for_each(|v| *v *= eps);
-                    ok
+                    read_parts_mut(c, part).fold(true, |ok, c| {
+                        let here = c.iter().all(|v| v.is_finite() && *v >= 0.0);
+                        c.iter_mut().for_each(|v| *v *= eps);
+                        ok && here
+                    })
                 })
                 .reduce(|| true, |a, b| a && b)
         })
@@ -323,82 +368,71 @@ impl Inputs {
     /// max |F|, max (|u|+|v|+|w|), the same of the unscaled samples (u(x, 0) of a
     /// time-separable field; equal otherwise) and the largest curvature weight (ε, or
     /// max ε Z(x) with a curvature field) over the band voxels of `flat` (the set
-    /// every representation holds, so every representation takes the same Δt). In
-    /// parallel chunks (call it in the pool): a maximum of finite values does not depend on
-    /// how it is grouped, so neither do the bits.
+    /// every representation holds, so every representation takes the same Δt) that the
+    /// sweeps read (`slices`, [`Representation::read_slices`]: a planar lattice's other
+    /// slices are copies). One pass, in parallel chunks (call it in the pool): a maximum of
+    /// finite values does not depend on how it is grouped, so neither do the bits.
     pub fn band_maxima(
         &self,
         flat: &[f32],
         g: f32,
         advects: bool,
         eps: f32,
+        slices: Option<(usize, usize)>,
     ) -> (f32, f32, f32, f32) {
-        let (f, u, u0) = self.band_maxima_fu(flat, g, advects);
-        (f, u, u0, self.band_max_curvature(flat, g, eps))
-    }
-
-    /// The largest curvature weight over the band voxels: max ε Z(x) with a curvature
-    /// field, else ε.
-    fn band_max_curvature(&self, flat: &[f32], g: f32, eps: f32) -> f32 {
-        if self.curvature.is_empty() {
-            return eps;
-        }
-        // A maximum of finite values (checked when written): the same in any grouping.
-        flat.par_chunks(CHUNK)
-            .zip(self.curvature.par_chunks(CHUNK))
-            .map(|(v, e)| {
-                v.iter().zip(e).filter(|(v, _)| v.abs() < g).fold(0.0f32, |m, (_, &e)| m.max(e))
-            })
-            .reduce(|| 0.0, f32::max)
-    }
-
-    /// max |F|, max (|u|+|v|+|w|) and max of the unscaled u; see [`Inputs::band_maxima`].
-    fn band_maxima_fu(&self, flat: &[f32], g: f32, advects: bool) -> (f32, f32, f32) {
-        let max3 =
-            |a: (f32, f32, f32), b: (f32, f32, f32)| (a.0.max(b.0), a.1.max(b.1), a.2.max(b.2));
         let s = self.velocity_scale;
-        let (speed, uniform) = match self.uniform_speed {
-            // Every step starts with band voxels (or the interface has collapsed).
-            Some(f) => (&[][..], Some(f.abs())),
-            None => (&self.speed[..], None),
-        };
-        if let (Some(f), false) = (uniform, advects) {
+        // Every step starts with band voxels (or the interface has collapsed).
+        let uniform = self.uniform_speed.map(f32::abs);
+        let curvature = !self.curvature.is_empty();
+        if let (Some(f), false, false) = (uniform, advects, curvature) {
             // Nothing per voxel to scan.
-            return (f, 0.0, 0.0);
+            return (f, 0.0, 0.0, eps);
         }
-        let [a, b, c] = &self.velocity;
-        let (max_f, max_u, max_u0) = flat
+        let part = read_part(slices);
+        let (speed, [a, b, c], z) = (&self.speed, &self.velocity, &self.curvature);
+        let max4 = |x: [f32; 4], y: [f32; 4]| std::array::from_fn(|i| x[i].max(y[i]));
+        let [max_f, max_u, max_u0, max_e] = flat
             .par_chunks(CHUNK)
             .enumerate()
             .map(|(k, v)| {
-                let r = k * CHUNK..k * CHUNK + v.len();
-                let mut m = (0.0f32, 0.0f32, 0.0f32);
-                if uniform.is_none() {
-                    for (&v, &f) in v.iter().zip(&speed[r.clone()]) {
-                        if v.abs() < g {
-                            m.0 = m.0.max(f.abs());
+                let mut m = [0.0f32; 4];
+                for (j, v) in read_parts(v, part).enumerate() {
+                    let at = k * CHUNK + j * part.0;
+                    let r = at..at + v.len();
+                    if uniform.is_none() {
+                        for (&v, &f) in v.iter().zip(&speed[r.clone()]) {
+                            if v.abs() < g {
+                                m[0] = m[0].max(f.abs());
+                            }
                         }
                     }
-                }
-                if advects {
-                    let (a, b, c) = (&a[r.clone()], &b[r.clone()], &c[r]);
-                    for (i, &v) in v.iter().enumerate() {
-                        if v.abs() < g {
-                            m.2 = m.2.max(a[i].abs() + b[i].abs() + c[i].abs());
-                            if s != 1.0 {
-                                let u = (a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs();
-                                m.1 = m.1.max(u);
+                    if advects {
+                        let (a, b, c) = (&a[r.clone()], &b[r.clone()], &c[r.clone()]);
+                        for (i, &v) in v.iter().enumerate() {
+                            if v.abs() < g {
+                                m[2] = m[2].max(a[i].abs() + b[i].abs() + c[i].abs());
+                                if s != 1.0 {
+                                    let u = (a[i] * s).abs() + (b[i] * s).abs() + (c[i] * s).abs();
+                                    m[1] = m[1].max(u);
+                                }
+                            }
+                        }
+                    }
+                    if curvature {
+                        for (&v, &e) in v.iter().zip(&z[r]) {
+                            if v.abs() < g {
+                                m[3] = m[3].max(e);
                             }
                         }
                     }
                 }
                 m
             })
-            .reduce(|| (0.0, 0.0, 0.0), max3);
+            .reduce(|| [0.0; 4], max4);
         let max_f = uniform.unwrap_or(max_f);
         // Unscaled samples (s = 1) are their own scaled maximum.
         let max_u = if advects && s == 1.0 { max_u0 } else { max_u };
-        (max_f, max_u, max_u0)
+        (max_f, max_u, max_u0, if curvature { max_e } else { eps })
     }
 
     /// The inputs of stage `stage` with step `dt` (φⁿ is set by the representation).
@@ -438,4 +472,65 @@ fn kappa_bar(
     let h = rep.spec().voxel_size as f64;
     // The sums hold κδ|∇φ|·h² and δ|∇φ|·h (see `KappaBarTerm`).
     Ok(Some(if den.value() > 0.0 { num.value() / den.value() / h } else { 0.0 }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Inputs with every per-voxel array of `n` voxels set from `f(voxel, array)`.
+    fn inputs(n: usize, s: f32, f: impl Fn(usize, usize) -> f32) -> Inputs {
+        let column = |k: usize| (0..n).map(|i| f(i, k)).collect::<Vec<f32>>();
+        Inputs {
+            speed: column(0),
+            velocity: [column(1), column(2), column(3)],
+            velocity_scale: s,
+            curvature: column(4),
+            ..Inputs::default()
+        }
+    }
+
+    /// The maxima as the definition reads, voxel by voxel over `voxels`.
+    fn by_definition(i: &Inputs, flat: &[f32], g: f32, voxels: &[usize]) -> [f32; 4] {
+        let mut m = [0.0f32; 4];
+        for &v in voxels.iter().filter(|&&v| flat[v].abs() < g) {
+            let u = |k: usize| i.velocity[k][v];
+            let s = i.velocity_scale;
+            m[0] = m[0].max(i.speed[v].abs());
+            m[1] = m[1].max((u(0) * s).abs() + (u(1) * s).abs() + (u(2) * s).abs());
+            m[2] = m[2].max(u(0).abs() + u(1).abs() + u(2).abs());
+            m[3] = m[3].max(i.curvature[v]);
+        }
+        m
+    }
+
+    #[test]
+    fn band_maxima_read_the_band_voxels_of_the_slices_the_sweeps_read() {
+        // 150 tiles (more than one task of CHUNK values, the last one partial); values
+        // that differ from voxel to voxel, half of them outside the band (|φ| ≥ g = 3).
+        let n = 150 * 64;
+        let wave = |i: usize, k: usize| ((i * 7919 + k * 104_729) % 1000) as f32 / 100.0 - 5.0;
+        let flat: Vec<f32> = (0..n).map(|i| wave(i, 5)).collect();
+        let g = 3.0;
+        for s in [1.0, -0.5] {
+            let mut inp = inputs(n, s, |i, k| if k == 4 { wave(i, k).abs() } else { wave(i, k) });
+            let got = inp.band_maxima(&flat, g, true, 0.25, None);
+            let all: Vec<usize> = (0..n).collect();
+            assert_eq!(<[f32; 4]>::from(got), by_definition(&inp, &flat, g, &all));
+            // A planar lattice's tiles: only each tile's first 16 voxels are read, so a
+            // larger value (or a NaN) in the other slices does not count.
+            let first: Vec<usize> = (0..n).filter(|i| i % 64 < 16).collect();
+            let expect = by_definition(&inp, &flat, g, &first);
+            for v in (0..n).filter(|i| i % 64 >= 16) {
+                inp.speed[v] = if v % 2 == 0 { 1e9 } else { f32::NAN };
+                inp.curvature[v] = 1e9;
+            }
+            let got = inp.band_maxima(&flat, g, true, 0.25, Some((64, 16)));
+            assert_eq!(<[f32; 4]>::from(got), expect);
+            assert!(expect.iter().all(|&m| m > 0.0), "a test that reads values");
+        }
+        // A uniform speed, no velocity and no curvature field: nothing to scan.
+        let uniform = Inputs { uniform_speed: Some(-2.0), ..Inputs::default() };
+        assert_eq!(uniform.band_maxima(&flat, g, false, 0.25, None), (2.0, 0.0, 0.0, 0.25));
+    }
 }

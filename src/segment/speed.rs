@@ -91,6 +91,11 @@ impl VectorFn for VoxelVector {
     fn time_dependent(&self) -> bool {
         false
     }
+    /// The image's samples depend on the position alone: kept from step to step for the
+    /// tiles that stay (s = 1 leaves them as they are, bit for bit).
+    fn time_scale(&self, _t: f64) -> Option<f32> {
+        Some(1.0)
+    }
 }
 
 /// The Chan–Vese region force with the current region means c₁ (inside) and c₂

@@ -48,6 +48,14 @@ pub(crate) trait Representation: Send + Sync {
     /// its sweeps compute: the tiles their first z-slice (see `TileBlock::apply_slices`),
     /// the other voxels then hold 0.
     fn fill_scalar(&self, f: &dyn ScalarFn, t: f64, planar: bool, out: &mut [f32]);
+    /// Per-voxel arrays in flat order of which, with `planar`, the sweeps read only each
+    /// unit's first z-slice: `Some((unit, read))`, the first `read` voxels of every `unit`
+    /// (tiles: 16 of 64; the other slices hold copies of φ's first slice, and the inputs'
+    /// passes may skip them). `None`: every voxel is read.
+    fn read_slices(&self, planar: bool) -> Option<(usize, usize)> {
+        let _ = planar;
+        None
+    }
     /// Samples a vector field at every stored voxel (flat order).
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
     /// Samples a field that depends on the position only (u(x, 0) of a time-separable

@@ -972,6 +972,10 @@ impl Representation for TilesRep {
         });
     }
 
+    fn read_slices(&self, planar: bool) -> Option<(usize, usize)> {
+        planar.then_some((TILE_LEN, SLICE_LEN))
+    }
+
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
         let spec = self.spec();
         let coords = self.grid.tile_coords();
