@@ -426,20 +426,54 @@ pub fn fastest_of(
     what: &str,
     mut run: impl FnMut() -> Result<(Summary, Simulation), String>,
 ) -> Result<(Summary, Simulation), String> {
-    let mut best = run()?;
-    for _ in 1..reps {
-        let next = run()?;
-        if next.0.checksum != best.0.checksum {
-            return Err(format!(
-                "{what}: repeated runs ended with different bands (checksums {} and {})",
-                best.0.checksum, next.0.checksum
-            ));
-        }
-        if next.0.seconds < best.0.seconds {
-            best = next;
+    let mut best = fastest_interleaved(reps, &[what], |_| run())?;
+    Ok(best.pop().expect("one configuration"))
+}
+
+/// A run [`fastest_interleaved`] compares: the band it ended with and its seconds.
+pub trait Repetition {
+    fn checksum(&self) -> &str;
+    fn seconds(&self) -> f64;
+}
+
+impl Repetition for (Summary, Simulation) {
+    fn checksum(&self) -> &str {
+        &self.0.checksum
+    }
+    fn seconds(&self) -> f64 {
+        self.0.seconds
+    }
+}
+
+/// [`fastest_of`] for several configurations compared with one another (`what`, one name
+/// each; `run(k)` runs configuration `k`): their repetitions take turns (all of them once,
+/// then again), so that a stretch of disturbance on the shared machine reaches at most one
+/// repetition of each instead of all the repetitions of one, as an A/B comparison
+/// alternates its commands. The fastest run of each configuration, in order.
+pub fn fastest_interleaved<R: Repetition>(
+    reps: usize,
+    what: &[&str],
+    mut run: impl FnMut(usize) -> Result<R, String>,
+) -> Result<Vec<R>, String> {
+    let mut best: Vec<Option<R>> = what.iter().map(|_| None).collect();
+    for _ in 0..reps.max(1) {
+        for (k, slot) in best.iter_mut().enumerate() {
+            let next = run(k)?;
+            match slot {
+                Some(b) if next.checksum() != b.checksum() => {
+                    return Err(format!(
+                        "{}: repeated runs ended with different bands (checksums {} and {})",
+                        what[k],
+                        b.checksum(),
+                        next.checksum()
+                    ));
+                }
+                Some(b) if next.seconds() >= b.seconds() => {}
+                _ => *slot = Some(next),
+            }
         }
     }
-    Ok(best)
+    Ok(best.into_iter().map(|b| b.expect("at least one repetition")).collect())
 }
 
 impl Scenario {
@@ -767,5 +801,46 @@ fn record(step: u64, time: f64, dt: f32, m: &Measures, seconds: f64) -> Record {
         bytes: m.bytes,
         work_bytes: m.work_bytes,
         seconds,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    impl Repetition for (String, f64) {
+        fn checksum(&self) -> &str {
+            &self.0
+        }
+        fn seconds(&self) -> f64 {
+            self.1
+        }
+    }
+
+    #[test]
+    fn configurations_take_turns_and_keep_their_fastest_run() {
+        let seconds = [[3.0, 2.0, 5.0], [1.0, 4.0, 0.5]];
+        let mut calls = Vec::new();
+        let mut rep = [0usize; 2];
+        let best = fastest_interleaved(3, &["a", "b"], |k| {
+            calls.push(k);
+            let s = seconds[k][rep[k]];
+            rep[k] += 1;
+            Ok((format!("band {k}"), s))
+        })
+        .unwrap();
+        assert_eq!(calls, [0, 1, 0, 1, 0, 1]);
+        assert_eq!(best, [("band 0".to_string(), 2.0), ("band 1".to_string(), 0.5)]);
+        // A repetition that ends with another band is an error naming its configuration.
+        let mut n = 0;
+        let e = fastest_interleaved(2, &["a", "b"], |k| {
+            n += 1;
+            Ok((if n == 4 { "other".into() } else { format!("band {k}") }, 1.0))
+        })
+        .unwrap_err();
+        assert!(e.starts_with("b: repeated runs ended with different bands"), "{e}");
+        // At least one run each, whatever `reps`.
+        let once = fastest_interleaved(0, &["a"], |_| Ok(("x".to_string(), 1.0))).unwrap();
+        assert_eq!(once.len(), 1);
     }
 }

@@ -261,20 +261,32 @@ pub fn run_time_to_solution(
     threads.dedup();
     let mut out = Vec::new();
     for case in Case::ALL {
-        for &t in &threads {
-            // The first repetition runs the scenario built here (which names the size);
-            // the others build their own.
-            let mut built = Some(scenario(case, cfg, t)?);
-            let size = built.as_ref().map_or(0, |sc| sc.params.size);
-            let label = format!("time to solution: {} {size}³, {t} thread(s)", case.name());
-            let (s, _) = crate::scenario::fastest_of(cfg.reps, &label, || {
-                let sc = match built.take() {
-                    Some(sc) => sc,
-                    None => scenario(case, cfg, t)?,
-                };
-                progress(&label, 0.0);
-                sc.run(|f| progress(&label, f)).map_err(|e| format!("{label}: {e}"))
-            })?;
+        // The first repetition of each thread count runs the scenario built here (which
+        // names the size); the others build their own. The thread counts take turns,
+        // repetition by repetition (`fastest_interleaved`).
+        let mut built = threads
+            .iter()
+            .map(|&t| scenario(case, cfg, t).map(Some))
+            .collect::<Result<Vec<_>, _>>()?;
+        let labels: Vec<String> = built
+            .iter()
+            .zip(&threads)
+            .map(|(sc, t)| {
+                let size = sc.as_ref().map_or(0, |sc| sc.params.size);
+                format!("time to solution: {} {size}³, {t} thread(s)", case.name())
+            })
+            .collect();
+        let names: Vec<&str> = labels.iter().map(String::as_str).collect();
+        let bests = crate::scenario::fastest_interleaved(cfg.reps, &names, |k| {
+            let (t, label) = (threads[k], names[k]);
+            let sc = match built[k].take() {
+                Some(sc) => sc,
+                None => scenario(case, cfg, t)?,
+            };
+            progress(label, 0.0);
+            sc.run(|f| progress(label, f)).map_err(|e| format!("{label}: {e}"))
+        })?;
+        for (&t, (s, _)) in threads.iter().zip(bests) {
             let (quantity, error_kind, a) = accuracy(case, &s);
             out.push(SolutionRun {
                 case: case.name(),

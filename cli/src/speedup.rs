@@ -299,8 +299,18 @@ pub fn run_speedup(
         let mut reference: Option<(Vec<(Coord, f32)>, Simulation)> = None;
         let mut max_diff = 0.0f32;
         let mut kernel = "";
-        for (grid, threads) in runs_plan {
-            progress(&format!("{} {size}³: {} {threads} thread(s)", kind.name(), grid_label(grid)));
+        let whats: Vec<String> = runs_plan
+            .iter()
+            .map(|&(grid, threads)| {
+                format!("{} {size}³: {} {threads} thread(s)", kind.name(), grid_label(grid))
+            })
+            .collect();
+        let names: Vec<&str> = whats.iter().map(String::as_str).collect();
+        // The configurations take turns, repetition by repetition (see
+        // `fastest_interleaved`): the ratios between them compare runs of the same moments.
+        let bests = crate::scenario::fastest_interleaved(cfg.reps, &names, |k| {
+            let ((grid, threads), what) = (runs_plan[k], names[k]);
+            progress(what);
             let mut o = ScenarioOptions::paper(kind);
             o.size = Some(size);
             o.steps = Some(steps);
@@ -308,15 +318,14 @@ pub fn run_speedup(
             o.threads = Some(threads);
             o.pin = cfg.pin;
             o.record_every = u64::MAX;
-            let what = format!("{} {}", kind.name(), grid_label(grid));
-            let (summary, sim) = crate::scenario::fastest_of(cfg.reps, &what, || {
-                let sc = Scenario::resolve(o.clone()).map_err(|e| format!("{what}: {e}"))?;
-                kernel = match sc.params.scheme {
-                    sparse_levelset::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
-                    sparse_levelset::evolve::SpatialScheme::Weno5 => "weno5_rk3",
-                };
-                sc.run(|_| {}).map_err(|e| format!("{what}: {e}"))
-            })?;
+            let sc = Scenario::resolve(o).map_err(|e| format!("{what}: {e}"))?;
+            kernel = match sc.params.scheme {
+                sparse_levelset::evolve::SpatialScheme::Upwind1 => "upwind_curvature",
+                sparse_levelset::evolve::SpatialScheme::Weno5 => "weno5_rk3",
+            };
+            sc.run(|_| {}).map_err(|e| format!("{what}: {e}"))
+        })?;
+        for ((grid, threads), (summary, sim)) in runs_plan.into_iter().zip(bests) {
             let last = summary.records.last().expect("records");
             let b = band(&sim);
             if let Some((rb, rs)) = &reference {
