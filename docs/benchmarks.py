@@ -175,7 +175,8 @@ def speedup_section(meta):
         "",
         f"`{meta['commands']['speedup-1.json']}`, run twice (first / second). The same flows,"
         " kernels and band rule on every representation; stepping time only, the fastest of"
-        f" {runs[0].get('reps', 1)} runs of each configuration (every grid alike); every run of a"
+        f" {runs[0].get('reps', 1)} runs of each configuration (every grid alike; the four"
+        " configurations of a scenario take turns, run by run); every run of a"
         " scenario ends with the same band (checksum below, max |φ_tiles − φ_dtgrid| = 0)."
         " \"Engine / kernel-only\" is tiles SIMD on one thread against the kernels' in-cache"
         " throughput of the same arithmetic (a dense 32³ block). \"Held per band voxel\" is"
@@ -291,7 +292,8 @@ def solution_section(meta):
         + (f" ({len(runs)} runs: first / second)" if len(runs) > 1 else "")
         + ": each scenario run to its end with its default settings (tiles, SIMD lanes),"
         " seconds of stepping (the fastest of"
-        f" {runs[0].get('reps', 1)} runs) against the error of the answer. Spheres under mean curvature"
+        f" {runs[0].get('reps', 1)} runs, the thread counts taking turns) against the error of"
+        " the answer. Spheres under mean curvature"
         " flow: the radius from the enclosed volume, r = (3V/4π)^(1/3), against √(r₀² − 2εt)"
         " at the final time, error in voxels; Enright's test: V(T)/V(0), exact 1; the"
         " volume-conserving spiral: V/V(0) at the end, exact 1.",
