@@ -71,8 +71,14 @@ impl Default for Inputs {
 /// Values per parallel task of the scans over per-voxel arrays (64 tiles).
 const CHUNK: usize = 4096;
 
+/// The slices of `rep`'s per-voxel arrays that the sweeps of a flow with `settings` read
+/// ([`Representation::read_slices`] of a planar lattice's level set).
+pub(crate) fn read_slices(rep: &dyn Representation, settings: &Settings) -> Option<(usize, usize)> {
+    rep.read_slices(planar(settings))
+}
+
 /// The voxels the sweeps read of a task's `CHUNK` values, as (unit, read): the first
-/// `read` of every `unit` ([`Representation::read_slices`]; every voxel when `None`).
+/// `read` of every `unit` ([`read_slices`]; every voxel when `None`).
 fn read_part(slices: Option<(usize, usize)>) -> (usize, usize) {
     let (unit, read) = slices.unwrap_or((CHUNK, CHUNK));
     debug_assert!(CHUNK.is_multiple_of(unit) && read <= unit, "units within a task");
@@ -143,7 +149,7 @@ impl Inputs {
         let kappa_bar = kappa_bar(rep, flow, settings)?;
         // Volume conservation: F += ε κ̄ of the current stage's φ.
         let add = kappa_bar.map_or(0.0, |kb| (flow.curvature as f64 * kb) as f32);
-        let part = read_part(rep.read_slices(planar(settings)));
+        let part = read_part(read_slices(rep, settings));
         self.fill_speed(rep, &flow.speed, settings, t, first, add);
         let written = self.fill_velocity(rep, flow.velocity.as_ref(), pool, t, first);
         let curvature_ok = self.fill_curvature(rep, flow, settings, t, first);
@@ -182,7 +188,7 @@ impl Inputs {
         add: f32,
     ) {
         let (pool, planar) = (&settings.pool, planar(settings));
-        let part = read_part(rep.read_slices(planar));
+        let part = read_part(read_slices(rep, settings));
         let n = rep.flat().len();
         self.uniform_speed = None;
         if !matches!(speed, Speed::Constant(_)) {
@@ -251,7 +257,7 @@ impl Inputs {
         first: bool,
     ) -> bool {
         let pool = &settings.pool;
-        let part = read_part(rep.read_slices(planar(settings)));
+        let part = read_part(read_slices(rep, settings));
         let factor = settings.lattice.map_or(1.0, |l| l.curvature_factor());
         let Some(z) = &flow.curvature_field else {
             self.curvature.clear();

@@ -731,9 +731,8 @@ impl Simulation {
         let g = self.spec().gamma();
         let advects = self.flow.velocity.is_some();
         let (inputs, rep) = (&self.inputs, self.rep.get());
-        let (flat, lattice) = (rep.flat(), self.settings.lattice);
-        let slices = rep.read_slices(lattice.is_some_and(|l| l.planar));
-        let eps = self.flow.curvature * lattice.map_or(1.0, |l| l.curvature_factor());
+        let (flat, slices) = (rep.flat(), super::inputs::read_slices(rep, &self.settings));
+        let eps = self.flow.curvature * self.settings.lattice.map_or(1.0, |l| l.curvature_factor());
         let (max_f, max_u, max_u0, max_e) =
             in_pool(&self.settings.pool, || inputs.band_maxima(flat, g, advects, eps, slices));
         // Distributed: every rank's band and ghosts hold values of the whole band, so the

@@ -961,7 +961,7 @@ impl Representation for TilesRep {
         let coords = self.grid.tile_coords();
         // A planar lattice's sweeps read the first z-slice only; the other slices are set
         // to 0.
-        let sampled = if planar { SLICE_LEN } else { TILE_LEN };
+        let sampled = self.read_slices(planar).map_or(TILE_LEN, |(_, read)| read);
         out.par_chunks_mut(TILE_LEN).zip(coords.par_iter()).for_each(|(o, &tc)| {
             let (sampled, unread) = o.split_at_mut(sampled);
             unread.fill(0.0);
