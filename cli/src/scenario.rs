@@ -611,7 +611,8 @@ impl Scenario {
                 // What the evolution holds while it steps, in tile grids of the band (the
                 // DT-Grid's arrays and buffers are smaller per band voxel; the dense
                 // reference's box is checked below).
-                let copies = tile_step_copies(&flow, integrator, renormalization);
+                let settings = Settings { integrator, renormalization, ..Settings::default() };
+                let copies = tile_step_copies(&flow, &settings, band_bytes(&shape, &spec));
                 input::check_shape(kind.name(), &shape, &Expect { copies, ..Expect::new(spec) })?;
                 if matches!(o.grid, GridKind::Tiles(_)) {
                     estimated_bytes = Some(band_bytes(&shape, &spec) * copies);

@@ -336,6 +336,15 @@ pub struct Settings {
     /// half-width γ (give it the largest spacing) and the δ width. `None`: the grid's
     /// voxel size along every axis. See [`Lattice`] for what it allows.
     pub lattice: Option<Lattice>,
+    /// The largest band, in bytes of its tiles' values, on which the tile engine's forward
+    /// Euler keeps φⁿ whole and writes its stage into a second value array, as TVD-RK3
+    /// always does; above it, φⁿ is packed and the stage written in place. The same values
+    /// either way, bit for bit: a choice of memory against time. Double-buffered, a step
+    /// holds two more value arrays (the peak about 1.5 × as high on a sphere) and takes
+    /// about 0.84–0.88 × the time where the whole step is the engine's; in place, the peak
+    /// stays within 2.5 × the grid's bytes on large bands. Default
+    /// [`Settings::DOUBLE_BUFFER_BYTES`]; 0 packs always.
+    pub double_buffer_bytes: u64,
 }
 
 /// An anisotropic lattice ([`Settings::lattice`]): voxel spacing per axis, or a 2D image.
@@ -415,15 +424,16 @@ pub struct Reinit {
 pub(crate) use rep::TILE_GRID_BYTES;
 
 /// How many times the bytes of its tile grid (values and the list's other arrays) a
-/// simulation on tiles holds while it steps with this flow, integrator and
-/// renormalisation: the engine's buffers ([`Integrator::Rk3`] and
-/// [`Renormalization::Sweeps`] keep φⁿ; more than one sweep keeps the anchors) and the
-/// flow's per-voxel inputs (a velocity field: its samples and the previous ones, six
-/// values per voxel; a speed field or a morph target: two; a curvature field: one).
-/// The peak a run's memory check assumes, against a band's estimated bytes
+/// simulation on tiles holds while it steps with this flow and these settings, for a
+/// band whose grid takes `grid_bytes`: the engine's buffers ([`Integrator::Rk3`], and
+/// forward Euler on a band within [`Settings::double_buffer_bytes`], keep φⁿ whole beside
+/// a double buffer; [`Renormalization::Sweeps`] keeps φⁿ; more than one sweep keeps the
+/// anchors) and the flow's per-voxel inputs (a velocity field: its samples and the
+/// previous ones, six values per voxel; a speed field or a morph target: two; a curvature
+/// field: one). The peak a run's memory check assumes, against a band's estimated bytes
 /// ([`crate::storage::convert::band_bytes`]).
-pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormalization) -> f64 {
-    let keeps = step_keeps(integrator, renorm);
+pub fn tile_step_copies(flow: &Flow, settings: &Settings, grid_bytes: f64) -> f64 {
+    let keeps = step_keeps(settings.integrator, settings.renormalization);
     let mut fields = 0u64;
     if matches!(flow.velocity, Some(Velocity::Field(_))) {
         fields += 6;
@@ -435,7 +445,9 @@ pub fn tile_step_copies(flow: &Flow, integrator: Integrator, renorm: Renormaliza
         fields += 1;
     }
     let tile_values = std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
-    let bytes = rep::step_bytes_per_tile(keeps) + fields * tile_values;
+    let tiles = (grid_bytes / TILE_GRID_BYTES as f64).ceil() as usize;
+    let whole = keeps.whole_phi_n(tiles, settings.double_buffer_bytes);
+    let bytes = rep::step_bytes_per_tile(keeps, whole) + fields * tile_values;
     bytes as f64 / TILE_GRID_BYTES as f64
 }
 
@@ -449,17 +461,31 @@ pub(crate) struct StepKeeps {
     pub anchors: bool,
     /// TVD-RK3 (whose later stages need the double buffer and φⁿ at once).
     pub rk3: bool,
+    /// A forward-Euler stage (false for a renormalisation at rest).
+    pub euler: bool,
+}
+
+impl StepKeeps {
+    /// Whether the tile engine keeps φⁿ whole beside a double buffer on a band of `tiles`
+    /// tiles, with `double_buffer_bytes` of [`Settings::double_buffer_bytes`]: always
+    /// with TVD-RK3, with forward Euler while the tiles' values fit; otherwise φⁿ is
+    /// packed and the sweeps write in place.
+    pub fn whole_phi_n(self, tiles: usize, double_buffer_bytes: u64) -> bool {
+        let values = tiles as u64 * std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
+        self.rk3 || (self.euler && values <= double_buffer_bytes)
+    }
 }
 
 /// What a step with `integrator` and `renorm` keeps: the one rule of the memory budget and
 /// of [`tile_step_copies`].
 pub(crate) fn step_keeps(integrator: Integrator, renorm: Renormalization) -> StepKeeps {
     let rk3 = integrator == Integrator::Rk3;
+    let euler = !rk3;
     match renorm {
         Renormalization::Sweeps(s) => {
-            StepKeeps { phi_n: true, anchors: dispatch::anchors_stored(s.sweeps), rk3 }
+            StepKeeps { phi_n: true, anchors: dispatch::anchors_stored(s.sweeps), rk3, euler }
         }
-        _ => StepKeeps { phi_n: rk3, anchors: false, rk3 },
+        _ => StepKeeps { phi_n: rk3, anchors: false, rk3, euler },
     }
 }
 
@@ -582,11 +608,18 @@ impl Default for Settings {
             reinit: None,
             memory_limit: None,
             lattice: None,
+            double_buffer_bytes: Settings::DOUBLE_BUFFER_BYTES,
         }
     }
 }
 
 impl Settings {
+    /// The default of [`Settings::double_buffer_bytes`], 64 MiB: bands of up to 262,144
+    /// tiles (a sphere of radius 300 at γ = 3) step double-buffered, where the second
+    /// value array costs little next to the machine's memory and the pack of φⁿ and the
+    /// in-place sweeps cost the most against the step.
+    pub const DOUBLE_BUFFER_BYTES: u64 = 64 << 20;
+
     /// First-order upwind and forward Euler at the stability limit (CFL 1), two HJ-WENO5
     /// renormalisation sweeps after every step: the cheapest accurate route for mean
     /// curvature flow, whose physical step has only the central curvature term (a sphere of

@@ -187,6 +187,10 @@ impl Simulation {
                     .into(),
             ));
         }
+        let mut rep = rep;
+        if let Rep::Tiles(t) = &mut rep {
+            t.double_buffer_bytes = settings.double_buffer_bytes;
+        }
         let mut sim = Simulation {
             rep,
             kind,
@@ -295,7 +299,7 @@ impl Simulation {
             return Err(EvolveError::Collapsed { step: self.steps, time: self.time });
         }
         let anchors = anchors_stored(sweeps.sweeps);
-        let keeps = super::StepKeeps { phi_n: true, anchors, rk3: false };
+        let keeps = super::StepKeeps { phi_n: true, anchors, rk3: false, euler: false };
         let budget = MemoryBudget { keeps, ..self.budget() };
         let rep = self.rep.get();
         let admitted =
@@ -359,7 +363,9 @@ impl Simulation {
         let mut rep = match &self.rep {
             Rep::Tiles(t) => {
                 let grid = in_pool(pool, || crate::tools::fmm::reinitialize(&t.grid, &opts))?;
-                Rep::Tiles(in_pool(pool, || TilesRep::new(grid, t.lanes)))
+                let mut r = in_pool(pool, || TilesRep::new(grid, t.lanes));
+                r.double_buffer_bytes = t.double_buffer_bytes;
+                Rep::Tiles(r)
             }
             Rep::DtGrid(d) => {
                 let grid = crate::storage::convert::dtgrid_from(&crate::tools::fmm::reinitialize(

@@ -71,13 +71,18 @@ fn all_agree(
 /// The routes every flow is checked on: the papers' first-order scheme with the coupled
 /// rescaling term; HJ-WENO5 + TVD-RK3 with two HJ-WENO5 renormalisation sweeps after
 /// every second step (an anchor pass, then sweeps that read the anchors); first-order
-/// upwind + Euler with two sweeps; the defaults (one sweep, its anchors in place).
-fn configs() -> [Settings; 4] {
+/// upwind + Euler with two sweeps; the defaults (one sweep, its anchors in place). The
+/// forward-Euler routes both double-buffered (the default on these small bands) and in
+/// place (φⁿ packed, as on bands beyond `Settings::double_buffer_bytes`).
+fn configs() -> [Settings; 6] {
     let weno_sweeps = Sweeps { every: 2, sweeps: 2, scheme: SpatialScheme::Weno5, cfl: 0.9 };
+    let in_place = |s: Settings| Settings { double_buffer_bytes: 0, ..s };
     [
         Settings::paper_upwind1(),
+        in_place(Settings::paper_upwind1()),
         Settings { renormalization: Renormalization::Sweeps(weno_sweeps), ..Settings::default() },
         Settings::upwind1_euler(),
+        in_place(Settings::upwind1_euler()),
         Settings::default(),
     ]
 }
@@ -176,8 +181,10 @@ fn sphere_collapse_under_mean_curvature() {
     }
 }
 
-/// The three routes of `sphere_collapse_under_mean_curvature`, with its radius tolerance.
-fn collapse_settings() -> [(Settings, f64); 3] {
+/// The routes of `sphere_collapse_under_mean_curvature`, with its radius tolerance (the
+/// default route also with its forward-Euler stage in place: the collapse test reads φⁿ
+/// packed).
+fn collapse_settings() -> [(Settings, f64); 4] {
     let no_renorm = Settings { renormalization: Renormalization::Off, ..Settings::paper_upwind1() };
     // Measured at r₀ = 16 (2026-11-30): 0.20 %, 0.07 % and 0.005 % off the exact radius at
     // T/2, the collapse 0.44 %, 0.13 % and 0.000 % off T.
@@ -186,6 +193,7 @@ fn collapse_settings() -> [(Settings, f64); 3] {
         (no_renorm, 0.005),
         // The default route: renormalisation sweeps outside the step (0.1 %).
         (Settings::upwind1_euler(), 0.001),
+        (Settings { double_buffer_bytes: 0, ..Settings::upwind1_euler() }, 0.001),
     ]
 }
 
@@ -500,4 +508,48 @@ fn evolving_estimate_follows_stepped_bands() {
             assert!((0.9..1.1).contains(&ratio), "{shape:?}, w {half_width}: {ratio}");
         }
     }
+}
+
+/// Forward Euler's two routes hold what the run's memory estimate counts: on a band within
+/// `Settings::double_buffer_bytes` the step keeps φⁿ whole beside a double buffer, two
+/// value arrays more than in place, and `tile_step_copies` (the estimate `levelset run` and
+/// `levelset evolve` are admitted with) counts them there and not beyond the limit. What
+/// a step holds between steps stays below the estimate of its peak on both routes, and
+/// both end with the same values.
+#[test]
+fn euler_routes_hold_what_the_estimate_counts() {
+    use sparse_levelset::evolve::tile_step_copies;
+    let shape = Shape::Sphere { center: [0.3, -0.2, 0.1], radius: 20.0 };
+    let flow = Flow::mean_curvature(1.0);
+    let double = Settings::upwind1_euler();
+    let in_place = Settings { double_buffer_bytes: 0, ..double.clone() };
+    let mut held = Vec::new();
+    for settings in [double, in_place] {
+        let kind = GridKind::Tiles(Lanes::Simd);
+        let mut sim = Simulation::from_shape(
+            kind,
+            &shape,
+            GridSpec::default(),
+            flow.clone(),
+            settings.clone(),
+        )
+        .unwrap();
+        sim.run_until(f64::INFINITY, 3, |_, _| {}).unwrap();
+        let m = sim.measure().unwrap();
+        let (grid, total) = (m.bytes as f64, (m.bytes + m.work_bytes) as f64);
+        let copies = tile_step_copies(&flow, &settings, grid);
+        assert!(
+            total < copies * grid,
+            "{}: held {total}, estimate {}",
+            settings.double_buffer_bytes,
+            copies * grid
+        );
+        held.push((sim.checksum(), total, copies, grid));
+    }
+    let [(c0, t0, k0, grid), (c1, t1, k1, _)] = held[..] else { unreachable!() };
+    assert_eq!(c0, c1, "the two routes' values");
+    // Two value arrays of 256 bytes a tile; the grid holds 276 bytes a tile.
+    let arrays = 2.0 * 256.0 / 276.0;
+    assert!(t0 - t1 >= 0.95 * arrays * grid, "held {t0} against {t1} for a grid of {grid}");
+    assert!(k0 - k1 >= 0.6 * arrays, "copies {k0} against {k1}");
 }

@@ -77,6 +77,14 @@ fn tiny_spheres_collapse_on_time_with_the_default_scheme() {
     check_scheme(Settings::paper_upwind1(), 0.10, "upwind1+euler");
 }
 
+/// Forward Euler's stage in place (φⁿ packed, as on bands beyond
+/// `Settings::double_buffer_bytes`): the collapse test reads the packed φⁿ.
+#[test]
+fn tiny_spheres_collapse_on_time_with_the_stage_in_place() {
+    let settings = Settings { double_buffer_bytes: 0, ..Settings::paper_upwind1() };
+    check_scheme(settings, 0.10, "upwind1+euler in place");
+}
+
 /// A growing seed smaller than a voxel (one inside voxel, F > 0) is not a collapse: its
 /// interior is unresolved but grows. With HJ-WENO5 + TVD-RK3 it reaches r₀ + F t within
 /// 0.3 voxels by t = 3; first-order upwind with rescaling grows it more slowly, the same

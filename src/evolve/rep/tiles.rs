@@ -47,16 +47,17 @@ const ANCHOR_BYTES_PER_TILE: u64 = 18 + 4 * 16;
 const PACKED_BYTES_PER_TILE: u64 = 18 + 4 * 32;
 
 /// Bytes per tile the engine holds while it steps: the grid's own arrays, the activity
-/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (TVD-RK3: the
-/// double buffer and φⁿ whole beside it; otherwise φⁿ packed, see [`TileUndo`]) with its
-/// activity flags, and the larger of the anchors, which live through a renormalisation,
-/// and the arrays of tile management, which follows it. Tile management moves the values
-/// within the arena (or writes them into a free step buffer), so it adds no value array.
-pub(crate) fn step_bytes_per_tile(keeps: StepKeeps) -> u64 {
+/// flags a sweep computes, the band mask, the neighbour table's row, φⁿ (`whole`, see
+/// [`StepKeeps::whole_phi_n`]: the double buffer and φⁿ whole beside it; otherwise φⁿ
+/// packed, see [`TileUndo`]) with its activity flags, and the larger of the anchors,
+/// which live through a renormalisation, and the arrays of tile management, which follows
+/// it. Tile management moves the values within the arena (or writes them into a free step
+/// buffer), so it adds no value array.
+pub(crate) fn step_bytes_per_tile(keeps: StepKeeps, whole: bool) -> u64 {
     let tile = std::mem::size_of::<Tile>() as u64;
     let row = std::mem::size_of::<crate::storage::tiles::NeighbourRow>() as u64;
     let b = TILE_GRID_BYTES + 4 + 8 + row + 4;
-    let b = b + if keeps.rk3 { 2 * tile } else { PACKED_BYTES_PER_TILE };
+    let b = b + if whole { 2 * tile } else { PACKED_BYTES_PER_TILE };
     b + if keeps.anchors {
         ANCHOR_BYTES_PER_TILE.max(MANAGE_BYTES_PER_TILE)
     } else {
@@ -71,19 +72,22 @@ enum TileUndo {
     /// No step in progress, or its first stage failed before changing anything.
     #[default]
     Nothing,
-    /// TVD-RK3: the φⁿ buffer holds it, whole, for the stages that read it.
+    /// TVD-RK3, and forward Euler on a band within [`TilesRep::double_buffer_bytes`]: the
+    /// φⁿ buffer holds it, whole (for the stages that read it), the sweeps writing into
+    /// the double buffer.
     PhiN,
-    /// Forward Euler and renormalisation: packed ([`Buffers::packed`]), the sweeps
-    /// writing in place. Outside the band a tile holds ±γ, so the packed φⁿ takes a
-    /// fraction of a value array (27 of 64 values a tile on a sphere of radius 800).
+    /// Forward Euler on larger bands, and a renormalisation at rest: packed
+    /// ([`Buffers::packed`]), the sweeps writing in place. Outside the band a tile holds
+    /// ±γ, so the packed φⁿ takes a fraction of a value array (27 of 64 values a tile on a
+    /// sphere of radius 800).
     Packed,
 }
 
-/// The tile engine: the grid holds the current values. TVD-RK3's stages, and the
-/// renormalisation's sweeps after them, write into the double buffer `out` in list order
-/// (Sec. 4.7), swapped into the grid after each sweep; forward Euler's stage, and every
-/// sweep of a renormalisation whose φⁿ is packed, write into the grid in place
-/// ([`TileSweep`]).
+/// The tile engine: the grid holds the current values. TVD-RK3's stages, forward Euler's
+/// on a band within `double_buffer_bytes`, and the renormalisation's sweeps after them,
+/// write into the double buffer `out` in list order (Sec. 4.7), swapped into the grid
+/// after each sweep; forward Euler's stage on a larger band, and every sweep of a
+/// renormalisation whose φⁿ is packed, write into the grid in place ([`TileSweep`]).
 ///
 /// # Invariants
 /// * `table` holds the neighbours of `grid`'s current list (rebuilt after every tile
@@ -104,6 +108,8 @@ pub(crate) struct TilesRep {
     /// This rank's part of a distributed band (`None`: the whole band); see
     /// [`crate::distributed`]. Boxed: most grids are not distributed.
     part: Option<Box<RankPart>>,
+    /// [`crate::evolve::Settings::double_buffer_bytes`].
+    pub double_buffer_bytes: u64,
 }
 
 /// The buffers of a step, one entry per tile in list order.
@@ -128,12 +134,12 @@ struct Buffers {
 
 impl Buffers {
     /// Bytes they have to allocate to serve `tiles` tiles ([`step_bytes_per_tile`]'s
-    /// arrays).
-    fn growth(&self, tiles: usize, keeps: StepKeeps) -> u64 {
+    /// arrays; `whole`: φⁿ kept whole beside the double buffer).
+    fn growth(&self, tiles: usize, keeps: StepKeeps, whole: bool) -> u64 {
         let mut b = growth_bytes(&self.band, tiles)
             + growth_bytes(&self.activity, tiles)
             + growth_bytes(&self.phi_n_activity, tiles);
-        if keeps.rk3 {
+        if whole {
             b += growth_bytes(&self.out, tiles) + growth_bytes(&self.phi_n, tiles);
         } else {
             // Packed anew at every step.
@@ -185,6 +191,7 @@ impl TilesRep {
             undo: TileUndo::Nothing,
             prev: None,
             part: None,
+            double_buffer_bytes: crate::evolve::Settings::DOUBLE_BUFFER_BYTES,
         }
     }
 
@@ -1048,13 +1055,16 @@ impl Representation for TilesRep {
         debug_assert_eq!(self.table.len(), n, "stale neighbour table");
         let owned = self.owned();
         let planar = p.lattice.is_some_and(|l| l.planar);
-        // Forward Euler: φⁿ packed, the stage written in place. TVD-RK3: double-buffered,
-        // for its later stages read φⁿ whole.
-        let (first, euler) = (p.stage == 1, p.stage == 1 && last);
-        if euler {
+        // TVD-RK3 (its later stages read φⁿ whole), and forward Euler on a band within
+        // `double_buffer_bytes`: double-buffered. Forward Euler on a larger band: φⁿ
+        // packed, the stage written in place.
+        let first = p.stage == 1;
+        let euler = StepKeeps { euler: true, ..StepKeeps::default() };
+        let in_place = first && last && !euler.whole_phi_n(n, self.double_buffer_bytes);
+        if in_place {
             self.keep_step_start();
         }
-        self.size_for_sweep(n, !euler);
+        self.size_for_sweep(n, !in_place);
         let Buffers { phi_n, out, band, activity, .. } = &mut self.buf;
         let p = StageParams { phi_n: if first { &[] } else { tile_flat(phi_n) }, ..*p };
         let sweep = TileSweep {
@@ -1066,13 +1076,13 @@ impl Representation for TilesRep {
             compute_mask: first,
             activity,
             planar,
-            out: (!euler).then_some(&mut out[..]),
+            out: (!in_place).then_some(&mut out[..]),
         };
         dispatch(&p, scheme, sweep)?;
-        self.take_sweep(!euler)?;
-        if first && !euler {
-            // `out` and `activity` now hold φⁿ and its flags: kept for stages 2 and 3 (and
-            // for undoing the step).
+        self.take_sweep(!in_place)?;
+        if first && !in_place {
+            // `out` and `activity` now hold φⁿ and its flags: kept for the later stages and
+            // the renormalisation's sweeps (and for undoing the step).
             std::mem::swap(&mut self.buf.phi_n, &mut self.buf.out);
             std::mem::swap(&mut self.buf.phi_n_activity, &mut self.buf.activity);
             self.undo = TileUndo::PhiN;
@@ -1109,7 +1119,7 @@ impl Representation for TilesRep {
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
             // At rest, the single sweep computes the band mask of φ⁰ itself.
             let compute_mask = fresh && !anchored && s == 0;
-            // After TVD-RK3's stages, which keep φⁿ apart, `out` is free: double-buffered.
+            // After stages that keep φⁿ apart, `out` is free: double-buffered.
             // When φⁿ is packed, the sweep writes into the grid behind itself instead of
             // into a second value array (docs/decisions/0033, 0043).
             let double = self.undo == TileUndo::PhiN;
@@ -1218,7 +1228,12 @@ impl Representation for TilesRep {
             // tile management grew to hold the list before the step, or the list's own).
             _ => self.grid.take_values(),
         };
+        // The values of the list tile management built (with φⁿ whole): kept as the φⁿ
+        // buffer of the next step, so that the undone step leaves the memory it found
+        // (the list before the step then holds no values of its own).
+        let mut managed = Vec::new();
         if let Some(prev) = self.prev.take() {
+            managed = self.grid.take_values();
             self.grid = *prev;
             self.table.rebuild(self.grid.tile_coords());
         }
@@ -1233,7 +1248,7 @@ impl Representation for TilesRep {
             .expect("φⁿ matches the list before the step");
         if self.undo == TileUndo::PhiN {
             // The buffer stays for the next step.
-            self.buf.phi_n = values;
+            self.buf.phi_n = if values.capacity() >= managed.capacity() { values } else { managed };
         }
         self.undo = TileUndo::Nothing;
     }
@@ -1335,8 +1350,9 @@ impl Representation for TilesRep {
 
     fn step_bytes(&self, keeps: StepKeeps) -> u64 {
         let tiles = self.grid.len();
+        let whole = keeps.whole_phi_n(tiles, self.double_buffer_bytes);
         (self.bytes() + self.work_bytes()) as u64
-            + self.buf.growth(tiles, keeps)
+            + self.buf.growth(tiles, keeps, whole)
             + self.table.growth_bytes(tiles) as u64
     }
 }

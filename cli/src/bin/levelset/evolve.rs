@@ -124,8 +124,8 @@ pub fn run(a: &EvolveArgs) -> Result<(), String> {
     // What the steps will hold: the evolving band's grid times the working copies (the
     // rule of `levelset run`'s estimate), checked against the machine's and the process's
     // limits before any step; the loaded grid is held already.
-    let copies = tile_step_copies(&flow, settings.integrator, settings.renormalization);
-    let estimated = copies * evolving_bytes(&tiles);
+    let evolving = evolving_bytes(&tiles);
+    let estimated = tile_step_copies(&flow, &settings, evolving) * evolving;
     sparse_levelset::memory::check(
         estimated - tiles.memory().used() as f64,
         "the evolution's working copies of the level set",
