@@ -470,7 +470,10 @@ def stepping_memory_section(meta):
         " from each run's `summary.json`. Peak resident is the process's (`VmHWM`), set-up"
         " included; the estimate is what the run was admitted with before the band was built"
         " (the shape's area times the band's stored thickness, times the engine's bytes per"
-        " tile while stepping).",
+        " tile while stepping). Bands of these sizes step with φⁿ packed and every sweep in"
+        " place; bands whose values take at most `Settings::double_buffer_bytes` (64 MiB by"
+        " default) keep φⁿ whole beside a double buffer instead, faster and about two value"
+        " arrays larger (decision 0043).",
         "",
         "| command | band voxels | grid bytes | seconds per step | peak resident"
         " | per band voxel | × grid | estimate (error) |",
