@@ -340,9 +340,9 @@ pub struct Settings {
     /// Euler keeps φⁿ whole and writes its stage into a second value array, as TVD-RK3
     /// always does; above it, φⁿ is packed and the stage written in place. The same values
     /// either way, bit for bit: a choice of memory against time. Double-buffered, a step
-    /// holds two more value arrays (the peak about 1.5 × as high on a sphere) and takes
-    /// about 0.84–0.88 × the time where the whole step is the engine's; in place, the peak
-    /// stays within 2.5 × the grid's bytes on large bands. Default
+    /// holds two more value arrays (a sphere of 20,500 tiles peaked at 36 MiB instead of
+    /// 25) and took 0.8 × the time of the step in place (`docs/decisions/0043`); in place,
+    /// the peak stays within 2.5 × the grid's bytes on large bands. Default
     /// [`Settings::DOUBLE_BUFFER_BYTES`]; 0 packs always.
     pub double_buffer_bytes: u64,
 }
