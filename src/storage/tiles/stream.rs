@@ -202,18 +202,33 @@ impl NeighbourRow {
     }
 
     /// The row with every present neighbour at `to[p]` instead of `p`, and without those
-    /// whose `to` is [`NONE`] (removed).
+    /// whose `to` is [`NONE`] (removed). Line by line: a line's present neighbours are
+    /// consecutive positions from its first, and so are those it keeps in the new list
+    /// (nothing can come between neighbours at `dx = -1, 0, +1`), so the new first is the
+    /// first kept one's new position.
     #[inline]
     fn moved(&self, to: &[u32]) -> NeighbourRow {
         let mut out = NeighbourRow::EMPTY;
-        let mut m = self.matched;
-        while m != 0 {
-            let d = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let q = to[self.position(d)];
-            if q != NONE {
-                out.insert(d, q);
+        for r in 0..9 {
+            let bits = (self.matched >> (3 * r)) & 7;
+            if bits == 0 {
+                continue;
             }
+            let mut p = self.first[r] as usize;
+            let mut kept = 0u32;
+            for k in 0..3 {
+                if (bits >> k) & 1 != 0 {
+                    let q = to[p];
+                    p += 1;
+                    if q != NONE {
+                        if kept == 0 {
+                            out.first[r] = q;
+                        }
+                        kept |= 1 << k;
+                    }
+                }
+            }
+            out.matched |= kept << (3 * r);
         }
         out
     }
