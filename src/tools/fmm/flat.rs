@@ -13,8 +13,8 @@
 //! voxels in the same order — the heap orders by (arrival time, coordinate), a strict
 //! total order, and the padded index of a voxel is in coordinate order (z, then y, then
 //! x), so any heap that extracts the least entry of that order extracts the same
-//! sequence. The heap here is 4-ary (half the depth of a binary heap, and the four
-//! children of a node are adjacent in memory).
+//! sequence. The heap here is 16-ary (a quarter of the depth of a binary heap, and the
+//! sixteen children of a node are adjacent in memory).
 //!
 //! **Two sides, two threads.** A voxel's update reads the frozen voxels of its own side
 //! and the interface only, and an open voxel off the interface has no open neighbour of
@@ -122,8 +122,8 @@ struct Flat {
     /// Per active axis (longer than one voxel), in axis order: the stride and the term
     /// factor `(h₀ / hₐ)²`.
     axes: Vec<(usize, f64)>,
-    /// The trial voxels' entries, a 4-ary min-heap (the children of slot `p` are
-    /// `4p + 1 ..= 4p + 4`).
+    /// The trial voxels' entries, a 16-ary min-heap (the children of slot `p` are
+    /// `16p + 1 ..= 16p + 16`).
     heap: Vec<u128>,
 }
 
@@ -141,7 +141,7 @@ impl Flat {
     #[inline(always)]
     fn sift_up(&mut self, mut p: usize, e: u128) {
         while p > 0 {
-            let parent = (p - 1) / 4;
+            let parent = (p - 1) / 16;
             let pe = self.heap[parent];
             if pe <= e {
                 break;
@@ -157,25 +157,37 @@ impl Flat {
     fn sift_down(&mut self, mut p: usize, e: u128) {
         let n = self.heap.len();
         loop {
-            let first = 4 * p + 1;
+            let first = 16 * p + 1;
             if first >= n {
                 break;
             }
-            let (c, ce) = if first + 4 <= n {
-                // Four children: a tournament of two independent comparisons and a
-                // third (entries are distinct, so the least is the loop's below). The
-                // loop's dependent chain of three comparisons made `sl.distance(phi,
-                // order=2)` of docs/python_bench.py 6–10 % slower: 197 → 185 ms at 96³,
-                // 1223 → 1105–1125 ms at 160³, 147 → 140 ms at 1024² (fastest of 2–5,
-                // two runs; 2-core AMD EPYC, 2026-11-28).
-                let k = &self.heap[first..first + 4];
-                let (a, ea) = if k[1] < k[0] { (1, k[1]) } else { (0, k[0]) };
-                let (b, eb) = if k[3] < k[2] { (3, k[3]) } else { (2, k[2]) };
-                if eb < ea {
-                    (first + b, eb)
-                } else {
-                    (first + a, ea)
-                }
+            let (c, ce) = if first + 16 <= n {
+                // Sixteen children: a tournament of independent comparisons, four deep
+                // (entries are distinct, so the least is the loop's below; a loop's
+                // dependent chain of comparisons was slower with four children). A pop
+                // sifts the last entry down nearly to the bottom (pushes and decreases
+                // hardly move: at 96³, 0.87 M pops moved entries down 5.9 M levels of a
+                // 4-ary heap and 2.6 M pushes and changes moved them up 64 k levels), so
+                // fewer levels pay: `dense_distance` of docs/python_bench.py's torus at
+                // 96³, order 2, in a Rust timing binary (fastest of 5, three alternating
+                // runs, 2-core AMD EPYC, 2026-11-30), 151 / 159 / 162 ms with four
+                // children against 151 / 153 / 148 ms with eight; then 143 / 151 / 144 ms
+                // with eight against 142 / 141 / 142 ms with sixteen. The 1024² circle
+                // (at most 2.9 k trial pixels): 79 / 80 / 80 ms with four, 82 / 82 / 80
+                // ms with eight; 81 / 80 / 79 ms with eight, 80 / 77 / 78 ms with sixteen.
+                let k = &self.heap[first..first + 16];
+                let pick = |x: usize, y: usize| if k[y] < k[x] { (y, k[y]) } else { (x, k[x]) };
+                let m = |(x, ex): (usize, u128), (y, ey): (usize, u128)| {
+                    if ey < ex {
+                        (y, ey)
+                    } else {
+                        (x, ex)
+                    }
+                };
+                let l = m(m(pick(0, 1), pick(2, 3)), m(pick(4, 5), pick(6, 7)));
+                let r = m(m(pick(8, 9), pick(10, 11)), m(pick(12, 13), pick(14, 15)));
+                let (a, ea) = m(l, r);
+                (first + a, ea)
             } else {
                 let (mut c, mut ce) = (first, self.heap[first]);
                 for k in first + 1..n {
