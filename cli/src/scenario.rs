@@ -612,10 +612,11 @@ impl Scenario {
                 // DT-Grid's arrays and buffers are smaller per band voxel; the dense
                 // reference's box is checked below).
                 let settings = Settings { integrator, renormalization, ..Settings::default() };
-                let copies = tile_step_copies(&flow, &settings, band_bytes(&shape, &spec));
+                let band = band_bytes(&shape, &spec);
+                let copies = tile_step_copies(&flow, &settings, band);
                 input::check_shape(kind.name(), &shape, &Expect { copies, ..Expect::new(spec) })?;
                 if matches!(o.grid, GridKind::Tiles(_)) {
-                    estimated_bytes = Some(band_bytes(&shape, &spec) * copies);
+                    estimated_bytes = Some(band * copies);
                 }
                 if dense {
                     check_dense_box(&shape, &spec)?;

@@ -468,12 +468,17 @@ pub(crate) struct StepKeeps {
 impl StepKeeps {
     /// Whether the tile engine keeps φⁿ whole beside a double buffer on a band of `tiles`
     /// tiles, with `double_buffer_bytes` of [`Settings::double_buffer_bytes`]: always
-    /// with TVD-RK3, with forward Euler while the tiles' values fit; otherwise φⁿ is
+    /// with TVD-RK3, with forward Euler where [`euler_double_buffered`]; otherwise φⁿ is
     /// packed and the sweeps write in place.
     pub fn whole_phi_n(self, tiles: usize, double_buffer_bytes: u64) -> bool {
-        let values = tiles as u64 * std::mem::size_of::<crate::storage::tiles::Tile>() as u64;
-        self.rk3 || (self.euler && values <= double_buffer_bytes)
+        self.rk3 || (self.euler && euler_double_buffered(tiles, double_buffer_bytes))
     }
+}
+
+/// Whether forward Euler's stage on a band of `tiles` tiles is double-buffered: its tiles'
+/// values take at most `double_buffer_bytes` ([`Settings::double_buffer_bytes`]).
+pub(crate) fn euler_double_buffered(tiles: usize, double_buffer_bytes: u64) -> bool {
+    tiles as u64 * std::mem::size_of::<crate::storage::tiles::Tile>() as u64 <= double_buffer_bytes
 }
 
 /// What a step with `integrator` and `renorm` keeps: the one rule of the memory budget and

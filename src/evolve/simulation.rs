@@ -188,9 +188,7 @@ impl Simulation {
             ));
         }
         let mut rep = rep;
-        if let Rep::Tiles(t) = &mut rep {
-            t.double_buffer_bytes = settings.double_buffer_bytes;
-        }
+        rep.take_settings(&settings);
         let mut sim = Simulation {
             rep,
             kind,
@@ -363,9 +361,7 @@ impl Simulation {
         let mut rep = match &self.rep {
             Rep::Tiles(t) => {
                 let grid = in_pool(pool, || crate::tools::fmm::reinitialize(&t.grid, &opts))?;
-                let mut r = in_pool(pool, || TilesRep::new(grid, t.lanes));
-                r.double_buffer_bytes = t.double_buffer_bytes;
-                Rep::Tiles(r)
+                Rep::Tiles(in_pool(pool, || TilesRep::new(grid, t.lanes)))
             }
             Rep::DtGrid(d) => {
                 let grid = crate::storage::convert::dtgrid_from(&crate::tools::fmm::reinitialize(
@@ -379,6 +375,7 @@ impl Simulation {
                 ))
             }
         };
+        rep.take_settings(&self.settings);
         let r = rep.get_mut();
         in_pool(pool, || r.finish_step(&budget))?;
         Ok(rep)

@@ -30,7 +30,7 @@ pub(crate) use tiles::{step_bytes_per_tile, TilesRep, TILE_GRID_BYTES};
 
 use super::dispatch::{RenormParams, StageParams};
 use super::field::{ScalarFn, VectorFn};
-use super::{EvolveError, SpatialScheme, StepKeeps};
+use super::{EvolveError, Settings, SpatialScheme, StepKeeps};
 use crate::coord::Coord;
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
@@ -165,6 +165,15 @@ pub(crate) enum Rep {
 }
 
 impl Rep {
+    /// Takes what the representation reads of the simulation's settings: the tile
+    /// engine's [`Settings::double_buffer_bytes`]. Called wherever a representation joins a
+    /// simulation (its start, a reinitialisation).
+    pub fn take_settings(&mut self, settings: &Settings) {
+        if let Rep::Tiles(t) = self {
+            t.double_buffer_bytes = settings.double_buffer_bytes;
+        }
+    }
+
     pub fn get(&self) -> &dyn Representation {
         match self {
             Rep::Tiles(r) => r,

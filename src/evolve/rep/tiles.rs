@@ -108,7 +108,7 @@ pub(crate) struct TilesRep {
     /// This rank's part of a distributed band (`None`: the whole band); see
     /// [`crate::distributed`]. Boxed: most grids are not distributed.
     part: Option<Box<RankPart>>,
-    /// [`crate::evolve::Settings::double_buffer_bytes`].
+    /// [`crate::evolve::Settings::double_buffer_bytes`] (set by [`super::Rep::take_settings`]).
     pub double_buffer_bytes: u64,
 }
 
@@ -1059,8 +1059,8 @@ impl Representation for TilesRep {
         // `double_buffer_bytes`: double-buffered. Forward Euler on a larger band: φⁿ
         // packed, the stage written in place.
         let first = p.stage == 1;
-        let euler = StepKeeps { euler: true, ..StepKeeps::default() };
-        let in_place = first && last && !euler.whole_phi_n(n, self.double_buffer_bytes);
+        let in_place =
+            first && last && !crate::evolve::euler_double_buffered(n, self.double_buffer_bytes);
         if in_place {
             self.keep_step_start();
         }
