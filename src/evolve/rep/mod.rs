@@ -166,11 +166,13 @@ pub(crate) enum Rep {
 
 impl Rep {
     /// Takes what the representation reads of the simulation's settings: the tile
-    /// engine's [`Settings::double_buffer_bytes`]. Called wherever a representation joins a
-    /// simulation (its start, a reinitialisation).
+    /// engine's [`Settings::double_buffer_bytes`] and whether its lattice is planar.
+    /// Called wherever a representation joins a simulation (its start, a
+    /// reinitialisation).
     pub fn take_settings(&mut self, settings: &Settings) {
         if let Rep::Tiles(t) = self {
             t.double_buffer_bytes = settings.double_buffer_bytes;
+            t.planar = settings.lattice.is_some_and(|l| l.planar);
         }
     }
 

@@ -110,6 +110,10 @@ pub(crate) struct TilesRep {
     part: Option<Box<RankPart>>,
     /// [`crate::evolve::Settings::double_buffer_bytes`] (set by [`super::Rep::take_settings`]).
     pub double_buffer_bytes: u64,
+    /// A planar lattice ([`crate::evolve::Lattice::planar`]; set by
+    /// [`super::Rep::take_settings`]): tile management creates no tile above or below
+    /// the list's tiles, so the band stays in the tile layers it started in.
+    pub planar: bool,
 }
 
 /// The buffers of a step, one entry per tile in list order.
@@ -192,6 +196,7 @@ impl TilesRep {
             prev: None,
             part: None,
             double_buffer_bytes: crate::evolve::Settings::DOUBLE_BUFFER_BYTES,
+            planar: false,
         }
     }
 
@@ -1178,6 +1183,7 @@ impl Representation for TilesRep {
             },
             spare,
             true,
+            self.planar,
         );
         let (_, prev) = match (managed, &self.part) {
             (Ok(m), _) => m,

@@ -31,6 +31,10 @@ use crate::memory::{grown_capacity, resize_exact};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
+/// The neighbours in a tile's own layer (offsets with dz = 0; bits of [`NEIGHBOURHOOD`],
+/// the centre excluded): what a planar band may create.
+const IN_PLANE: u32 = BORDER_MASK & (((1 << 18) - 1) & !((1 << 9) - 1));
+
 /// Tiles per parallel task (the result does not depend on it; the unit tests use small
 /// chunks so that their grids span many).
 const CHUNK: usize = if cfg!(test) { 7 } else { 512 };
@@ -70,7 +74,8 @@ impl TileGrid {
     /// A tile that would be created outside the representable range gives
     /// [`GridError::OutOfRange`] and leaves the grid unchanged.
     pub fn manage_tiles(&mut self) -> Result<ManageStats, GridError> {
-        self.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new(), true).map(|(stats, _)| stats)
+        self.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new(), true, false)
+            .map(|(stats, _)| stats)
     }
 
     /// [`TileGrid::manage_tiles`] that asks `admit(tiles)` before it allocates the new list
@@ -94,12 +99,19 @@ impl TileGrid {
     /// towards the back, see [`move_kept`]); the previous grid returned then has no values
     /// either, as above. Otherwise a new arena holds them and the previous grid keeps its
     /// own.
+    ///
+    /// `planar`: the band is a 2-D level set extruded along z over the tile layers it
+    /// holds (a planar lattice, [`crate::evolve::Lattice::planar`]), so no tile is created
+    /// above or below a tile of the list: the extrusion's faces would otherwise trigger a
+    /// new layer at every step, whose tiles, filled with ±γ by their neighbours' sides,
+    /// evolve an interface of their own.
     pub(crate) fn manage_tiles_checked(
         &mut self,
         table: Option<&mut NeighbourTable>,
         admit: impl FnOnce(usize) -> Result<(), GridError>,
         spare: &mut Vec<Tile>,
         in_place: bool,
+        planar: bool,
     ) -> Result<(ManageStats, Option<TileGrid>), GridError> {
         let n = self.coords.len();
         if n == 0 {
@@ -108,7 +120,9 @@ impl TileGrid {
         let border_new: Vec<AtomicU32> =
             self.border.par_iter().map(|&b| AtomicU32::new(b)).collect();
         let mut keep = vec![false; n];
-        let created = self.keep_and_find_created(table.as_deref(), &border_new, &mut keep);
+        let creatable = if planar { IN_PLANE } else { BORDER_MASK };
+        let created =
+            self.keep_and_find_created(table.as_deref(), &border_new, &mut keep, creatable);
         if let Some(&c) = created.iter().find(|&&c| !tile_in_range(c)) {
             return Err(GridError::OutOfRange { coord: c });
         }
@@ -173,12 +187,14 @@ impl TileGrid {
     /// Phases 1 and 2, per chunk: marks the tiles to keep in `keep`, writes the removal
     /// notices into `border_new` (Algorithm 3 lines 11–18) and returns the absent
     /// positions the active tiles trigger, sorted and without duplicates. The neighbours
-    /// come from `table` (that of the current list) or a cursor walk.
+    /// come from `table` (that of the current list) or a cursor walk. Only the neighbours
+    /// of `creatable` (bits of [`NEIGHBOURHOOD`]) are created.
     fn keep_and_find_created(
         &self,
         table: Option<&NeighbourTable>,
         border_new: &[AtomicU32],
         keep: &mut [bool],
+        creatable: u32,
     ) -> Vec<Coord> {
         let coords = &self.coords[..];
         let activity = &self.activity[..];
@@ -195,7 +211,7 @@ impl TileGrid {
                 let mut cur = table.is_none().then(|| NeighbourCursor::new(coords, start, end));
                 for (i, &coord) in coords[start..end].iter().enumerate() {
                     let p = start + i;
-                    let tile = Classify { p, coord, activity, border_new };
+                    let tile = Classify { p, coord, activity, border_new, creatable };
                     keep[i] = match table {
                         // The row's positions, computed for the bits visited only.
                         Some(t) => {
@@ -363,6 +379,8 @@ struct Classify<'a> {
     coord: Coord,
     activity: &'a [u32],
     border_new: &'a [AtomicU32],
+    /// The neighbours that may be created (bits of [`NEIGHBOURHOOD`]).
+    creatable: u32,
 }
 
 impl Classify<'_> {
@@ -372,7 +390,7 @@ impl Classify<'_> {
     /// neighbours it triggers onto `created`.
     #[inline(always)]
     fn run(&self, matched: u32, ptr: impl Fn(usize) -> usize, created: &mut Vec<Coord>) -> bool {
-        let Classify { p, coord, activity, border_new } = *self;
+        let Classify { p, coord, activity, border_new, creatable } = *self;
         let mut triggered = false;
         let mut m = matched;
         while m != 0 {
@@ -400,7 +418,7 @@ impl Classify<'_> {
         }
         let a = activity[p];
         if a & ACTIVE_MASK != 0 {
-            let mut absent = !matched & BORDER_MASK;
+            let mut absent = !matched & creatable;
             while absent != 0 {
                 let e = absent.trailing_zeros() as usize;
                 absent &= absent - 1;

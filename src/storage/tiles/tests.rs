@@ -384,7 +384,7 @@ fn management_admission_and_undo_restore_the_grid() {
         randomize_activity(&mut grid, &mut rng);
         let before = grid.clone();
         let refuse = |_: usize| Err(GridError::InvalidParameter("refused".into()));
-        assert!(grid.manage_tiles_checked(None, refuse, &mut Vec::new(), true).is_err());
+        assert!(grid.manage_tiles_checked(None, refuse, &mut Vec::new(), true, false).is_err());
         grid.check_invariants().unwrap();
         assert_same_grid(&grid, &before);
         let mut asked = None;
@@ -396,6 +396,7 @@ fn management_admission_and_undo_restore_the_grid() {
                     Ok(())
                 },
                 &mut Vec::new(),
+                false,
                 false,
             )
             .unwrap();
@@ -463,6 +464,7 @@ fn parallel_management_equals_streamed() {
                             |_| Ok(()),
                             &mut spare,
                             in_place,
+                            false,
                         )
                     })
                     .unwrap();
@@ -792,4 +794,47 @@ fn row_directory_and_plain_search_agree() {
     assert_eq!(g.value(Coord::new(1, 1, -3999)), -1.0);
     assert_eq!(g.value(Coord::new(29, 3601, 4001)), 1.0);
     assert_eq!(g.value(Coord::new(29, 3601, 0)), 3.0);
+}
+
+/// A planar band (one tile layer) managed as planar keeps to its layer: the same list as
+/// the 3-D management without the tiles it creates above and below, the same values and
+/// flags, for random activity.
+#[test]
+fn planar_management_creates_no_tile_outside_the_layer() {
+    let mut rng = fastrand::Rng::with_seed(11);
+    let mut outside = 0;
+    for case in cases(41, 4) {
+        let full = build(&case.shape, case.spec, case.lo, case.hi);
+        let layer = full.tile_coords()[full.len() / 2].z;
+        let tiles: Vec<(Coord, Tile)> = full
+            .tile_coords()
+            .iter()
+            .zip(full.values())
+            .filter(|(c, _)| c.z == layer)
+            .map(|(&c, &t)| (c, t))
+            .collect();
+        let shape = &case.shape;
+        let inside = |t: Coord| truth(shape, &case.spec, voxel_of(t, 0)) < 0.0;
+        let mut grid = TileGrid::from_sorted_tiles(case.spec, tiles, inside).unwrap();
+        for _round in 0..4 {
+            randomize_activity(&mut grid, &mut rng);
+            let mut spatial = grid.clone();
+            spatial.manage_tiles().unwrap();
+            grid.manage_tiles_checked(None, |_| Ok(()), &mut Vec::new(), true, true).unwrap();
+            grid.check_invariants().unwrap();
+            assert!(grid.tile_coords().iter().all(|c| c.z == layer), "a tile left the layer");
+            let in_layer: Vec<usize> =
+                (0..spatial.len()).filter(|&p| spatial.tile_coords()[p].z == layer).collect();
+            outside += spatial.len() - in_layer.len();
+            assert_eq!(grid.len(), in_layer.len());
+            for (p, &q) in in_layer.iter().enumerate() {
+                assert_eq!(grid.tile_coords()[p], spatial.tile_coords()[q]);
+                assert_eq!(grid.values()[p], spatial.values()[q], "values of {p}");
+                assert_eq!(grid.border_flags(p), spatial.border_flags(q), "border of {p}");
+                assert_eq!(grid.activity_flags(p), spatial.activity_flags(q), "activity of {p}");
+            }
+        }
+    }
+    // The 3-D management did create tiles above and below.
+    assert!(outside > 0);
 }
