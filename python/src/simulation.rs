@@ -1,12 +1,15 @@
 //! `Simulation`: a level set moved by a flow (normal speed, mean curvature, advection).
 
 use crate::levelset::LevelSet;
-use numpy::{PyReadonlyArray3, PyReadonlyArray4, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArray4,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sparse_levelset::evolve::{
-    Flow, GridKind, Integrator, Lanes, Renormalization, SampledField, SampledVelocity, Settings,
-    Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
+    Flow, GridKind, Integrator, Lanes, Lattice, Renormalization, SampledField, SampledVelocity,
+    Settings, Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::storage::convert;
@@ -15,7 +18,8 @@ use sparse_levelset::Coord;
 use std::sync::Arc;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<Simulation>()
+    m.add_class::<Simulation>()?;
+    m.add_function(wrap_pyfunction!(evolve2d, m)?)
 }
 
 /// A field on the level set's voxels, array `[z, y, x]` with element `[0, 0, 0]` at voxel
@@ -100,24 +104,7 @@ impl Simulation {
             (None, Some(u)) => Some(Velocity::Constant(u)),
             (None, None) => None,
         };
-        let scheme = match scheme {
-            "weno5" => SpatialScheme::Weno5,
-            "upwind1" => SpatialScheme::Upwind1,
-            s => {
-                return Err(crate::value_error(format!(
-                    "scheme must be \"weno5\" or \"upwind1\", got {s:?}"
-                )))
-            }
-        };
-        let integrator = match integrator {
-            "rk3" => Integrator::Rk3,
-            "euler" => Integrator::Euler,
-            s => {
-                return Err(crate::value_error(format!(
-                    "integrator must be \"rk3\" or \"euler\", got {s:?}"
-                )))
-            }
-        };
+        let (scheme, integrator) = (scheme_of(scheme)?, integrator_of(integrator)?);
         let renormalization = match renormalization {
             "sweeps" => Renormalization::Sweeps(Sweeps {
                 sweeps: renormalization_sweeps,
@@ -264,4 +251,176 @@ fn report<'py>(py: Python<'py>, r: &StepReport) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("kappa_bar", r.kappa_bar)?;
     d.set_item("collapsed", r.collapsed)?;
     Ok(d)
+}
+
+fn scheme_of(scheme: &str) -> PyResult<SpatialScheme> {
+    match scheme {
+        "weno5" => Ok(SpatialScheme::Weno5),
+        "upwind1" => Ok(SpatialScheme::Upwind1),
+        s => Err(crate::value_error(format!("scheme must be \"weno5\" or \"upwind1\", got {s:?}"))),
+    }
+}
+
+fn integrator_of(integrator: &str) -> PyResult<Integrator> {
+    match integrator {
+        "rk3" => Ok(Integrator::Rk3),
+        "euler" => Ok(Integrator::Euler),
+        s => Err(crate::value_error(format!("integrator must be \"rk3\" or \"euler\", got {s:?}"))),
+    }
+}
+
+/// Slices of the extruded layer a 2-D level set is held in (one tile layer).
+const LAYER: usize = 4;
+
+/// A `[ny, nx]` array (C order) as the dense field `[nx, ny, LAYER]` at the origin: the
+/// same values in every slice.
+fn extruded(data: &[f32], nx: usize, ny: usize, map: impl Fn(f32) -> f32) -> PyResult<DenseField> {
+    let mut v = Vec::with_capacity(nx * ny * LAYER);
+    for _ in 0..LAYER {
+        v.extend(data.iter().map(|&x| map(x)));
+    }
+    DenseField::from_vec(Coord::new(0, 0, 0), [nx, ny, LAYER], v).map_err(crate::lib_error)
+}
+
+/// A 2-D level set moved by φ_t + u·∇φ + F|∇φ| = ε κ|∇φ| (κ the curve's curvature) until
+/// time `t`, on a planar lattice of the tile engine (one tile layer; HJ-WENO5 or first-order
+/// upwinding, TVD-RK3 or forward Euler, the coupled rescaling term). Returns the band's
+/// values (±γ = ±3 dx beyond it) and the run's report.
+#[pyfunction]
+#[pyo3(signature = (
+    phi, t, *, dx=1.0, speed=0.0, speed_field=None, curvature=0.0, velocity=None,
+    velocity_field=None, scheme="weno5", integrator="rk3", cfl=1.0, threads=None,
+    max_steps=u64::MAX, progress=None
+))]
+#[allow(clippy::too_many_arguments)]
+fn evolve2d<'py>(
+    py: Python<'py>,
+    phi: PyReadonlyArray2<'py, f32>,
+    t: f64,
+    dx: f32,
+    speed: f32,
+    speed_field: Option<PyReadonlyArray2<'py, f32>>,
+    curvature: f32,
+    velocity: Option<[f32; 2]>,
+    velocity_field: Option<PyReadonlyArray3<'py, f32>>,
+    scheme: &str,
+    integrator: &str,
+    cfl: f32,
+    threads: Option<usize>,
+    max_steps: u64,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyDict>)> {
+    let [ny, nx] = [phi.shape()[0], phi.shape()[1]];
+    if nx == 0 || ny == 0 {
+        return Err(crate::value_error(format!("phi is empty (shape {:?})", phi.shape())));
+    }
+    if !(t.is_finite() && t >= 0.0) {
+        return Err(crate::value_error(format!("t must be finite and >= 0, got {t}")));
+    }
+    if !(speed.is_finite() && curvature.is_finite() && curvature >= 0.0) {
+        return Err(crate::value_error(format!(
+            "speed must be finite and curvature finite and >= 0, got {speed} and {curvature}"
+        )));
+    }
+    if !(dx.is_finite() && dx > 0.0) {
+        return Err(crate::value_error(format!("dx must be finite and > 0, got {dx}")));
+    }
+    let (scheme, integrator) = (scheme_of(scheme)?, integrator_of(integrator)?);
+    let spec = GridSpec::new(dx, [0.0; 3], 3.0).map_err(crate::lib_error)?;
+    let gamma = spec.gamma();
+    let values = phi.as_slice().map_err(crate::value_error)?;
+    if let Some(i) = values.iter().position(|v| v.is_nan()) {
+        return Err(crate::value_error(format!("phi holds NaN at index {:?}", [i / nx, i % nx])));
+    }
+    for (sign, side) in [(-1.0f32, "< 0 (inside)"), (1.0, "> 0 (outside)")] {
+        if !values.iter().any(|&v| v * sign > 0.0) {
+            return Err(crate::value_error(format!(
+                "phi has no zero contour to move: no value is {side}"
+            )));
+        }
+    }
+    let field = extruded(values, nx, ny, |v| v.clamp(-gamma, gamma))?;
+    let tiles = convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)?;
+    drop(field);
+    if tiles.band_voxels() == 0 {
+        return Err(crate::value_error(format!(
+            "phi has no values within 3 dx = {gamma} of its zero contour: near the contour it \
+             must be about a signed distance in world units"
+        )));
+    }
+    let same_shape = |s: &[usize], what: &str| -> PyResult<()> {
+        if s[..2] != [ny, nx] {
+            return Err(crate::value_error(format!(
+                "{what} must have phi's shape {:?} first, got {s:?}",
+                [ny, nx]
+            )));
+        }
+        Ok(())
+    };
+    let mut flow = Flow::mean_curvature(curvature);
+    flow.speed = match speed_field {
+        Some(a) => {
+            same_shape(a.shape(), "speed_field")?;
+            let f = extruded(a.as_slice().map_err(crate::value_error)?, nx, ny, |v| v)?;
+            Speed::Field(Arc::new(SampledField::new(f, spec).map_err(crate::value_error)?))
+        }
+        None => Speed::Constant(speed),
+    };
+    flow.velocity = match (velocity_field, velocity) {
+        (Some(a), _) => {
+            same_shape(a.shape(), "velocity_field")?;
+            if a.shape()[2] != 2 {
+                return Err(crate::value_error(format!(
+                    "velocity_field must have shape (ny, nx, 2), got {:?}",
+                    a.shape()
+                )));
+            }
+            let v = a.as_array();
+            let comp = |c: usize| -> PyResult<SampledField> {
+                let data: Vec<f32> = match c {
+                    2 => vec![0.0; nx * ny],
+                    c => v.index_axis(numpy::ndarray::Axis(2), c).iter().copied().collect(),
+                };
+                let f = extruded(&data, nx, ny, |v| v)?;
+                SampledField::new(f, spec).map_err(crate::value_error)
+            };
+            Some(Velocity::Field(Arc::new(SampledVelocity([comp(0)?, comp(1)?, comp(2)?]))))
+        }
+        (None, Some([ux, uy])) => Some(Velocity::Constant([ux, uy, 0.0])),
+        (None, None) => None,
+    };
+    let settings = Settings {
+        scheme,
+        integrator,
+        time_step: TimeStep::Cfl(cfl),
+        renormalization: Renormalization::Coupled { weight: 1.0 },
+        lattice: Some(Lattice { spacing: [dx; 3], planar: true }),
+        pool: crate::pool(threads)?,
+        ..Settings::default()
+    };
+    let kind = GridKind::Tiles(Lanes::Simd);
+    let mut sim =
+        py.detach(|| Sim::from_tile_grid(kind, tiles, flow, settings)).map_err(crate::lib_error)?;
+    // Step by step on the calling thread: Ctrl-C and the callback between steps.
+    while sim.time() < t && sim.steps() < max_steps && !sim.collapsed() {
+        let r = py.detach(|| sim.step_until(t)).map_err(crate::lib_error)?;
+        py.check_signals()?;
+        if let Some(cb) = &progress {
+            let d = PyDict::new(py);
+            d.set_item("done", r.time)?;
+            d.set_item("total", t)?;
+            d.set_item("step", r.step)?;
+            cb.call1((d,))?;
+        }
+    }
+    let out =
+        py.detach(|| sim.to_dense(Coord::new(0, 0, 0), [nx, ny, 1])).map_err(crate::lib_error)?;
+    let d = PyDict::new(py);
+    d.set_item("steps", sim.steps())?;
+    d.set_item("time", sim.time())?;
+    d.set_item("collapsed", sim.collapsed())?;
+    d.set_item("band_voxels", sim.band_voxels() / LAYER)?;
+    let arr = numpy::ndarray::Array2::from_shape_vec((ny, nx), out.data().to_vec())
+        .map_err(crate::value_error)?;
+    Ok((arr.into_pyarray(py), d))
 }
