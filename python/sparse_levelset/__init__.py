@@ -439,6 +439,28 @@ def load_mesh(path: Union[str, os.PathLike]):
     return _native.load_mesh(os.fspath(path))
 
 
+def _flow_fields(speed, velocity, dims: int) -> dict:
+    """The native keywords of a speed (a constant or a `dims`-D array) and a velocity (a
+    constant of `dims` components or an array of them, one more axis)."""
+    kw = {}
+    if np.ndim(speed) == 0:
+        kw["speed"] = float(speed)
+    else:
+        kw["speed_field"] = np.ascontiguousarray(_float32(speed, "speed", ndims=(dims,)))
+    if velocity is not None:
+        v = np.asarray(velocity)
+        if v.ndim == 1:
+            if v.shape != (dims,):
+                names = ", ".join(("ux", "uy", "uz")[:dims])
+                raise ValueError(f"velocity must be ({names}), got shape {v.shape}")
+            kw["velocity"] = tuple(float(c) for c in v)
+        else:
+            kw["velocity_field"] = np.ascontiguousarray(
+                _float32(v, "velocity", ndims=(dims + 1,))
+            )
+    return kw
+
+
 class LevelSet:
     """A narrow-band signed distance field (φ < 0 inside, world units) on the Sorted Tile
     List: band voxels ``|φ| < γ`` are stored, every other voxel reads ``±γ`` (``γ =
@@ -702,19 +724,7 @@ class Simulation:
     ):
         if not isinstance(levelset, LevelSet):
             raise TypeError("levelset must be a LevelSet")
-        kw = {}
-        if np.ndim(speed) == 0:
-            kw["speed"] = float(speed)
-        else:
-            kw["speed_field"] = np.ascontiguousarray(_float32(speed, "speed"))
-        if velocity is not None:
-            v = np.asarray(velocity)
-            if v.ndim == 1:
-                if v.shape != (3,):
-                    raise ValueError(f"velocity must be (ux, uy, uz), got shape {v.shape}")
-                kw["velocity"] = tuple(float(c) for c in v)
-            else:
-                kw["velocity_field"] = np.ascontiguousarray(_float32(v, "velocity", ndims=(4,)))
+        kw = _flow_fields(speed, velocity, 3)
         self._sim = _native.Simulation(
             levelset._ls,
             curvature=float(curvature),
@@ -824,19 +834,7 @@ def evolve2d(
     and the band is unbounded, but only the array's part is returned.
     """
     a = np.ascontiguousarray(_float32(phi, "phi", ndims=(2,)))
-    kw = {}
-    if np.ndim(speed) == 0:
-        kw["speed"] = float(speed)
-    else:
-        kw["speed_field"] = np.ascontiguousarray(_float32(speed, "speed", ndims=(2,)))
-    if velocity is not None:
-        v = np.asarray(velocity)
-        if v.ndim == 1:
-            if v.shape != (2,):
-                raise ValueError(f"velocity must be (ux, uy), got shape {v.shape}")
-            kw["velocity"] = tuple(float(c) for c in v)
-        else:
-            kw["velocity_field"] = np.ascontiguousarray(_float32(v, "velocity", ndims=(3,)))
+    kw = _flow_fields(speed, velocity, 2)
     if max_steps is not None:
         if int(max_steps) < 0:
             raise ValueError(f"max_steps must be >= 0, got {max_steps}")
