@@ -808,11 +808,15 @@ def evolve2d(
     close to a signed distance by the coupled rescaling term; values beyond the band are
     ±3 ``dx``. ``distance(result)`` gives the signed distance over the whole array.
 
+    Only the zero contour of ``phi`` is read: it is located between neighbouring values
+    of opposite sign (as ``distance`` locates it) and the run starts from its signed
+    distance, so a mask (``np.where(mask, -1, 1)``), a steep or a shallow function start
+    the same front.
+
     Parameters
     ----------
-    phi : 2-D array, negative inside, in world units (a signed distance, or any function
-        with the contour as its zero level: only the band near it is read). NaN is a
-        ``ValueError``; ±inf are far values.
+    phi : 2-D array, negative inside, with the contour as its zero level. NaN is a
+        ``ValueError``, and so is an array without values of both signs.
     t : the end time (>= 0).
     dx : grid spacing (finite, > 0), the same along both axes.
     speed : F, a constant or an array of ``phi``'s shape.

@@ -12,8 +12,10 @@ use sparse_levelset::evolve::{
     Settings, Simulation as Sim, SpatialScheme, Speed, StepReport, Sweeps, TimeStep, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
+use sparse_levelset::progress::Progress;
 use sparse_levelset::storage::convert;
 use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::tools::fmm;
 use sparse_levelset::Coord;
 use std::sync::Arc;
 
@@ -339,15 +341,28 @@ fn evolve2d<'py>(
             )));
         }
     }
-    let field = extruded(values, nx, ny, |v| v.clamp(-gamma, gamma))?;
+    // Only the contour is read: its signed distance by second-order fast marching (the
+    // contour located between neighbours of opposite sign, as `distance` does) out to the
+    // band's half-width and a voxel more, ±γ beyond. So a mask, a steep or a shallow
+    // function starts the same front as its signed distance would.
+    let grid = fmm::DenseGrid::new([nx, ny, 1], dx as f64);
+    let opts = fmm::DenseOptions {
+        order: fmm::Order::Second,
+        narrow: Some(4.0 * dx as f64),
+        progress: Progress::none(),
+    };
+    let marched =
+        py.detach(|| fmm::dense_distance(values, &grid, None, &opts)).map_err(crate::lib_error)?;
+    let start: Vec<f32> = marched
+        .values
+        .iter()
+        .zip(&marched.reached)
+        .zip(values)
+        .map(|((&d, &reached), &v)| if reached { d } else { gamma.copysign(v) })
+        .collect();
+    let field = extruded(&start, nx, ny, |v| v.clamp(-gamma, gamma))?;
     let tiles = convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)?;
     drop(field);
-    if tiles.band_voxels() == 0 {
-        return Err(crate::value_error(format!(
-            "phi has no values within 3 dx = {gamma} of its zero contour: near the contour it \
-             must be about a signed distance in world units"
-        )));
-    }
     let same_shape = |s: &[usize], what: &str| -> PyResult<()> {
         if s[..2] != [ny, nx] {
             return Err(crate::value_error(format!(
