@@ -972,7 +972,8 @@ def segment(
     ``image``: an :class:`Image`, or an array (2-D or 3-D) with ``spacing`` per array axis.
     ``seeds``: ``(i, j, k)`` or ``(i, j, k, radius)`` array indices (radius in voxels of the
     smallest spacing, default 3), or world coordinates with ``world=True``; or start from
-    ``init_mask`` / ``init_levelset`` of the image's shape.
+    ``init_mask`` / ``init_levelset`` of the image's shape (φ < 0 inside; only its zero
+    level is read, so its units and steepness do not matter).
 
     A threshold window may be open at one end: leave ``upper_threshold`` (or
     ``lower_threshold``) out, or give ``±inf``. ``propagation_scaling`` may be negative

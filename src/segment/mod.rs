@@ -122,7 +122,9 @@ pub enum Init {
     },
     /// A mask of the image's size (x fastest), nonzero inside.
     Mask(Vec<u8>),
-    /// A level set of the image's size (x fastest, φ < 0 inside, world units).
+    /// A level set of the image's size (x fastest, φ < 0 inside). Only its zero level is
+    /// read: the run starts from the signed distance to it (fast marching on the image's
+    /// lattice), whatever the field's units or steepness.
     LevelSet(Vec<f32>),
 }
 

@@ -13,9 +13,11 @@ use crate::evolve::{
 use crate::exact::ExactSum;
 use crate::grid::{GridError, GridSpec};
 use crate::io::image::Image;
+use crate::progress::Progress;
 use crate::storage::convert::{map_tile_rows, tiles_from_dense};
 use crate::storage::dense::DenseField;
 use crate::storage::tiles::{TileGrid, SLICE_LEN, TILE_DIM, TILE_LEN};
+use crate::tools::fmm;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -1539,12 +1541,7 @@ fn initial_field(
             });
         }
         Init::Mask(mask) => distance_from_labels(image, |i| mask[i] != 0, gamma, &mut phi),
-        Init::LevelSet(values) => {
-            phi[..values.len()]
-                .par_iter_mut()
-                .zip(values)
-                .for_each(|(p, &v)| *p = v.clamp(-gamma, gamma));
-        }
+        Init::LevelSet(values) => contour_distance(image, values, gamma, &mut phi)?,
     }
     if image.is_2d() {
         let (first, rest) = phi.split_at_mut(slice);
@@ -1556,6 +1553,44 @@ fn initial_field(
         ));
     }
     Ok(DenseField::from_vec(Coord::new(0, 0, 0), [nx, ny, layers], phi)?)
+}
+
+/// The signed distance (world units, clamped to ±γ) to the zero level of a user's initial
+/// level set `values`, by second-order fast marching on the image's lattice out to γ and a
+/// voxel more, ±γ by the sign of `values` beyond: only its zero level is read (located
+/// between neighbours of opposite sign, as `tools::fmm::dense_distance` locates it). A
+/// mask's ±1, a distance in other units or a steep function start the same front; taken
+/// as it was, a steep one left a few band voxels, and the run stopped at once.
+fn contour_distance(
+    image: &Image,
+    values: &[f32],
+    gamma: f32,
+    phi: &mut [f32],
+) -> Result<(), SegmentError> {
+    let h_max = image.spacing.iter().fold(0.0f64, |m, &s| m.max(s));
+    let grid = fmm::DenseGrid { dims: image.dims, spacing: image.spacing, periodic: [false; 3] };
+    let opts = fmm::DenseOptions {
+        order: fmm::Order::Second,
+        narrow: Some(gamma as f64 + h_max),
+        progress: Progress::none(),
+    };
+    let marched = fmm::dense_distance(values, &grid, None, &opts).map_err(|e| match e {
+        fmm::FmmError::NoInterface => SegmentError::Init(
+            "the initial level set has no zero crossing: no voxel has a neighbour of the other \
+             sign"
+                .into(),
+        ),
+        e => SegmentError::Init(format!("the initial level set: {e}")),
+    })?;
+    phi[..values.len()]
+        .par_iter_mut()
+        .zip(&marched.values)
+        .zip(&marched.reached)
+        .zip(values)
+        .for_each(|(((p, &d), &reached), &v)| {
+            *p = if reached { d.clamp(-gamma, gamma) } else { gamma.copysign(v) };
+        });
+    Ok(())
 }
 
 /// The lattice position (world units along the image axes) of a world point: the inverse

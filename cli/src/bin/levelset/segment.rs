@@ -50,8 +50,9 @@ pub struct SegmentArgs {
     /// Start from this mask (same size as the image, nonzero inside) instead of seeds.
     #[arg(long, value_name = "MASK")]
     pub init_mask: Option<PathBuf>,
-    /// Start from this level set (a float volume of the image's size, φ < 0 inside, world
-    /// units: .nii(.gz) or .npy) instead of seeds.
+    /// Start from the zero level of this level set (a float volume of the image's size,
+    /// φ < 0 inside: .nii(.gz) or .npy) instead of seeds; only the zero level is read (its
+    /// signed distance starts the run), so its units and steepness do not matter.
     #[arg(long, value_name = "LEVELSET")]
     pub init_level_set: Option<PathBuf>,
     /// Lower threshold (threshold method); without --upper the window is open above
