@@ -16,7 +16,10 @@
 //! 6. **Distance field** (every tool but the one that makes distance fields): no two
 //!    neighbouring voxels change sign while both lie outside the band (|φ| ≥ γ); the band
 //!    would lose those crossings ([`InputError::NotDistance`],
-//!    [`crate::storage::convert::dense_sign_jumps`]).
+//!    [`crate::storage::convert::dense_sign_jumps`]). Nor may φ change by less than a
+//!    quarter of a voxel across most of its crossings, where a distance changes by about
+//!    a voxel: volumes, areas, speeds and ray steps would be off by the field's scale
+//!    ([`InputError::Shallow`], [`crate::storage::convert::dense_crossing_steps`]).
 //! 7. **Positions**: the voxels, band included, lie in the `i32` coordinate range. (Meshes
 //!    far from the origin are written with `f64` positions; see [`crate::tools::mesh`].)
 //!
@@ -46,7 +49,7 @@
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
 use crate::io::npy::{self, NpyError};
-use crate::storage::convert::{check_band_fits, dense_sign_jumps};
+use crate::storage::convert::{check_band_fits, dense_crossing_steps, dense_sign_jumps};
 use crate::storage::dense::DenseField;
 use crate::storage::sample::band_voxel_box;
 use crate::storage::shapes::Shape;
@@ -118,6 +121,14 @@ pub enum InputError {
          `levelset distance`"
     )]
     NotDistance { input: String, pairs: usize, gamma: f32, half_width: f32 },
+    /// Across most of its crossings φ changes by less than a quarter of a voxel.
+    #[error(
+        "{input}: not a signed distance field: across {shallow} of its {crossings} neighbouring \
+         voxel pairs that change sign, φ changes by less than a quarter of a voxel ({step} \
+         world units), where a distance changes by about a voxel; give φ in world units, or \
+         turn the field into a distance field with `levelset distance`"
+    )]
+    Shallow { input: String, shallow: usize, crossings: usize, step: f64 },
     /// A parameter outside its domain (a shape's, or a band leaving the `i32` range).
     #[error(transparent)]
     Grid(#[from] GridError),
@@ -137,7 +148,8 @@ impl crate::error::Error for InputError {
             InputError::File(e) => e.kind(),
             InputError::NaN { .. }
             | InputError::NoInterface { .. }
-            | InputError::NotDistance { .. } => InvalidData,
+            | InputError::NotDistance { .. }
+            | InputError::Shallow { .. } => InvalidData,
             InputError::OutOfMemory { .. } => OutOfMemory,
             InputError::IsoOutsideBand { .. } => InvalidInput,
             InputError::Grid(e) => e.kind(),
@@ -230,6 +242,11 @@ pub fn check_field(input: &str, field: &mut DenseField, expect: &Expect) -> Resu
                 half_width: spec.half_width,
             });
         }
+        let step = 0.25 * spec.voxel_size as f64;
+        let (shallow, crossings) = dense_crossing_steps(field, iso, step);
+        if 2 * shallow > crossings {
+            return Err(InputError::Shallow { input: input.to_string(), shallow, crossings, step });
+        }
     }
     field.data_mut().par_iter_mut().for_each(|v| {
         if v.is_infinite() {
@@ -321,6 +338,30 @@ mod tests {
             check_field("jump", &mut jump, &e),
             Err(InputError::NotDistance { pairs: 1, .. })
         ));
+        // A shallow field: the distance × 0.1 changes by 0.1 voxel across its 30 crossings
+        // (volumes, areas and speeds would be off tenfold); × 0.2 still by less than a
+        // quarter of a voxel; × 0.5, a mask's ±1 and a tool that makes distances pass.
+        for scale in [0.1, 0.2] {
+            let err = check_field("shallow", &mut plane(scale), &e).unwrap_err();
+            assert!(matches!(err, InputError::Shallow { shallow: 30, crossings: 30, .. }), "{err}");
+            assert!(err.to_string().contains("levelset distance"), "{err}");
+        }
+        check_field("half", &mut plane(0.5), &e).unwrap();
+        let mut mask =
+            DenseField::from_fn(
+                Coord::new(0, 0, 0),
+                [12, 5, 6],
+                |c| {
+                    if c.x < 6 {
+                        -1.0
+                    } else {
+                        1.0
+                    }
+                },
+            )
+            .unwrap();
+        check_field("mask", &mut mask, &e).unwrap();
+        check_field("shallow", &mut plane(0.1), &Expect { distance_field: false, ..e }).unwrap();
     }
 
     #[test]

@@ -370,6 +370,48 @@ pub fn dense_sign_jumps(field: &DenseField, gamma: f32) -> usize {
         .sum()
 }
 
+/// The neighbouring voxel pairs of a dense field that change sign across `iso` (one
+/// below, one at or above), and how many of them change by less than `step`:
+/// `(shallow, crossings)`. Across a signed distance's zero crossing φ changes by about a
+/// voxel along the axis nearest the normal (by `h |n_a|` along axis a, so most pairs by
+/// more than `h / 2`); a field that changes by much less is not a distance in world units.
+pub fn dense_crossing_steps(field: &DenseField, iso: f64, step: f64) -> (usize, usize) {
+    let [nx, ny, nz] = field.dims();
+    let d = field.data();
+    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let count = |a: f32, b: f32| -> (usize, usize) {
+        if ((a as f64) < iso) == ((b as f64) < iso) {
+            return (0, 0);
+        }
+        (((a as f64 - b as f64).abs() < step) as usize, 1)
+    };
+    (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let (mut shallow, mut all) = (0, 0);
+            let mut add = |(s, a): (usize, usize)| {
+                shallow += s;
+                all += a;
+            };
+            for y in 0..ny {
+                for x in 0..nx {
+                    let v = d[idx(x, y, z)];
+                    if x + 1 < nx {
+                        add(count(v, d[idx(x + 1, y, z)]));
+                    }
+                    if y + 1 < ny {
+                        add(count(v, d[idx(x, y + 1, z)]));
+                    }
+                    if z + 1 < nz {
+                        add(count(v, d[idx(x, y, z + 1)]));
+                    }
+                }
+            }
+            (shallow, all)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
 /// Errors of [`export_npy`].
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
