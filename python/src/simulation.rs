@@ -15,6 +15,7 @@ use sparse_levelset::grid::GridSpec;
 use sparse_levelset::progress::Progress;
 use sparse_levelset::storage::convert;
 use sparse_levelset::storage::dense::DenseField;
+use sparse_levelset::storage::tiles::TILE_DIM;
 use sparse_levelset::tools::fmm;
 use sparse_levelset::Coord;
 use std::sync::Arc;
@@ -272,7 +273,7 @@ fn integrator_of(integrator: &str) -> PyResult<Integrator> {
 }
 
 /// Slices of the extruded layer a 2-D level set is held in (one tile layer).
-const LAYER: usize = 4;
+const LAYER: usize = TILE_DIM as usize;
 
 /// A `[ny, nx]` array (C order) as the dense field `[nx, ny, LAYER]` at the origin: the
 /// same values in every slice.
@@ -330,6 +331,16 @@ fn evolve2d<'py>(
     let (scheme, integrator) = (scheme_of(scheme)?, integrator_of(integrator)?);
     let spec = GridSpec::new(dx, [0.0; 3], 3.0).map_err(crate::lib_error)?;
     let gamma = spec.gamma();
+    // The input-sized arrays held at once, in floats per pixel: the marched distance, its
+    // start and the extruded layer (with the marched flags, about 6), the speed's layer and
+    // the velocity's three, each extruded.
+    let fields = LAYER * (speed_field.is_some() as usize + 3 * velocity_field.is_some() as usize);
+    let floats = (nx * ny) as u128 * (6 + fields) as u128;
+    sparse_levelset::memory::check(
+        sparse_levelset::memory::bytes_of(floats, 4),
+        "evolve2d's arrays",
+    )
+    .map_err(crate::lib_error)?;
     let values = phi.as_slice().map_err(crate::value_error)?;
     if let Some(i) = values.iter().position(|v| v.is_nan()) {
         return Err(crate::value_error(format!("phi holds NaN at index {:?}", [i / nx, i % nx])));

@@ -1,5 +1,8 @@
 """`evolve2d`: a 2-D contour moved on the planar lattice, against exact solutions."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -131,3 +134,21 @@ def test_only_the_contour_is_read():
         out, info = sl.evolve2d(phi, 100.0, curvature=1.0, full_output=True)
         assert not info["collapsed"]
         assert np.sqrt(area(out) / np.pi) == pytest.approx(exact, abs=tol)
+
+
+def test_arrays_that_cannot_fit_are_refused_before_any_work():
+    # Under a 2 GiB address-space limit, a 8000² phi needs about 1.5 GB of working arrays.
+    code = """
+import resource
+resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+import numpy as np
+import sparse_levelset as sl
+phi = np.ones((8000, 8000), np.float32)
+phi[:4000] = -1.0
+try:
+    sl.evolve2d(phi, 1.0, threads=1)
+except MemoryError as e:
+    print("refused:", e)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert "refused:" in out.stdout and "evolve2d" in out.stdout, out.stdout + out.stderr

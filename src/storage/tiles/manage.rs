@@ -33,7 +33,17 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 /// The neighbours in a tile's own layer (offsets with dz = 0; bits of [`NEIGHBOURHOOD`],
 /// the centre excluded): what a planar band may create.
-const IN_PLANE: u32 = BORDER_MASK & (((1 << 18) - 1) & !((1 << 9) - 1));
+const IN_PLANE: u32 = {
+    let mut mask = 0;
+    let mut d = 0;
+    while d < 27 {
+        if NEIGHBOURHOOD[d].z == 0 && d != MID {
+            mask |= 1 << d;
+        }
+        d += 1;
+    }
+    mask
+};
 
 /// Tiles per parallel task (the result does not depend on it; the unit tests use small
 /// chunks so that their grids span many).
