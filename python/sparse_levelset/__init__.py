@@ -834,8 +834,10 @@ def evolve2d(
         t, "step"}``; an exception raised in it stops the call. So does Ctrl-C
         (``KeyboardInterrupt``).
 
-    The contour may move beyond the array: the fields are extended by their edge values
-    and the band is unbounded, but only the array's part is returned.
+    Beyond the array the level set starts outside (+3 ``dx``), as everywhere in this
+    package: an inside region that touches the array's border is closed there. The contour
+    may then move beyond the array (the fields are extended by their edge values and the
+    band is unbounded), but only the array's part is returned.
     """
     a = np.ascontiguousarray(_float32(phi, "phi", ndims=(2,)))
     kw = _flow_fields(speed, velocity, 2)
