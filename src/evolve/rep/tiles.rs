@@ -309,9 +309,15 @@ impl TilesRep {
     }
 
     /// The inside voxels the list does not store between tile `p − 1` and tile `p` (`p ≥ 1`)
-    /// of one row of tiles, if the tile before the gap is inside towards +x: sixteen x-runs
-    /// of voxels, one per row of voxels of the tiles strictly between them.
-    fn unstored_inside_runs_before(&self, p: usize, f: &mut (impl FnMut(Coord, u32) + ?Sized)) {
+    /// of one row of tiles, if the tile before the gap is inside towards +x: x-runs of
+    /// voxels, one per row of voxels of the tiles strictly between them, for the first
+    /// `rows` rows of the sixteen (in z-slice order).
+    fn unstored_inside_runs_before(
+        &self,
+        p: usize,
+        rows: usize,
+        f: &mut (impl FnMut(Coord, u32) + ?Sized),
+    ) {
         const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
         let coords = self.grid.tile_coords();
         let (a, b) = (coords[p - 1], coords[p]);
@@ -322,7 +328,7 @@ impl TilesRep {
         {
             let first = voxel_of(Coord::new(a.x + 1, a.y, a.z), 0);
             let len = 4 * (b.x - a.x - 1) as u32;
-            for row in 0..16 {
+            for row in 0..rows as i32 {
                 f(Coord::new(first.x, first.y + (row & 3), first.z + (row >> 2)), len);
             }
         }
@@ -332,7 +338,8 @@ impl TilesRep {
     /// along each tile row, then the unstored interior between tiles), this rank's tiles
     /// split over the current thread pool: each part folds its runs into its own
     /// `identity()` with `visit`, and `combine` joins the parts in an order and grouping
-    /// that depend on the thread count.
+    /// that depend on the thread count. On a planar lattice, the runs of each tile's first
+    /// z-slice only: the other slices are its copies.
     pub(crate) fn fold_inside_runs<T: Send>(
         &self,
         identity: &(impl Fn() -> T + Sync),
@@ -341,12 +348,13 @@ impl TilesRep {
     ) -> T {
         let coords = self.grid.tile_coords();
         let values = self.grid.values();
+        let read = self.read_slices(self.planar).map_or(TILE_LEN, |(_, read)| read);
         self.owned()
             .into_par_iter()
             .with_min_len(TILE_CHUNK)
             .fold(identity, |mut acc, p| {
-                // The runs of φ ≤ 0 along each of the tile's 16 rows of 4 voxels.
-                for (row, vals) in values[p].0.chunks_exact(4).enumerate() {
+                // The runs of φ ≤ 0 along each of the tile's rows of 4 voxels that are read.
+                for (row, vals) in values[p].0[..read].chunks_exact(4).enumerate() {
                     let mut x = 0;
                     while x < 4 {
                         let x0 = x;
@@ -360,7 +368,8 @@ impl TilesRep {
                     }
                 }
                 if p > 0 {
-                    self.unstored_inside_runs_before(p, &mut |c, len| visit(&mut acc, c, len));
+                    let f = &mut |c, len| visit(&mut acc, c, len);
+                    self.unstored_inside_runs_before(p, read / 4, f);
                 }
                 acc
             })
@@ -1302,7 +1311,7 @@ impl Representation for TilesRep {
     fn for_each_unstored_inside_run(&self, f: &mut dyn FnMut(Coord, u32)) {
         let owned = self.owned();
         for p in owned.start.max(1)..owned.end {
-            self.unstored_inside_runs_before(p, &mut *f);
+            self.unstored_inside_runs_before(p, 16, &mut *f);
         }
     }
 
