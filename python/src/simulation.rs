@@ -277,10 +277,10 @@ const LAYER: usize = TILE_DIM as usize;
 
 /// A `[ny, nx]` array (C order) as the dense field `[nx, ny, LAYER]` at the origin: the
 /// same values in every slice.
-fn extruded(data: &[f32], nx: usize, ny: usize, map: impl Fn(f32) -> f32) -> PyResult<DenseField> {
+fn extruded(data: &[f32], nx: usize, ny: usize) -> PyResult<DenseField> {
     let mut v = Vec::with_capacity(nx * ny * LAYER);
     for _ in 0..LAYER {
-        v.extend(data.iter().map(|&x| map(x)));
+        v.extend_from_slice(data);
     }
     DenseField::from_vec(Coord::new(0, 0, 0), [nx, ny, LAYER], v).map_err(crate::lib_error)
 }
@@ -352,26 +352,13 @@ fn evolve2d<'py>(
             )));
         }
     }
-    // Only the contour is read: its signed distance by second-order fast marching (the
-    // contour located between neighbours of opposite sign, as `distance` does) out to the
-    // band's half-width and a voxel more, ±γ beyond. So a mask, a steep or a shallow
-    // function starts the same front as its signed distance would.
+    // Only the contour is read (`dense_band`): a mask, a steep or a shallow function start
+    // the same front as its signed distance would.
     let grid = fmm::DenseGrid::new([nx, ny, 1], dx as f64);
-    let opts = fmm::DenseOptions {
-        order: fmm::Order::Second,
-        narrow: Some(4.0 * dx as f64),
-        progress: Progress::none(),
-    };
-    let marched =
-        py.detach(|| fmm::dense_distance(values, &grid, None, &opts)).map_err(crate::lib_error)?;
-    let start: Vec<f32> = marched
-        .values
-        .iter()
-        .zip(&marched.reached)
-        .zip(values)
-        .map(|((&d, &reached), &v)| if reached { d } else { gamma.copysign(v) })
-        .collect();
-    let field = extruded(&start, nx, ny, |v| v.clamp(-gamma, gamma))?;
+    let start = py
+        .detach(|| fmm::dense_band(values, &grid, gamma, Progress::none()))
+        .map_err(crate::lib_error)?;
+    let field = extruded(&start, nx, ny)?;
     let tiles = convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)?;
     drop(field);
     let same_shape = |s: &[usize], what: &str| -> PyResult<()> {
@@ -387,7 +374,7 @@ fn evolve2d<'py>(
     flow.speed = match speed_field {
         Some(a) => {
             same_shape(a.shape(), "speed_field")?;
-            let f = extruded(a.as_slice().map_err(crate::value_error)?, nx, ny, |v| v)?;
+            let f = extruded(a.as_slice().map_err(crate::value_error)?, nx, ny)?;
             Speed::Field(Arc::new(SampledField::new(f, spec).map_err(crate::value_error)?))
         }
         None => Speed::Constant(speed),
@@ -407,7 +394,7 @@ fn evolve2d<'py>(
                     2 => vec![0.0; nx * ny],
                     c => v.index_axis(numpy::ndarray::Axis(2), c).iter().copied().collect(),
                 };
-                let f = extruded(&data, nx, ny, |v| v)?;
+                let f = extruded(&data, nx, ny)?;
                 SampledField::new(f, spec).map_err(crate::value_error)
             };
             Some(Velocity::Field(Arc::new(SampledVelocity([comp(0)?, comp(1)?, comp(2)?]))))

@@ -15,11 +15,11 @@
 //!    to the isovalue counts as outside, as in meshing), else [`InputError::NoInterface`].
 //! 6. **Distance field** (every tool but the one that makes distance fields): no two
 //!    neighbouring voxels change sign while both lie outside the band (|φ| ≥ γ); the band
-//!    would lose those crossings ([`InputError::NotDistance`],
-//!    [`crate::storage::convert::dense_sign_jumps`]). Nor may φ change by less than a
+//!    would lose those crossings ([`InputError::NotDistance`]). Nor may φ change by less than a
 //!    quarter of a voxel across most of its crossings, where a distance changes by about
 //!    a voxel: volumes, areas, speeds and ray steps would be off by the field's scale
-//!    ([`InputError::Shallow`], [`crate::storage::convert::dense_crossing_steps`]).
+//!    ([`InputError::Shallow`]). Both from one pass over the neighbouring pairs
+//!    ([`crate::storage::convert::dense_pairs`]).
 //! 7. **Positions**: the voxels, band included, lie in the `i32` coordinate range. (Meshes
 //!    far from the origin are written with `f64` positions; see [`crate::tools::mesh`].)
 //!
@@ -49,7 +49,7 @@
 use crate::coord::Coord;
 use crate::grid::{GridError, GridSpec};
 use crate::io::npy::{self, NpyError};
-use crate::storage::convert::{check_band_fits, dense_crossing_steps, dense_sign_jumps};
+use crate::storage::convert::{check_band_fits, dense_pairs};
 use crate::storage::dense::DenseField;
 use crate::storage::sample::band_voxel_box;
 use crate::storage::shapes::Shape;
@@ -233,18 +233,18 @@ pub fn check_field(input: &str, field: &mut DenseField, expect: &Expect) -> Resu
     let g = spec.gamma();
     if expect.distance_field {
         // ±∞ count as |φ| ≥ γ, as they will once clamped.
-        let pairs = dense_sign_jumps(field, g);
-        if pairs > 0 {
+        let step = 0.25 * spec.voxel_size as f64;
+        let pairs = dense_pairs(field, g, iso, step);
+        if pairs.jumps > 0 {
             return Err(InputError::NotDistance {
                 input: input.to_string(),
-                pairs,
+                pairs: pairs.jumps,
                 gamma: g,
                 half_width: spec.half_width,
             });
         }
-        let step = 0.25 * spec.voxel_size as f64;
-        let (shallow, crossings) = dense_crossing_steps(field, iso, step);
-        if 2 * shallow > crossings {
+        if 2 * pairs.shallow > pairs.crossings {
+            let (shallow, crossings) = (pairs.shallow, pairs.crossings);
             return Err(InputError::Shallow { input: input.to_string(), shallow, crossings, step });
         }
     }

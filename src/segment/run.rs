@@ -1555,26 +1555,17 @@ fn initial_field(
     Ok(DenseField::from_vec(Coord::new(0, 0, 0), [nx, ny, layers], phi)?)
 }
 
-/// The signed distance (world units, clamped to ±γ) to the zero level of a user's initial
-/// level set `values`, by second-order fast marching on the image's lattice out to γ and a
-/// voxel more, ±γ by the sign of `values` beyond: only its zero level is read (located
-/// between neighbours of opposite sign, as `tools::fmm::dense_distance` locates it). A
-/// mask's ±1, a distance in other units or a steep function start the same front; taken
-/// as it was, a steep one left a few band voxels, and the run stopped at once.
+/// The band of a user's initial level set `values`, from its zero level alone
+/// ([`fmm::dense_band`] on the image's lattice): taken as it was, a steep field left a few
+/// band voxels, and the run stopped at once.
 fn contour_distance(
     image: &Image,
     values: &[f32],
     gamma: f32,
     phi: &mut [f32],
 ) -> Result<(), SegmentError> {
-    let h_max = image.spacing.iter().fold(0.0f64, |m, &s| m.max(s));
     let grid = fmm::DenseGrid { dims: image.dims, spacing: image.spacing, periodic: [false; 3] };
-    let opts = fmm::DenseOptions {
-        order: fmm::Order::Second,
-        narrow: Some(gamma as f64 + h_max),
-        progress: Progress::none(),
-    };
-    let marched = fmm::dense_distance(values, &grid, None, &opts).map_err(|e| match e {
+    let band = fmm::dense_band(values, &grid, gamma, Progress::none()).map_err(|e| match e {
         fmm::FmmError::NoInterface => SegmentError::Init(
             "the initial level set has no zero crossing: no voxel has a neighbour of the other \
              sign"
@@ -1582,14 +1573,7 @@ fn contour_distance(
         ),
         e => SegmentError::Init(format!("the initial level set: {e}")),
     })?;
-    phi[..values.len()]
-        .par_iter_mut()
-        .zip(&marched.values)
-        .zip(&marched.reached)
-        .zip(values)
-        .for_each(|(((p, &d), &reached), &v)| {
-            *p = if reached { d.clamp(-gamma, gamma) } else { gamma.copysign(v) };
-        });
+    phi[..values.len()].copy_from_slice(&band);
     Ok(())
 }
 

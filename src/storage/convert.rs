@@ -345,71 +345,60 @@ pub(crate) fn margin_box(lo: Coord, hi: Coord, margin: u32) -> (Coord, [usize; 3
     (lo, [n(lo.x, hi.x), n(lo.y, hi.y), n(lo.z, hi.z)])
 }
 
-/// Counts neighbouring voxel pairs of a dense field whose signs differ while both lie
-/// outside the band (|φ| ≥ γ): such a field is not a distance field at that width, and
-/// its zero crossing there would be lost. Tools warn about it.
-pub fn dense_sign_jumps(field: &DenseField, gamma: f32) -> usize {
-    let [nx, ny, nz] = field.dims();
-    let d = field.data();
-    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
-    let jump = |a: f32, b: f32| a.abs() >= gamma && b.abs() >= gamma && (a < 0.0) != (b < 0.0);
-    (0..nz)
-        .into_par_iter()
-        .map(|z| {
-            let mut n = 0;
-            for y in 0..ny {
-                for x in 0..nx {
-                    let v = d[idx(x, y, z)];
-                    n += (x + 1 < nx && jump(v, d[idx(x + 1, y, z)])) as usize;
-                    n += (y + 1 < ny && jump(v, d[idx(x, y + 1, z)])) as usize;
-                    n += (z + 1 < nz && jump(v, d[idx(x, y, z + 1)])) as usize;
-                }
-            }
-            n
-        })
-        .sum()
+/// What the neighbouring voxel pairs of a dense field say about it being a distance field
+/// ([`dense_pairs`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DensePairs {
+    /// Pairs whose signs differ while both lie outside the band (|φ| ≥ γ): such a field is
+    /// not a distance field at that width, and the band would lose those crossings.
+    pub jumps: usize,
+    /// Pairs that change sign across the isovalue (one below, one at or above).
+    pub crossings: usize,
+    /// Those of them across which φ changes by less than the step asked for. Across a
+    /// signed distance's zero crossing φ changes by about a voxel along the axis nearest
+    /// the normal (by `h |n_a|` along axis a, so most pairs by more than `h / 2`); a field
+    /// that changes by much less is not a distance in world units.
+    pub shallow: usize,
 }
 
-/// The neighbouring voxel pairs of a dense field that change sign across `iso` (one
-/// below, one at or above), and how many of them change by less than `step`:
-/// `(shallow, crossings)`. Across a signed distance's zero crossing φ changes by about a
-/// voxel along the axis nearest the normal (by `h |n_a|` along axis a, so most pairs by
-/// more than `h / 2`); a field that changes by much less is not a distance in world units.
-pub fn dense_crossing_steps(field: &DenseField, iso: f64, step: f64) -> (usize, usize) {
+/// [`DensePairs`] of `field`, for the band half-width `gamma`, the isovalue `iso` and the
+/// step `step` (world units), in one pass over the neighbouring pairs.
+pub fn dense_pairs(field: &DenseField, gamma: f32, iso: f64, step: f64) -> DensePairs {
     let [nx, ny, nz] = field.dims();
     let d = field.data();
     let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
-    let count = |a: f32, b: f32| -> (usize, usize) {
-        if ((a as f64) < iso) == ((b as f64) < iso) {
-            return (0, 0);
+    let pair = |c: &mut DensePairs, a: f32, b: f32| {
+        c.jumps += (a.abs() >= gamma && b.abs() >= gamma && (a < 0.0) != (b < 0.0)) as usize;
+        if ((a as f64) < iso) != ((b as f64) < iso) {
+            c.crossings += 1;
+            c.shallow += ((a as f64 - b as f64).abs() < step) as usize;
         }
-        (((a as f64 - b as f64).abs() < step) as usize, 1)
     };
     (0..nz)
         .into_par_iter()
         .map(|z| {
-            let (mut shallow, mut all) = (0, 0);
-            let mut add = |(s, a): (usize, usize)| {
-                shallow += s;
-                all += a;
-            };
+            let mut c = DensePairs::default();
             for y in 0..ny {
                 for x in 0..nx {
                     let v = d[idx(x, y, z)];
                     if x + 1 < nx {
-                        add(count(v, d[idx(x + 1, y, z)]));
+                        pair(&mut c, v, d[idx(x + 1, y, z)]);
                     }
                     if y + 1 < ny {
-                        add(count(v, d[idx(x, y + 1, z)]));
+                        pair(&mut c, v, d[idx(x, y + 1, z)]);
                     }
                     if z + 1 < nz {
-                        add(count(v, d[idx(x, y, z + 1)]));
+                        pair(&mut c, v, d[idx(x, y, z + 1)]);
                     }
                 }
             }
-            (shallow, all)
+            c
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+        .reduce(DensePairs::default, |a, b| DensePairs {
+            jumps: a.jumps + b.jumps,
+            crossings: a.crossings + b.crossings,
+            shallow: a.shallow + b.shallow,
+        })
 }
 
 /// Errors of [`export_npy`].

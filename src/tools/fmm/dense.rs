@@ -33,6 +33,7 @@ use super::{FmmError, Order};
 use crate::coord::Coord;
 use crate::progress::Progress;
 use crate::storage::tiles::{voxel_of, TILE_LEN};
+use rayon::prelude::*;
 
 /// A dense array's box and spacing.
 #[derive(Clone, Debug, PartialEq)]
@@ -208,6 +209,27 @@ pub fn dense_distance(
         };
     }
     sparse_distance(phi, lattice, h0, second, limit, &opts.progress)
+}
+
+/// The band a level-set method starts from, taken from the zero level of `phi` alone: the
+/// signed distance to it ([`dense_distance`], second order) out to `gamma` and one voxel
+/// of the largest spacing more, clamped to ±`gamma`, and ±`gamma` by the sign of `phi`
+/// beyond. A mask's ±1, a distance in other units or a steep function give the same band.
+/// Errors: those of [`dense_distance`] (NaN, no zero crossing, ...).
+pub fn dense_band(
+    phi: &[f32],
+    grid: &DenseGrid,
+    gamma: f32,
+    progress: Progress,
+) -> Result<Vec<f32>, FmmError> {
+    let h_max = grid.spacing.iter().fold(0.0f64, |m, &s| m.max(s));
+    let opts = DenseOptions { order: Order::Second, narrow: Some(gamma as f64 + h_max), progress };
+    let marched = dense_distance(phi, grid, None, &opts)?;
+    let DenseMarch { mut values, reached } = marched;
+    values.par_iter_mut().zip(&reached).zip(phi).for_each(|((d, &reached), &v)| {
+        *d = if reached { d.clamp(-gamma, gamma) } else { gamma.copysign(v) };
+    });
+    Ok(values)
 }
 
 /// [`dense_distance`] through the sparse march (periodic axes; the tests' reference for

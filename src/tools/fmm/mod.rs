@@ -60,8 +60,8 @@ mod store;
 mod tests;
 
 pub use dense::{
-    dense_distance, dense_extension_velocities, dense_travel_time, DenseExtension, DenseGrid,
-    DenseOptions, MIN_SPEED,
+    dense_band, dense_distance, dense_extension_velocities, dense_travel_time, DenseExtension,
+    DenseGrid, DenseOptions, MIN_SPEED,
 };
 pub use flat::DenseMarch;
 
