@@ -1540,7 +1540,7 @@ fn initial_field(
                 }
             });
         }
-        Init::Mask(mask) => distance_from_labels(image, |i| mask[i] != 0, gamma, &mut phi),
+        Init::Mask(mask) => distance_from_labels(image, mask, gamma, &mut phi),
         Init::LevelSet(values) => contour_distance(image, values, gamma, &mut phi)?,
     }
     if image.is_2d() {
@@ -1586,19 +1586,13 @@ fn lattice_position(image: &Image, p: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|r| inv[r][0] * b[0] + inv[r][1] * b[1] + inv[r][2] * b[2])
 }
 
-/// A signed distance (world units, clamped to ±γ) to the faces between voxels labelled
-/// inside and outside: each voxel takes its distance to the nearest midpoint of such a
-/// face within γ (an upper bound of the true distance, by at most half a voxel's
-/// diagonal), negative inside. O(boundary faces × (γ/h)³).
-fn distance_from_labels(
-    image: &Image,
-    inside: impl Fn(usize) -> bool + Sync,
-    gamma: f32,
-    phi: &mut [f32],
-) {
+/// A signed distance (world units, clamped to ±γ) to the faces between the voxels of
+/// `mask` (nonzero inside) and the others: each voxel takes its distance to the nearest
+/// midpoint of such a face within γ (an upper bound of the true distance, by at most half
+/// a voxel's diagonal), negative inside. O(boundary faces × (γ/h)³).
+fn distance_from_labels(image: &Image, mask: &[u8], gamma: f32, phi: &mut [f32]) {
     let [nx, ny, nz] = image.dims;
     let s = image.spacing;
-    let idx = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
     let reach: [i64; 3] = std::array::from_fn(|a| {
         if image.dims[a] == 1 {
             0
@@ -1606,33 +1600,46 @@ fn distance_from_labels(
             (gamma as f64 / s[a]).ceil() as i64 + 1
         }
     });
+    let row = |y: usize, z: usize| &mask[nx * (y + ny * z)..nx * (y + ny * z + 1)];
     // Face midpoints between differently labelled neighbours, in lattice positions, by
-    // the slice of their lower voxel.
+    // the slice of their lower voxel (in any order: each voxel takes their minimum). Row by
+    // row against the next voxel along x and the rows next along y and z, a row that agrees
+    // with its neighbour throughout skipped in one comparison.
     let mids: Vec<Vec<[f64; 3]>> = (0..nz)
         .into_par_iter()
         .map(|z| {
             let mut out = Vec::new();
             for y in 0..ny {
-                for x in 0..nx {
-                    let a = inside(idx(x, y, z));
-                    let mut check = |x2: usize, y2: usize, z2: usize| {
-                        if inside(idx(x2, y2, z2)) != a {
+                let here = row(y, z);
+                let first = here[0] != 0;
+                if !here.iter().all(|&v| (v != 0) == first) {
+                    for x in 0..nx - 1 {
+                        if (here[x] != 0) != (here[x + 1] != 0) {
                             out.push([
-                                (x + x2) as f64 * 0.5 * s[0],
-                                (y + y2) as f64 * 0.5 * s[1],
-                                (z + z2) as f64 * 0.5 * s[2],
+                                (2 * x + 1) as f64 * 0.5 * s[0],
+                                y as f64 * s[1],
+                                z as f64 * s[2],
                             ]);
                         }
-                    };
-                    if x + 1 < nx {
-                        check(x + 1, y, z);
                     }
-                    if y + 1 < ny {
-                        check(x, y + 1, z);
+                }
+                let mut across = |next: &[u8], axis: usize| {
+                    if next != here {
+                        for x in 0..nx {
+                            if (here[x] != 0) != (next[x] != 0) {
+                                let mut p = [x as f64 * s[0], y as f64 * s[1], z as f64 * s[2]];
+                                let k = [x, y, z][axis];
+                                p[axis] = (2 * k + 1) as f64 * 0.5 * s[axis];
+                                out.push(p);
+                            }
+                        }
                     }
-                    if z + 1 < nz {
-                        check(x, y, z + 1);
-                    }
+                };
+                if y + 1 < ny {
+                    across(row(y + 1, z), 1);
+                }
+                if z + 1 < nz {
+                    across(row(y, z + 1), 2);
                 }
             }
             out
@@ -1640,12 +1647,23 @@ fn distance_from_labels(
         .collect();
     // Each slice takes the nearest midpoint within reach (a midpoint of slice z rounds to
     // slice z or z + 1).
-    phi[..nx * ny * nz].par_chunks_mut(nx * ny).enumerate().for_each(|(z, out)| {
-        // Squared distances: the root of the least is the least root, to the bit.
-        let g2 = gamma as f64 * gamma as f64;
-        let mut dist = vec![f64::INFINITY; nx * ny];
+    // Squared distances: the root of the least is the least root, to the bit.
+    let g2 = gamma as f64 * gamma as f64;
+    let slices = phi[..nx * ny * nz].par_chunks_mut(nx * ny).enumerate();
+    // One buffer of squared distances per task, reused slice after slice.
+    slices.for_each_init(Vec::new, |dist: &mut Vec<f64>, (z, out)| {
+        let labels = &mask[nx * ny * z..nx * ny * (z + 1)];
         let first = (z as i64 - reach[2] - 1).max(0) as usize;
         let last = (z as i64 + reach[2]).min(nz as i64 - 1).max(0) as usize;
+        if mids[first..=last].iter().all(Vec::is_empty) {
+            // No face within reach: ±γ by the label.
+            for (p, &l) in out.iter_mut().zip(labels) {
+                *p = if l != 0 { -gamma } else { gamma };
+            }
+            return;
+        }
+        dist.clear();
+        dist.resize(nx * ny, f64::INFINITY);
         for m in mids[first..=last].iter().flatten() {
             let c: [i64; 3] = std::array::from_fn(|a| (m[a] / s[a]).round() as i64);
             if (c[2] - z as i64).abs() > reach[2] {
@@ -1655,21 +1673,31 @@ fn distance_from_labels(
             let hi: [i64; 2] =
                 std::array::from_fn(|a| (c[a] + reach[a]).min(image.dims[a] as i64 - 1));
             let dz = z as f64 * s[2] - m[2];
+            if dz * dz >= g2 {
+                continue;
+            }
             for y in lo[1]..=hi[1] {
                 let dy = y as f64 * s[1] - m[1];
-                if dy * dy + dz * dz >= g2 {
+                let rest = g2 - (dy * dy + dz * dz);
+                if rest <= 0.0 {
                     continue;
                 }
-                for x in lo[0]..=hi[0] {
+                // Only the voxels of the row within γ: floor and ceil take in at least
+                // every x with dx² < rest (the others would clamp to γ anyway).
+                let r = rest.sqrt();
+                let x_lo = lo[0].max(((m[0] - r) / s[0]).floor() as i64);
+                let x_hi = hi[0].min(((m[0] + r) / s[0]).ceil() as i64);
+                for x in x_lo..=x_hi {
                     let dx = x as f64 * s[0] - m[0];
                     let k = x as usize + nx * y as usize;
                     dist[k] = dist[k].min(dx * dx + dy * dy + dz * dz);
                 }
             }
         }
-        for (k, (p, d2)) in out.iter_mut().zip(dist).enumerate() {
-            let d = (d2.sqrt() as f32).min(gamma);
-            *p = if inside(k + nx * ny * z) { -d } else { d };
+        for ((p, &d2), &l) in out.iter_mut().zip(dist.iter()).zip(labels) {
+            // At least γ² the root is at least γ (γ² is exact in f64): no root to take.
+            let d = if d2 < g2 { (d2.sqrt() as f32).min(gamma) } else { gamma };
+            *p = if l != 0 { -d } else { d };
         }
     });
 }
