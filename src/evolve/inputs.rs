@@ -35,6 +35,36 @@ pub(crate) struct Inputs {
     /// ε Z(x) per voxel ([`Flow::curvature_field`]), times the lattice's curvature factor;
     /// empty without one.
     curvature: Vec<f32>,
+    /// The layouts `base` and `curvature` were sampled on, when their fields do not
+    /// change with time: sampled again only when the layout has changed.
+    base_layout: Layout,
+    curvature_layout: Layout,
+}
+
+/// The layout per-voxel samples were taken on: the representation's units
+/// ([`Representation::unit_keys`]) and spec. Empty: unknown (sample again).
+#[derive(Clone, Default)]
+struct Layout {
+    units: Vec<Coord>,
+    spec: Option<GridSpec>,
+}
+
+impl Layout {
+    /// Whether samples taken on this layout are those of `rep`'s voxels now.
+    fn holds(&self, rep: &dyn Representation) -> bool {
+        !self.units.is_empty() && self.spec == Some(rep.spec()) && self.units == rep.unit_keys()
+    }
+
+    /// Samples were taken on `rep`'s layout now.
+    fn set(&mut self, rep: &dyn Representation) {
+        self.units.clear();
+        self.units.extend_from_slice(rep.unit_keys());
+        self.spec = Some(rep.spec());
+    }
+
+    fn clear(&mut self) {
+        self.units.clear();
+    }
 }
 
 /// What [`Inputs::fill_velocity`] wrote.
@@ -64,6 +94,8 @@ impl Default for Inputs {
             static_spec: None,
             spare: Default::default(),
             curvature: Vec::new(),
+            base_layout: Layout::default(),
+            curvature_layout: Layout::default(),
         }
     }
 }
@@ -106,19 +138,24 @@ impl Inputs {
             + self.velocity.iter().chain(&self.spare).map(vec_bytes).sum::<usize>()
             + vec_bytes(&self.static_keys)
             + vec_bytes(&self.curvature)
+            + vec_bytes(&self.base_layout.units)
+            + vec_bytes(&self.curvature_layout.units)
     }
 
     /// Bytes the inputs of `flow` have to allocate for `n` voxels.
     pub fn growth_bytes(&self, n: usize, flow: &Flow) -> u64 {
         let mut b = 0;
         if !matches!(flow.speed, Speed::Constant(_)) {
-            b += growth_bytes(&self.speed, n) + growth_bytes(&self.base, n);
+            b += growth_bytes(&self.speed, n)
+                + growth_bytes(&self.base, n)
+                + growth_bytes(&self.base_layout.units, n / 64);
         }
         if flow.velocity.is_some() {
             b += self.velocity.iter().map(|c| growth_bytes(c, n)).sum::<u64>();
         }
         if flow.curvature_field.is_some() {
-            b += growth_bytes(&self.curvature, n);
+            b += growth_bytes(&self.curvature, n)
+                + growth_bytes(&self.curvature_layout.units, n / 64);
         }
         if let Some(Velocity::Field(f)) = &flow.velocity
             && f.time_scale(0.0).is_some()
@@ -132,9 +169,10 @@ impl Inputs {
 
     /// Fills the per-voxel F and u of `rep`'s voxels for a stage at time `t` of step
     /// `step`; returns κ̄ when the flow is volume-conserving. `first` marks stage 1 (the
-    /// layout may have changed since the last step, so everything is sampled anew);
-    /// fields that do not depend on time are sampled only then, into `base` (F) and
-    /// `velocity` (u). Every sample the stage reads must be finite
+    /// layout may have changed since the last step); fields that do not depend on time are
+    /// sampled only then, into `base` (F), `curvature` and `velocity` (u), and only when
+    /// the layout has changed since they were last sampled (a tile list that stays keeps
+    /// its samples). Every sample the stage reads must be finite
     /// ([`EvolveError::NonFiniteField`] otherwise). Changes only these inputs.
     pub fn prepare(
         &mut self,
@@ -200,10 +238,17 @@ impl Inputs {
                 self.speed.clear();
             }
             Speed::Field(f) => {
-                if first || f.time_dependent() {
+                let kept =
+                    !f.time_dependent() && self.base.len() == n && self.base_layout.holds(rep);
+                if (first || f.time_dependent()) && !kept {
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(f.as_ref(), t, planar, base));
+                    if f.time_dependent() {
+                        self.base_layout.clear();
+                    } else {
+                        self.base_layout.set(rep);
+                    }
                 }
                 let (speed, base) = (&mut self.speed, &self.base);
                 in_pool(pool, || {
@@ -215,6 +260,7 @@ impl Inputs {
                 });
             }
             Speed::MorphTo(target) => {
+                self.base_layout.clear();
                 if first {
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
@@ -266,12 +312,19 @@ impl Inputs {
         if !(first || z.time_dependent()) {
             return true;
         }
-        resize_exact(&mut self.curvature, rep.flat().len(), 0.0);
+        // A field that does not change with time, on the layout it was sampled (and
+        // checked) on: as it is.
+        let n = rep.flat().len();
+        if !z.time_dependent() && self.curvature.len() == n && self.curvature_layout.holds(rep) {
+            return true;
+        }
+        self.curvature_layout.clear();
+        resize_exact(&mut self.curvature, n, 0.0);
         let out = &mut self.curvature;
         in_pool(pool, || rep.fill_scalar(z.as_ref(), t, planar(settings), out));
         let eps = flow.curvature * factor;
         let curvature = &mut self.curvature;
-        in_pool(pool, || {
+        let ok = in_pool(pool, || {
             curvature
                 .par_chunks_mut(CHUNK)
                 .map(|c| {
@@ -282,7 +335,11 @@ impl Inputs {
                     })
                 })
                 .reduce(|| true, |a, b| a && b)
-        })
+        });
+        if ok && !z.time_dependent() {
+            self.curvature_layout.set(rep);
+        }
+        ok
     }
 
     /// Advection velocity u; returns what was written (and how it is to be checked).
@@ -349,6 +406,13 @@ impl Inputs {
             self.static_keys.clear();
         }
         self.static_spec = Some(spec);
+        if !self.static_keys.is_empty()
+            && self.velocity.iter().all(|c| c.len() == n)
+            && self.static_keys == rep.unit_keys()
+        {
+            // The same units as the samples' (checked when taken): nothing to do.
+            return Written::Checked(true);
+        }
         if self.static_keys.is_empty() {
             // Nothing to reuse: no copy of the old samples either.
             for c in &mut self.velocity {

@@ -3,8 +3,8 @@
 //! same bits.
 
 use sparse_levelset::evolve::{
-    Flow, GridKind, Lanes, Lattice, Renormalization, Settings, Simulation, Speed, VectorClosure,
-    Velocity,
+    Flow, GridKind, Lanes, Lattice, Renormalization, ScalarFn, Settings, Simulation, Speed,
+    VectorClosure, Velocity,
 };
 use sparse_levelset::grid::GridSpec;
 use sparse_levelset::storage::convert::tiles_from_dense;
@@ -211,6 +211,76 @@ fn a_travelling_front_on_a_planar_lattice_stays_in_its_layer() {
     for (kind, t, _, b) in &bands[1..] {
         assert_eq!(t, t0, "{kind:?}: time");
         assert!(b == reference, "{kind:?}: the band differs from the DT-Grid's");
+    }
+}
+
+/// A field of the position alone (as an image's is): sampled again only where the layout
+/// has changed.
+struct Static<F>(F);
+
+impl<F: Fn([f64; 3]) -> f32 + Send + Sync> ScalarFn for Static<F> {
+    fn fill_run(&self, spec: &GridSpec, start: Coord, _t: f64, out: &mut [f32]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let c = Coord::new(start.x + i as i32, start.y, start.z);
+            *o = (self.0)(spec.world(c));
+        }
+    }
+    fn time_dependent(&self) -> bool {
+        false
+    }
+}
+
+/// A front carried across many tiles by fields that do not change with time (speed,
+/// curvature weight and velocity, as segmentation's), in 3-D and on a planar lattice: the
+/// tiles, which keep such samples while their tile list stays and sample anew when it
+/// changes, compute the DT-Grid's bits, which samples every step.
+#[test]
+fn static_fields_follow_a_moving_tile_list() {
+    type Sdf = Box<dyn Fn([f64; 3]) -> f64 + Sync>;
+    let cases: [(_, _, _, Sdf); 2] = [
+        ([1.0, 1.0, 1.0], [56, 40, 36], false, Box::new(sphere_sdf([15.0, 14.0, 16.0], 8.0))),
+        ([1.0, 1.0, 1.0], [64, 48, 4], true, Box::new(disc_sdf([18.0, 16.0], 11.0))),
+    ];
+    let pool = |n| Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()));
+    for (spacing, dims, planar, sdf) in cases {
+        let grid = lattice_grid(spacing, Coord::new(0, 0, 0), dims, sdf);
+        let speed = Static(|p: [f64; 3]| (0.2 + 0.15 * (0.3 * p[0]).sin()) as f32);
+        let z = Static(|p: [f64; 3]| (1.0 + 0.5 * (0.2 * p[1]).cos()) as f32);
+        let flow = Flow::normal_speed(Speed::Field(Arc::new(speed)))
+            .with_curvature_field(0.4, Arc::new(z))
+            .with_velocity(Velocity::Field(Arc::new(VectorClosure(|_p: [f64; 3], _t: f64| {
+                [0.5f32, 0.3, 0.0]
+            }))));
+        let settings = Settings { lattice: Some(Lattice { spacing, planar }), ..coupled() };
+        let runs = [
+            (GridKind::DtGrid, settings.clone()),
+            (GridKind::Tiles(Lanes::Scalar), Settings { pool: pool(1), ..settings.clone() }),
+            (GridKind::Tiles(Lanes::Simd), Settings { pool: pool(2), ..settings }),
+        ];
+        let mut bands = Vec::new();
+        for (kind, s) in runs {
+            let mut sim = Simulation::from_tile_grid(kind, grid.clone(), flow.clone(), s).unwrap();
+            let mut lists = std::collections::BTreeSet::new();
+            sim.run_until(25.0, 10_000, |sim, _| {
+                if let Some(t) = sim.tiles() {
+                    lists.insert(t.tile_coords().to_vec());
+                }
+            })
+            .unwrap();
+            if sim.tiles().is_some() {
+                assert!(lists.len() > 10, "{kind:?}: {} tile lists", lists.len());
+            }
+            bands.push((kind, sim.time(), sim.steps(), band(&sim)));
+        }
+        let (_, t0, steps, reference) = &bands[0];
+        assert!(*steps > 40, "{steps} steps");
+        for (kind, t, _, b) in &bands[1..] {
+            assert_eq!(t, t0, "{kind:?}, planar {planar}: time");
+            assert!(
+                b == reference,
+                "{kind:?}, planar {planar}: the band differs from the DT-Grid's"
+            );
+        }
     }
 }
 

@@ -56,6 +56,12 @@ pub(crate) trait Representation: Send + Sync {
         let _ = planar;
         None
     }
+    /// The units of the flat order (tiles: their coordinates, 64 voxels each), when the
+    /// representation keeps such keys; empty otherwise. Per-voxel samples of a field that
+    /// does not change with time stay valid while the units and the spec stay.
+    fn unit_keys(&self) -> &[Coord] {
+        &[]
+    }
     /// Samples a vector field at every stored voxel (flat order).
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]);
     /// Samples a field that depends on the position only (u(x, 0) of a time-separable

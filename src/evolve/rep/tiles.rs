@@ -997,6 +997,10 @@ impl Representation for TilesRep {
         planar.then_some((TILE_LEN, SLICE_LEN))
     }
 
+    fn unit_keys(&self) -> &[Coord] {
+        self.grid.tile_coords()
+    }
+
     fn fill_vector(&self, f: &dyn VectorFn, t: f64, out: [&mut [f32]; 3]) {
         let spec = self.spec();
         let coords = self.grid.tile_coords();
