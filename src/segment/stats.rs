@@ -90,15 +90,15 @@ pub(crate) fn order_statistics_of_parts<const N: usize>(
 
 /// The `k`-th smallest values (0-based, each `k` clamped to the last; the ranks `ks` gives
 /// for the number of values) of the values of all `parts` together, in [`f32::total_cmp`]'s
-/// order; `None` when there are none. Exact, from
-/// two parallel counting passes over the values' order keys (the high 16 bits, then the
-/// low 16 bits within each high part a wanted rank falls in, counted once however many
-/// ranks fall in it), a histogram per part. Counts are integers, so the result depends
-/// neither on the parts nor on the thread count. Callers give about one part per thread:
-/// each part zeroes a histogram of 512 kB per pass and wanted high part (and one more in
-/// the second pass, of which a page is used), whatever its length.
-/// The parts' histograms are added into the first one's (not reduced from fresh zeroed
-/// ones, whose first touch cost more than the counting on two threads).
+/// order; `None` when there are none. Exact, from two parallel counting passes over the
+/// values' order keys (the high 16 bits, then the low 16 bits within each high part a
+/// wanted rank falls in, counted once however many ranks fall in it), a histogram per
+/// part. Counts are integers, so the result depends neither on the parts nor on the thread
+/// count. Callers give about one part per thread: each part zeroes a histogram of 512 kB
+/// per pass and wanted high part (and one more in the second pass, of which a page is
+/// used), whatever its length. The parts' histograms are added into the first one's (not
+/// reduced from fresh zeroed ones, whose first touch cost more than the counting on two
+/// threads).
 pub(crate) fn order_statistics_of<V: ValueParts + ?Sized, const N: usize>(
     parts: &V,
     ks: impl FnOnce(usize) -> [usize; N],
