@@ -189,14 +189,8 @@ fn a_travelling_front_on_a_planar_lattice_stays_in_its_layer() {
         |_p: [f64; 3], _t: f64| [0.6f32, 0.35, 0.0],
     ))));
     let settings = Settings { lattice: Some(Lattice { spacing, planar: true }), ..coupled() };
-    let pool = |n| Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()));
-    let runs = [
-        (GridKind::DtGrid, settings.clone()),
-        (GridKind::Tiles(Lanes::Scalar), Settings { pool: pool(1), ..settings.clone() }),
-        (GridKind::Tiles(Lanes::Simd), Settings { pool: pool(2), ..settings }),
-    ];
     let mut bands = Vec::new();
-    for (kind, s) in runs {
+    for (kind, s) in dtgrid_and_tiles(settings) {
         let mut sim = Simulation::from_tile_grid(kind, grid.clone(), flow.clone(), s).unwrap();
         sim.run_until(40.0, 10_000, |_, _| {}).unwrap();
         let b = band(&sim);
@@ -212,6 +206,17 @@ fn a_travelling_front_on_a_planar_lattice_stays_in_its_layer() {
         assert_eq!(t, t0, "{kind:?}: time");
         assert!(b == reference, "{kind:?}: the band differs from the DT-Grid's");
     }
+}
+
+/// The DT-Grid, then tiles with scalar lanes on one thread and SIMD lanes on two, each
+/// with `settings`.
+fn dtgrid_and_tiles(settings: Settings) -> [(GridKind, Settings); 3] {
+    let pool = |n| Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()));
+    [
+        (GridKind::DtGrid, settings.clone()),
+        (GridKind::Tiles(Lanes::Scalar), Settings { pool: pool(1), ..settings.clone() }),
+        (GridKind::Tiles(Lanes::Simd), Settings { pool: pool(2), ..settings }),
+    ]
 }
 
 /// A field of the position alone (as an image's is): sampled again only where the layout
@@ -241,7 +246,6 @@ fn static_fields_follow_a_moving_tile_list() {
         ([1.0, 1.0, 1.0], [56, 40, 36], false, Box::new(sphere_sdf([15.0, 14.0, 16.0], 8.0))),
         ([1.0, 1.0, 1.0], [64, 48, 4], true, Box::new(disc_sdf([18.0, 16.0], 11.0))),
     ];
-    let pool = |n| Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()));
     for (spacing, dims, planar, sdf) in cases {
         let grid = lattice_grid(spacing, Coord::new(0, 0, 0), dims, sdf);
         let speed = Static(|p: [f64; 3]| (0.2 + 0.15 * (0.3 * p[0]).sin()) as f32);
@@ -252,13 +256,8 @@ fn static_fields_follow_a_moving_tile_list() {
                 [0.5f32, 0.3, 0.0]
             }))));
         let settings = Settings { lattice: Some(Lattice { spacing, planar }), ..coupled() };
-        let runs = [
-            (GridKind::DtGrid, settings.clone()),
-            (GridKind::Tiles(Lanes::Scalar), Settings { pool: pool(1), ..settings.clone() }),
-            (GridKind::Tiles(Lanes::Simd), Settings { pool: pool(2), ..settings }),
-        ];
         let mut bands = Vec::new();
-        for (kind, s) in runs {
+        for (kind, s) in dtgrid_and_tiles(settings) {
             let mut sim = Simulation::from_tile_grid(kind, grid.clone(), flow.clone(), s).unwrap();
             let mut lists = std::collections::BTreeSet::new();
             sim.run_until(25.0, 10_000, |sim, _| {
@@ -301,13 +300,8 @@ fn assert_representations_agree(
         .with_curvature_field(0.3, z)
         .with_velocity(Velocity::Field(Arc::new(VectorClosure(move |p: [f64; 3], _t: f64| u(p)))));
     let settings = Settings { lattice: Some(lattice), ..coupled() };
-    let pool = |n| Some(Arc::new(rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap()));
-    let runs: Vec<(GridKind, Settings)> = vec![
-        (GridKind::Dense, settings.clone()),
-        (GridKind::Tiles(Lanes::Scalar), Settings { pool: pool(1), ..settings.clone() }),
-        (GridKind::Tiles(Lanes::Simd), Settings { pool: pool(2), ..settings.clone() }),
-        (GridKind::DtGrid, settings.clone()),
-    ];
+    let runs =
+        std::iter::once((GridKind::Dense, settings.clone())).chain(dtgrid_and_tiles(settings));
     let mut bands = Vec::new();
     for (kind, s) in runs {
         let mut sim = Simulation::from_tile_grid(kind, grid.clone(), flow.clone(), s).unwrap();
