@@ -26,10 +26,9 @@ pub(crate) struct Inputs {
     /// F without ε κ̄ (a sampled field) or the morph target ψ, per voxel.
     base: Vec<f32>,
     /// A time-separable velocity's samples u(x, 0) depend on the position only, so they
-    /// are kept from step to step: `velocity` holds the samples of the units (tiles)
-    /// `static_keys` names, taken on the grid `static_spec` (empty: nothing to reuse).
-    static_keys: Vec<Coord>,
-    static_spec: Option<GridSpec>,
+    /// are kept from step to step: `velocity` holds the samples of the units (tiles) of
+    /// this layout (empty: nothing to reuse).
+    velocity_layout: Layout,
     /// The previous samples while the new ones are assembled (swapped with `velocity`).
     spare: [Vec<f32>; 3],
     /// ε Z(x) per voxel ([`Flow::curvature_field`]), times the lattice's curvature factor;
@@ -90,8 +89,7 @@ impl Default for Inputs {
             velocity: Default::default(),
             velocity_scale: 1.0,
             base: Vec::new(),
-            static_keys: Vec::new(),
-            static_spec: None,
+            velocity_layout: Layout::default(),
             spare: Default::default(),
             curvature: Vec::new(),
             base_layout: Layout::default(),
@@ -136,7 +134,7 @@ impl Inputs {
         vec_bytes(&self.speed)
             + vec_bytes(&self.base)
             + self.velocity.iter().chain(&self.spare).map(vec_bytes).sum::<usize>()
-            + vec_bytes(&self.static_keys)
+            + vec_bytes(&self.velocity_layout.units)
             + vec_bytes(&self.curvature)
             + vec_bytes(&self.base_layout.units)
             + vec_bytes(&self.curvature_layout.units)
@@ -162,7 +160,7 @@ impl Inputs {
         {
             // The previous samples and their keys (a tile's coordinate per 64 voxels).
             b += self.spare.iter().map(|c| growth_bytes(c, n)).sum::<u64>()
-                + growth_bytes(&self.static_keys, n / 64);
+                + growth_bytes(&self.velocity_layout.units, n / 64);
         }
         b
     }
@@ -367,7 +365,7 @@ impl Inputs {
                 Written::Nothing
             };
         }
-        self.static_keys.clear();
+        self.velocity_layout.clear();
         for c in &mut self.velocity {
             resize_exact(c, n, 0.0);
         }
@@ -401,19 +399,16 @@ impl Inputs {
         pool: &Option<Arc<rayon::ThreadPool>>,
         n: usize,
     ) -> Written {
-        let spec = rep.spec();
-        if self.static_spec != Some(spec) {
-            self.static_keys.clear();
-        }
-        self.static_spec = Some(spec);
-        if !self.static_keys.is_empty()
-            && self.velocity.iter().all(|c| c.len() == n)
-            && self.static_keys == rep.unit_keys()
-        {
+        let layout = &mut self.velocity_layout;
+        if layout.holds(rep) && self.velocity.iter().all(|c| c.len() == n) {
             // The same units as the samples' (checked when taken): nothing to do.
             return Written::Checked(true);
         }
-        if self.static_keys.is_empty() {
+        if layout.spec != Some(rep.spec()) {
+            layout.clear();
+        }
+        layout.spec = Some(rep.spec());
+        if layout.units.is_empty() {
             // Nothing to reuse: no copy of the old samples either.
             for c in &mut self.velocity {
                 c.clear();
@@ -425,12 +420,12 @@ impl Inputs {
         std::mem::swap(&mut self.spare, &mut self.velocity);
         let [a, b, c] = &mut self.velocity;
         let [pa, pb, pc] = &self.spare;
-        let keys = &mut self.static_keys;
+        let keys = &mut self.velocity_layout.units;
         let ok = in_pool(pool, || rep.fill_static_vector(f, keys, [pa, pb, pc], [a, b, c]));
         if !ok {
             // Sample everything anew next time: the step stops here, and its retry must
             // not take a non-finite sample as checked.
-            self.static_keys.clear();
+            self.velocity_layout.clear();
         }
         Written::Checked(ok)
     }
