@@ -15,7 +15,9 @@ use std::sync::Arc;
 pub trait ScalarFn: Send + Sync {
     /// Writes the value at voxels `start + (i, 0, 0)`, `i in 0..out.len()`, at time `t`.
     fn fill_run(&self, spec: &GridSpec, start: Coord, t: f64, out: &mut [f32]);
-    /// Whether the field changes with `t` (if not, it is sampled once per step).
+    /// Whether the field changes with `t`. If not, its values must depend on the position
+    /// alone: a simulation samples it at most once per step, and keeps the samples while
+    /// its layout (the tile list) stays.
     fn time_dependent(&self) -> bool {
         true
     }
