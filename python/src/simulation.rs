@@ -352,15 +352,6 @@ fn evolve2d<'py>(
             )));
         }
     }
-    // Only the contour is read (`dense_band`): a mask, a steep or a shallow function start
-    // the same front as its signed distance would.
-    let grid = fmm::DenseGrid::new([nx, ny, 1], dx as f64);
-    let start = py
-        .detach(|| fmm::dense_band(values, &grid, gamma, Progress::none()))
-        .map_err(crate::lib_error)?;
-    let field = extruded(&start, nx, ny)?;
-    let tiles = convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)?;
-    drop(field);
     let same_shape = |s: &[usize], what: &str| -> PyResult<()> {
         if s[..2] != [ny, nx] {
             return Err(crate::value_error(format!(
@@ -411,6 +402,17 @@ fn evolve2d<'py>(
         pool: crate::pool(threads)?,
         ..Settings::default()
     };
+    // Every parameter refused before the march.
+    Sim::check(&flow, &settings).map_err(crate::lib_error)?;
+    // Only the contour is read (`dense_band`): a mask, a steep or a shallow function start
+    // the same front as its signed distance would.
+    let grid = fmm::DenseGrid::new([nx, ny, 1], dx as f64);
+    let start = py
+        .detach(|| fmm::dense_band(values, &grid, gamma, Progress::none()))
+        .map_err(crate::lib_error)?;
+    let field = extruded(&start, nx, ny)?;
+    let tiles = convert::tiles_from_dense(&field, spec).map_err(crate::lib_error)?;
+    drop(field);
     let kind = GridKind::Tiles(Lanes::Simd);
     let mut sim =
         py.detach(|| Sim::from_tile_grid(kind, tiles, flow, settings)).map_err(crate::lib_error)?;

@@ -172,14 +172,21 @@ impl Simulation {
         }
     }
 
+    /// The checks of `flow` and `settings` that every constructor runs before it starts
+    /// (parameters in their domains, a lattice the flow supports): for a caller that has
+    /// work to do before it builds the grid, so that bad parameters are refused first.
+    pub fn check(flow: &Flow, settings: &Settings) -> Result<(), EvolveError> {
+        flow.validate()?;
+        settings.validate(flow)
+    }
+
     fn start(
         rep: Rep,
         kind: GridKind,
         flow: Flow,
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
-        flow.validate()?;
-        settings.validate(&flow)?;
+        Simulation::check(&flow, &settings)?;
         if settings.reinit.is_some() && kind == GridKind::Dense {
             return Err(EvolveError::InvalidParameter(
                 "reinitialisation by fast marching runs on the sparse grids (tiles, DT-Grid), \
