@@ -236,9 +236,11 @@ impl Inputs {
                 self.speed.clear();
             }
             Speed::Field(f) => {
-                let kept =
-                    !f.time_dependent() && self.base.len() == n && self.base_layout.holds(rep);
-                if (first || f.time_dependent()) && !kept {
+                // Every stage when F depends on time; else in stage 1, unless the layout
+                // is the one F was sampled on.
+                let sample = f.time_dependent()
+                    || (first && !(self.base.len() == n && self.base_layout.holds(rep)));
+                if sample {
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(f.as_ref(), t, planar, base));
