@@ -1184,7 +1184,7 @@ fn change_since(
         .map(|part| {
             let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
             let old = &near[start_of(part)..start_of(part + 1)];
-            let (mut band, mut next, mut k) = (0usize, Vec::new(), 0);
+            let (mut band, mut next, mut k) = (0usize, Vec::with_capacity(old.len()), 0);
             // Terms gathered in blocks for the sum's vectorised addition.
             let mut sq = ExactSum::default();
             let (mut terms, mut held) = ([0.0f32; 64], 0);
@@ -1203,16 +1203,24 @@ fn change_since(
                     diff(old[k].2, sim_value_left(old[k].2, gamma));
                     k += 1;
                 }
-                for (l, &v) in values[p].0[..image_voxels].iter().enumerate() {
-                    let in_band = v.abs() < gamma;
-                    band += in_band as usize;
-                    if k < old.len() && old[k].0 == tc && old[k].1 as usize == l {
-                        diff(old[k].2, if in_band { v } else { sim_value_left(old[k].2, gamma) });
-                        k += 1;
-                    }
-                    if in_band && (v.abs() as f64) < h {
-                        next.push((tc, l as u8, v));
-                    }
+                let vals = &values[p].0[..image_voxels];
+                // The old voxels of this tile, in voxel order, read where they are.
+                while k < old.len() && old[k].0 == tc {
+                    let (l, o) = (old[k].1 as usize, old[k].2);
+                    let v = vals[l];
+                    diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
+                    k += 1;
+                }
+                // Counted apart from the rest, without a branch: this vectorises.
+                band += vals.iter().map(|v| (v.abs() < gamma) as usize).sum::<usize>();
+                // The voxels within h, as bits first (branch-free), then taken bit by bit.
+                let mut near_bits = vals.iter().enumerate().fold(0u64, |bits, (l, &v)| {
+                    bits | (((v.abs() < gamma) & ((v.abs() as f64) < h)) as u64) << l
+                });
+                while near_bits != 0 {
+                    let l = near_bits.trailing_zeros() as usize;
+                    next.push((tc, l as u8, vals[l]));
+                    near_bits &= near_bits - 1;
                 }
             }
             for &(_, _, o) in &old[k..] {
