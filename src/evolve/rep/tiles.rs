@@ -479,18 +479,26 @@ where
     let computes = if !owned.contains(&pos) {
         false
     } else if compute_mask {
-        block.gather_star_row(grid, pos, table.row(pos));
-        block.box_min_abs(gamma, m);
+        // On a planar lattice only the first z-slice is computed, and only its rows are
+        // gathered (the same bits: no other row is read).
+        if planar {
+            block.gather_star_row_planar(grid, pos, table.row(pos));
+            block.box_min_abs_planar(gamma, m);
+        } else {
+            block.gather_star_row(grid, pos, table.row(pos));
+            block.box_min_abs(gamma, m);
+        }
         *mask = band_bits(m, gamma);
         *mask != 0
     } else {
         let computes = *mask != 0;
         if computes {
             // A kernel without diagonal offsets reads the rows along the axes only.
-            if K::BOX_REACH == 0 {
-                block.gather_axes_row(grid, pos, table.row(pos));
-            } else {
-                block.gather_star_row(grid, pos, table.row(pos));
+            match (K::BOX_REACH == 0, planar) {
+                (true, false) => block.gather_axes_row(grid, pos, table.row(pos)),
+                (false, false) => block.gather_star_row(grid, pos, table.row(pos)),
+                (true, true) => block.gather_axes_row_planar(grid, pos, table.row(pos)),
+                (false, true) => block.gather_star_row_planar(grid, pos, table.row(pos)),
             }
             band_minima(*mask, gamma, m);
         }

@@ -196,7 +196,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`super::NeighbourCursor`] over `grid`'s list).
     #[inline]
     pub fn gather(&mut self, grid: &TileGrid, nb: &Neighbours) {
-        self.gather_parts::<false, true, TileGrid>(
+        self.gather_parts::<false, true, false, TileGrid>(
             grid,
             nb.pos,
             &NeighbourRow::new(nb.matched, &nb.ptr),
@@ -207,7 +207,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// (from a [`super::NeighbourTable`] of `grid`'s list).
     #[inline]
     pub fn gather_row(&mut self, grid: &TileGrid, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<false, true, TileGrid>(grid, pos, row);
+        self.gather_parts::<false, true, false, TileGrid>(grid, pos, row);
     }
 
     /// Fills the rows of the block that the kernels' [`levelset_kernels::TileWindow`]
@@ -219,7 +219,22 @@ impl<const R: usize> PaddedBlock<R> {
     /// instruction-set level (wider copies there).
     #[inline(always)]
     pub fn gather_star_row<S: TileSource>(&mut self, grid: &S, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<true, true, S>(grid, pos, row);
+        self.gather_parts::<true, true, false, S>(grid, pos, row);
+    }
+
+    /// [`PaddedBlock::gather_star_row`] for a kernel that computes the tile's first
+    /// z-slice alone (a planar lattice, see `levelset_kernels::TileBlock::apply_slices`):
+    /// the box rows with z in −1..=1, the slice's row along y and the tile column's rows
+    /// along z (up to `R`). For `R = 3` 70 of the 140 row copies. Other entries keep what
+    /// they held (NaN in debug builds).
+    #[inline(always)]
+    pub fn gather_star_row_planar<S: TileSource>(
+        &mut self,
+        grid: &S,
+        pos: usize,
+        row: &NeighbourRow,
+    ) {
+        self.gather_parts::<true, true, true, S>(grid, pos, row);
     }
 
     /// Fills the rows of the block that a kernel without diagonal offsets
@@ -231,7 +246,19 @@ impl<const R: usize> PaddedBlock<R> {
     /// comparisons instead of reading another tile's values).
     #[inline(always)]
     pub fn gather_axes_row<S: TileSource>(&mut self, grid: &S, pos: usize, row: &NeighbourRow) {
-        self.gather_parts::<true, false, S>(grid, pos, row);
+        self.gather_parts::<true, false, false, S>(grid, pos, row);
+    }
+
+    /// [`PaddedBlock::gather_axes_row`] for the first z-slice alone (see
+    /// [`PaddedBlock::gather_star_row_planar`]).
+    #[inline(always)]
+    pub fn gather_axes_row_planar<S: TileSource>(
+        &mut self,
+        grid: &S,
+        pos: usize,
+        row: &NeighbourRow,
+    ) {
+        self.gather_parts::<true, false, true, S>(grid, pos, row);
     }
 
     /// Asks the CPU to bring into cache the neighbour tiles that a gather for the tile at
@@ -261,13 +288,30 @@ impl<const R: usize> PaddedBlock<R> {
     /// voxel's box holds a band voxel (a minimum below `gamma`).
     #[inline(always)]
     pub fn box_min_abs(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
+        self.box_min_abs_of::<false>(gamma, out)
+    }
+
+    /// [`PaddedBlock::box_min_abs`] of the first z-slice, from the box rows with z in
+    /// −1..=1 ([`PaddedBlock::gather_star_row_planar`]), copied into the other three
+    /// slices: on a planar lattice they are the first's copies, and so are their masks (the
+    /// same bits as the whole computation where the tiles above and below are absent: their
+    /// ±γ is never below a box's minimum, which is at most γ).
+    #[inline(always)]
+    pub fn box_min_abs_planar(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
+        self.box_min_abs_of::<true>(gamma, out)
+    }
+
+    #[inline(always)]
+    fn box_min_abs_of<const PLANAR: bool>(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
         use levelset_kernels::{wide::f32x4, Lane};
         let (sx, w, r) = (Self::SX, Self::W, R);
+        // z-rows of the box computed: −1..5 (all four slices) or −1..2 (the first).
+        let nz = if PLANAR { 3 } else { 6 };
         let d = &self.data[..];
         let row = |i: usize| <f32x4 as Lane>::load(&d[i..i + 4]).abs();
         // Along x: rows y, z in -1..5 (index y + 6 z).
         let mut mx = [f32x4::splat(0.0); 36];
-        for z in 0..6 {
+        for z in 0..nz {
             let slice = 3 + sx * (r - 1) + sx * w * (z + r - 1);
             for y in 0..6 {
                 let base = slice + sx * y;
@@ -276,7 +320,7 @@ impl<const R: usize> PaddedBlock<R> {
         }
         // Along y: rows y in 0..4, z in -1..5 (index y + 4 z).
         let mut my = [f32x4::splat(0.0); 24];
-        for z in 0..6 {
+        for z in 0..nz {
             for y in 0..4 {
                 let j = y + 6 * z;
                 my[y + 4 * z] = Lane::min(Lane::min(mx[j], mx[j + 1]), mx[j + 2]);
@@ -285,10 +329,15 @@ impl<const R: usize> PaddedBlock<R> {
         // Along z.
         let g = f32x4::splat(gamma);
         let mut any = false;
-        for (i, o) in out.chunks_exact_mut(4).enumerate() {
+        let computed = if PLANAR { 16 } else { 64 };
+        for (i, o) in out[..computed].chunks_exact_mut(4).enumerate() {
             let v = Lane::min(Lane::min(my[i], my[i + 4]), my[i + 8]);
             Lane::store(v, o);
             any |= g.any_gt(v);
+        }
+        if PLANAR {
+            let (first, rest) = out.split_at_mut(16);
+            rest.chunks_exact_mut(16).for_each(|slice| slice.copy_from_slice(first));
         }
         any
     }
@@ -306,7 +355,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// of that, the unchecked copies (instead of indexing with bounds checks) gave about two
     /// fifths.
     #[inline(always)]
-    fn gather_parts<const STAR: bool, const BOX: bool, S: TileSource>(
+    fn gather_parts<const STAR: bool, const BOX: bool, const PLANAR: bool, S: TileSource>(
         &mut self,
         grid: &S,
         pos: usize,
@@ -332,7 +381,18 @@ impl<const R: usize> PaddedBlock<R> {
         for z in 0..w {
             for y in 0..w {
                 // `in_box`: the row needs its three x-pieces; `in_star`: it is read at all.
-                let (in_box, in_star) = if !BOX {
+                let (in_box, in_star) = if PLANAR {
+                    // The rows the first z-slice's voxels read: the box's with z in
+                    // −1..=1 (or the slice's own rows, whose x-neighbours the axes
+                    // read), the slice's row along y and the column's along z.
+                    let (cy, first) = (core.contains(&y), z == r);
+                    let in_box = if BOX {
+                        box_rows.contains(&y) && (r - 1..r + 2).contains(&z)
+                    } else {
+                        cy && first
+                    };
+                    (in_box, in_box || first || (cy && z <= 2 * r))
+                } else if !BOX {
                     let (cy, cz) = (core.contains(&y), core.contains(&z));
                     (cy && cz, cy || cz)
                 } else if box_rows.contains(&y) && box_rows.contains(&z) {

@@ -729,6 +729,73 @@ fn star_block_equals_random_access() {
     }
 }
 
+/// On one tile layer extruded along z (every tile's slices copies of its first, as a
+/// planar lattice keeps them), the planar gathers fill every entry that the first slice's
+/// stencil reads with what the full gathers put there, and the planar box minima are the
+/// full ones, bit for bit, in all four slices.
+fn check_planar_block<const R: usize>(grid: &TileGrid) {
+    let (mut full, mut planar) = (PaddedBlock::<R>::new(), PaddedBlock::<R>::new());
+    let mut table = NeighbourTable::default();
+    table.rebuild(grid.tile_coords());
+    let (r, g) = (R as i32, grid.gamma());
+    let inner = |v: i32| (0..4).contains(&v);
+    for pos in 0..grid.len() {
+        for axes in [false, true] {
+            if axes {
+                full.gather_axes_row(grid, pos, table.row(pos));
+                planar.gather_axes_row_planar(grid, pos, table.row(pos));
+            } else {
+                full.gather_star_row(grid, pos, table.row(pos));
+                planar.gather_star_row_planar(grid, pos, table.row(pos));
+            }
+            for z in -r..=r {
+                for y in -r..4 + r {
+                    for x in -r..4 + r {
+                        let boxed =
+                            !axes && [x, y].iter().all(|v| (-1..5).contains(v)) && z.abs() <= 1;
+                        let along = [inner(y) && z == 0, inner(x) && z == 0, inner(x) && inner(y)];
+                        if boxed || along.iter().any(|&a| a) {
+                            let (a, b) = (planar.get(x, y, z), full.get(x, y, z));
+                            assert_eq!(a.to_bits(), b.to_bits(), "tile {pos} at {x},{y},{z}");
+                        }
+                    }
+                }
+            }
+        }
+        full.gather_star_row(grid, pos, table.row(pos));
+        planar.gather_star_row_planar(grid, pos, table.row(pos));
+        let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
+        assert_eq!(planar.box_min_abs_planar(g, &mut a), full.box_min_abs(g, &mut b));
+        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "box minima of tile {pos}");
+    }
+}
+
+#[test]
+fn planar_block_equals_the_full_block_where_the_first_slice_reads() {
+    for case in cases(23, 3) {
+        let full = build(&case.shape, case.spec, case.lo, case.hi);
+        let layer = full.tile_coords()[full.len() / 2].z;
+        let tiles: Vec<(Coord, Tile)> = full
+            .tile_coords()
+            .iter()
+            .zip(full.values())
+            .filter(|(c, _)| c.z == layer)
+            .map(|(&c, t)| {
+                let mut t = *t;
+                let first: [f32; 16] = t.0[..16].try_into().unwrap();
+                t.0.chunks_exact_mut(16).for_each(|s| s.copy_from_slice(&first));
+                (c, t)
+            })
+            .collect();
+        let shape = &case.shape;
+        let inside = |t: Coord| truth(shape, &case.spec, voxel_of(t, 0)) < 0.0;
+        let grid = TileGrid::from_sorted_tiles(case.spec, tiles, inside).unwrap();
+        check_planar_block::<1>(&grid);
+        check_planar_block::<3>(&grid);
+        check_planar_block::<4>(&grid);
+    }
+}
+
 #[test]
 fn padded_block_equals_random_access() {
     for case in cases(18, 3) {
