@@ -729,6 +729,30 @@ fn star_block_equals_random_access() {
     }
 }
 
+/// The tiles of one tile layer of `case`'s band (the middle tile's) as a grid of their own,
+/// and that layer's z; with `extrude`, every tile's four z-slices copies of its first, as
+/// a planar lattice keeps them.
+fn one_layer(case: &Case, extrude: bool) -> (TileGrid, i32) {
+    let full = build(&case.shape, case.spec, case.lo, case.hi);
+    let layer = full.tile_coords()[full.len() / 2].z;
+    let tiles: Vec<(Coord, Tile)> = full
+        .tile_coords()
+        .iter()
+        .zip(full.values())
+        .filter(|(c, _)| c.z == layer)
+        .map(|(&c, &t)| {
+            let mut t = t;
+            if extrude {
+                let first: [f32; 16] = t.0[..16].try_into().unwrap();
+                t.0.chunks_exact_mut(16).for_each(|s| s.copy_from_slice(&first));
+            }
+            (c, t)
+        })
+        .collect();
+    let inside = |t: Coord| truth(&case.shape, &case.spec, voxel_of(t, 0)) < 0.0;
+    (TileGrid::from_sorted_tiles(case.spec, tiles, inside).unwrap(), layer)
+}
+
 /// On one tile layer extruded along z (every tile's slices copies of its first, as a
 /// planar lattice keeps them), the planar gathers fill every entry that the first slice's
 /// stencil reads with what the full gathers put there, and the planar box minima are the
@@ -773,23 +797,7 @@ fn check_planar_block<const R: usize>(grid: &TileGrid) {
 #[test]
 fn planar_block_equals_the_full_block_where_the_first_slice_reads() {
     for case in cases(23, 3) {
-        let full = build(&case.shape, case.spec, case.lo, case.hi);
-        let layer = full.tile_coords()[full.len() / 2].z;
-        let tiles: Vec<(Coord, Tile)> = full
-            .tile_coords()
-            .iter()
-            .zip(full.values())
-            .filter(|(c, _)| c.z == layer)
-            .map(|(&c, t)| {
-                let mut t = *t;
-                let first: [f32; 16] = t.0[..16].try_into().unwrap();
-                t.0.chunks_exact_mut(16).for_each(|s| s.copy_from_slice(&first));
-                (c, t)
-            })
-            .collect();
-        let shape = &case.shape;
-        let inside = |t: Coord| truth(shape, &case.spec, voxel_of(t, 0)) < 0.0;
-        let grid = TileGrid::from_sorted_tiles(case.spec, tiles, inside).unwrap();
+        let (grid, _) = one_layer(&case, true);
         check_planar_block::<1>(&grid);
         check_planar_block::<3>(&grid);
         check_planar_block::<4>(&grid);
@@ -871,18 +879,7 @@ fn planar_management_creates_no_tile_outside_the_layer() {
     let mut rng = fastrand::Rng::with_seed(11);
     let mut outside = 0;
     for case in cases(41, 4) {
-        let full = build(&case.shape, case.spec, case.lo, case.hi);
-        let layer = full.tile_coords()[full.len() / 2].z;
-        let tiles: Vec<(Coord, Tile)> = full
-            .tile_coords()
-            .iter()
-            .zip(full.values())
-            .filter(|(c, _)| c.z == layer)
-            .map(|(&c, &t)| (c, t))
-            .collect();
-        let shape = &case.shape;
-        let inside = |t: Coord| truth(shape, &case.spec, voxel_of(t, 0)) < 0.0;
-        let mut grid = TileGrid::from_sorted_tiles(case.spec, tiles, inside).unwrap();
+        let (mut grid, layer) = one_layer(&case, false);
         for _round in 0..4 {
             randomize_activity(&mut grid, &mut rng);
             let mut spatial = grid.clone();
