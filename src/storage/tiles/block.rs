@@ -225,7 +225,7 @@ impl<const R: usize> PaddedBlock<R> {
     /// [`PaddedBlock::gather_star_row`] for a kernel that computes the tile's first
     /// z-slice alone (a planar lattice, see `levelset_kernels::TileBlock::apply_slices`):
     /// the box rows with z in −1..=1, the slice's row along y and the tile column's rows
-    /// along z (up to `R`). For `R = 3` 70 of the 140 row copies. Other entries keep what
+    /// along z (up to `R`). For `R = 3` 74 of the 140 row copies. Other entries keep what
     /// they held (NaN in debug builds).
     #[inline(always)]
     pub fn gather_star_row_planar<S: TileSource>(
