@@ -377,10 +377,26 @@ fn stencil(i: usize, n: usize, h: f64) -> Option<(usize, usize, f64)> {
 /// one-sided on the faces, divided by the axis's spacing; 0 along an axis of one voxel).
 /// GAC's advection velocity is −∇g of its edge potential.
 ///
+/// The rows (`y + ny z`) whose difference times the factor is the derivative along `axis`
+/// (1: y, 2: z) at the voxels of row (`y`, `z`), as [`stencil`] gives it along the axis.
+fn row_stencil(
+    axis: usize,
+    y: usize,
+    z: usize,
+    dims: [usize; 3],
+    h: f64,
+) -> Option<(usize, usize, f64)> {
+    let [_, ny, nz] = dims;
+    match axis {
+        1 => stencil(y, ny, h).map(|(p, m, f)| (p + ny * z, m + ny * z, f)),
+        _ => stencil(z, nz, h).map(|(p, m, f)| (y + ny * p, y + ny * m, f)),
+    }
+}
+
 /// Fails with [`GridError::InvalidParameter`] on a malformed image.
 pub fn gradient(image: &Image) -> Result<[Image; 3], GridError> {
     check_image(image, "gradient")?;
-    let [nx, ny, nz] = image.dims;
+    let [nx, ny, _] = image.dims;
     let src = &image.data;
     let rows = rows_per_task(nx);
     // Row by row, as `gradient_magnitude`: along y and z a row of differences of two rows.
@@ -392,19 +408,15 @@ pub fn gradient(image: &Image) -> Result<[Image; 3], GridError> {
                 let row = c * rows + q;
                 let (y, z) = (row % ny, row / ny);
                 let here = &src[row * nx..(row + 1) * nx];
-                let across = match a {
-                    0 => {
-                        for (x, o) in line.iter_mut().enumerate() {
-                            *o = stencil(x, nx, h).map_or(0.0, |(p, m, f)| {
-                                ((here[p] as f64 - here[m] as f64) * f) as f32
-                            });
-                        }
-                        continue;
+                if a == 0 {
+                    for (x, o) in line.iter_mut().enumerate() {
+                        *o = stencil(x, nx, h).map_or(0.0, |(p, m, f)| {
+                            ((here[p] as f64 - here[m] as f64) * f) as f32
+                        });
                     }
-                    1 => stencil(y, ny, h).map(|(p, m, f)| (p + ny * z, m + ny * z, f)),
-                    _ => stencil(z, nz, h).map(|(p, m, f)| (y + ny * p, y + ny * m, f)),
-                };
-                match across {
+                    continue;
+                }
+                match row_stencil(a, y, z, image.dims, h) {
                     None => line.fill(0.0),
                     Some((p, m, f)) => {
                         let (plus, minus) =
@@ -446,7 +458,7 @@ pub(crate) fn voxel_gradient_magnitude(image: &Image) -> Result<Image, GridError
 /// The values of [`gradient_magnitude`], with the differences over `spacing` (the image
 /// checked by the caller).
 fn gradient_magnitude_data(image: &Image, spacing: [f64; 3]) -> Vec<f32> {
-    let [nx, ny, nz] = image.dims;
+    let [nx, ny, _] = image.dims;
     let [sx, sy, sz] = spacing;
     let src = &image.data;
     let mut out = vec![0.0f32; image.len()];
@@ -466,10 +478,8 @@ fn gradient_magnitude_data(image: &Image, spacing: [f64; 3]) -> Vec<f32> {
                     None => 0.0,
                 };
             }
-            let neighbours = [
-                stencil(y, ny, sy).map(|(p, m, f)| (p + ny * z, m + ny * z, f)),
-                stencil(z, nz, sz).map(|(p, m, f)| (y + ny * p, y + ny * m, f)),
-            ];
+            let neighbours =
+                [row_stencil(1, y, z, image.dims, sy), row_stencil(2, y, z, image.dims, sz)];
             for (p, m, f) in neighbours.into_iter().flatten() {
                 let plus = &src[p * nx..(p + 1) * nx];
                 let minus = &src[m * nx..(m + 1) * nx];
