@@ -22,7 +22,9 @@ use input::{Expect, InputError};
 use rayon::prelude::*;
 use std::path::Path;
 
-/// The index of the first element of `data` for which `pred` holds. Parts of 16 Ki
+/// The index of the first element of `data` for which `pred` holds: the search every
+/// check of a whole field or image for a bad value uses (NaN, non-finite, a mask value
+/// other than 0 and 1), so that each reports the first one. Parts of 16 Ki
 /// elements are tested whole (without an early exit, so the test vectorises), in parallel;
 /// only the first part that holds one is searched element by element. `par_iter()
 /// .position_first` tests element by element with the bookkeeping of a parallel search:

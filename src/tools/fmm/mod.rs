@@ -241,9 +241,9 @@ pub fn distance_dense(
     opts: &FmmOptions,
 ) -> Result<DenseField, FmmError> {
     let spec = GridSpec::new(voxel_size, [0.0; 3], opts.half_width.unwrap_or(3.0))?;
-    if let Some((i, v)) = field.data().iter().enumerate().find(|(_, v)| v.is_nan()) {
+    if let Some(i) = crate::io::first_position(field.data(), |v| v.is_nan()) {
         let coord = field.coord_of(i).expect("index in range");
-        return Err(FmmError::NonFinite { coord, value: *v });
+        return Err(FmmError::NonFinite { coord, value: field.data()[i] });
     }
     let src = DenseSource { field };
     let m = march_distance(&src, opts, spec.half_width)?;

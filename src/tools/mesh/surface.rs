@@ -1213,12 +1213,10 @@ pub fn isosurface_dense(
 
 /// [`MeshError::NaN`] at the first NaN of the field.
 pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
-    // A vectorised scan first; the position only when there is one.
-    if field.data().par_chunks(1 << 16).any(|c| c.iter().fold(false, |a, v| a | v.is_nan())) {
-        let i = field.data().iter().position(|v| v.is_nan()).expect("a NaN was seen");
-        return Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") });
+    match crate::io::first_position(field.data(), |v| v.is_nan()) {
+        Some(i) => Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
