@@ -1211,12 +1211,15 @@ fn change_since(
                     diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
                     k += 1;
                 }
-                // Counted apart from the rest, without a branch: this vectorises.
-                band += vals.iter().map(|v| (v.abs() < gamma) as usize).sum::<usize>();
-                // The voxels within h, as bits first (branch-free), then taken bit by bit.
-                let mut near_bits = vals.iter().enumerate().fold(0u64, |bits, (l, &v)| {
-                    bits | (((v.abs() < gamma) & ((v.abs() as f64) < h)) as u64) << l
-                });
+                // The band voxels and those within h as bits (branch-free), then the latter
+                // taken bit by bit.
+                let (in_band, mut near_bits) =
+                    vals.iter().enumerate().fold((0u64, 0u64), |(b, n), (l, &v)| {
+                        let in_band = v.abs() < gamma;
+                        let near = in_band & ((v.abs() as f64) < h);
+                        (b | (in_band as u64) << l, n | (near as u64) << l)
+                    });
+                band += in_band.count_ones() as usize;
                 while near_bits != 0 {
                     let l = near_bits.trailing_zeros() as usize;
                     next.push((tc, l as u8, vals[l]));
