@@ -145,9 +145,9 @@ const MAX_LANES: usize = 16;
 /// Takes into `acc` the largest `x` of the voxels of `v` with |v| < `g`: `x` of the
 /// voxel's values in `xs` (slices as long as `v` at least), finite and ≥ 0. Branch-free,
 /// lane by lane (the voxel at `i` goes to lane `i` mod 16; the caller takes the largest
-/// lane). With a test per voxel, [`Inputs::band_maxima`] took about 11 % of the samples
-/// of `levelset segment` of scikit-image's `coins()` by GAC on one thread, and about 3 %
-/// this way (`perf record`, 2-core AMD EPYC, 2026-11-30). A maximum does not depend on the
+/// lane). With a test per voxel, [`Inputs::band_maxima`] took 11–12 % of the samples of
+/// `levelset segment` of scikit-image's `coins()` by GAC on one thread, and 3–4 % this
+/// way (`perf record`, two runs each, 2-core AMD EPYC, 2026-11-30). A maximum does not depend on the
 /// order it is taken in, so the bits are those of a voxel-by-voxel scan.
 #[inline(always)]
 fn band_max_into<const N: usize>(
