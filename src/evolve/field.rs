@@ -243,7 +243,7 @@ impl SampledField {
         field: crate::storage::dense::DenseField,
         spec: GridSpec,
     ) -> Result<SampledField, crate::grid::GridError> {
-        if let Some(i) = crate::io::first_position(field.data(), |v| !v.is_finite()) {
+        if let Some(i) = crate::storage::dense::first_position(field.data(), |v| !v.is_finite()) {
             return Err(crate::grid::GridError::InvalidParameter(format!(
                 "field value {} at voxel {} is not finite",
                 field.data()[i],

@@ -154,7 +154,7 @@ impl Simulation {
         flow: Flow,
         settings: Settings,
     ) -> Result<Simulation, EvolveError> {
-        if let Some(i) = crate::io::first_position(field.data(), |v| v.is_nan()) {
+        if let Some(i) = crate::storage::dense::first_position(field.data(), |v| v.is_nan()) {
             let coord = field.coord_of(i).unwrap_or_default();
             return Err(EvolveError::Grid(crate::GridError::NaN { coord }));
         }

@@ -217,7 +217,7 @@ pub fn load_vdb(
 pub fn check_field(input: &str, field: &mut DenseField, expect: &Expect) -> Result<(), InputError> {
     check_iso(input, expect)?;
     let data = field.data();
-    if let Some(i) = super::first_position(data, |v| v.is_nan()) {
+    if let Some(i) = crate::storage::dense::first_position(data, |v| v.is_nan()) {
         let coord = field.coord_of(i).expect("index in range");
         return Err(InputError::NaN { input: input.to_string(), coord });
     }

@@ -19,27 +19,7 @@ use crate::storage::hrle::HrleGrid;
 use crate::storage::levelset::{Accessor, LevelSet};
 use crate::storage::tiles::TileGrid;
 use input::{Expect, InputError};
-use rayon::prelude::*;
 use std::path::Path;
-
-/// The index of the first element of `data` for which `pred` holds: the search every
-/// check of a whole field or image for a bad value uses (NaN, non-finite, a mask value
-/// other than 0 and 1), so that each reports the first one. Parts of 16 Ki
-/// elements are tested whole (without an early exit, so the test vectorises), in parallel;
-/// only the first part that holds one is searched element by element. `par_iter()
-/// .position_first` tests element by element with the bookkeeping of a parallel search:
-/// 23.8 ms on one thread for the finite test of a 128³ image, against 0.25 ms this way
-/// (fastest of 10, 2-core AMD EPYC, 2026-11-30).
-pub(crate) fn first_position<T: Sync>(
-    data: &[T],
-    pred: impl Fn(&T) -> bool + Sync,
-) -> Option<usize> {
-    const PART: usize = 1 << 14;
-    let part =
-        data.par_chunks(PART).position_first(|c| c.iter().fold(false, |hit, v| hit | pred(v)))?;
-    let at = part * PART;
-    data[at..].iter().take(PART).position(&pred).map(|i| at + i)
-}
 
 /// The level-set file formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,32 +312,5 @@ impl LevelSet for AnyLevelSet {
             AnyLevelSet::Tiles(g) => LevelSet::storage(g),
             AnyLevelSet::Hrle(g) => LevelSet::storage(g),
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::first_position;
-
-    #[test]
-    fn first_position_finds_the_first_hit_in_any_part() {
-        // Parts of 16 Ki: hits at the ends of parts, inside later parts, several at once.
-        let n = 3 * (1 << 14) + 123;
-        for hits in [
-            vec![],
-            vec![0],
-            vec![n - 1],
-            vec![1 << 14],
-            vec![(1 << 14) - 1, 5_000, 40_000],
-            vec![40_000, 2 * (1 << 14) + 7],
-        ] {
-            let mut v = vec![0.5f32; n];
-            for &h in &hits {
-                v[h] = f32::NAN;
-            }
-            let want = v.iter().position(|x| x.is_nan());
-            assert_eq!(first_position(&v, |x| x.is_nan()), want, "hits {hits:?}");
-        }
-        assert_eq!(first_position(&[] as &[u8], |&b| b > 1), None);
     }
 }

@@ -230,7 +230,7 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
                 f.dims, image.dims
             ));
         }
-        if let Some(i) = crate::io::first_position(&f.data, |v| !v.is_finite()) {
+        if let Some(i) = crate::storage::dense::first_position(&f.data, |v| !v.is_finite()) {
             return invalid(format!("the feature image's value {i} is {}", f.data[i]));
         }
     }

@@ -812,7 +812,7 @@ fn output_format(path: &Path, like: &LoadedImage, what: Output) -> Result<FileFo
 pub fn save_mask(path: &Path, mask: &[u8], like: &LoadedImage) -> Result<(), ImageError> {
     let format = output_format(path, like, Output::Mask)?;
     check_length(path, "mask", mask.len(), like)?;
-    if let Some(i) = super::first_position(mask, |&v| v > 1) {
+    if let Some(i) = crate::storage::dense::first_position(mask, |&v| v > 1) {
         return Err(ImageError::BadMask {
             path: path.to_path_buf(),
             voxel: voxel_of(i, like.image.dims),
@@ -894,7 +894,7 @@ fn voxel_of(i: usize, dims: [usize; 3]) -> [usize; 3] {
 
 /// Refuses the first non-finite value (x-fastest order).
 fn check_finite(path: &Path, dims: [usize; 3], data: &[f32]) -> Result<(), ImageError> {
-    match super::first_position(data, |v| !v.is_finite()) {
+    match crate::storage::dense::first_position(data, |v| !v.is_finite()) {
         None => Ok(()),
         Some(i) => Err(ImageError::NonFinite {
             path: path.to_path_buf(),

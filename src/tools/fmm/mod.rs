@@ -241,7 +241,7 @@ pub fn distance_dense(
     opts: &FmmOptions,
 ) -> Result<DenseField, FmmError> {
     let spec = GridSpec::new(voxel_size, [0.0; 3], opts.half_width.unwrap_or(3.0))?;
-    if let Some(i) = crate::io::first_position(field.data(), |v| v.is_nan()) {
+    if let Some(i) = crate::storage::dense::first_position(field.data(), |v| v.is_nan()) {
         let coord = field.coord_of(i).expect("index in range");
         return Err(FmmError::NonFinite { coord, value: field.data()[i] });
     }

@@ -70,7 +70,7 @@ impl NdField {
                 values.len()
             )));
         }
-        if let Some(i) = crate::io::first_position(&values, |v| !v.is_finite()) {
+        if let Some(i) = crate::storage::dense::first_position(&values, |v| !v.is_finite()) {
             return Err(MeshError::NonFinite { index: i / components });
         }
         Ok(NdField { dims: dims.to_vec(), components, values })

@@ -1213,7 +1213,7 @@ pub fn isosurface_dense(
 
 /// [`MeshError::NaN`] at the first NaN of the field.
 pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
-    match crate::io::first_position(field.data(), |v| v.is_nan()) {
+    match crate::storage::dense::first_position(field.data(), |v| v.is_nan()) {
         Some(i) => Err(MeshError::NaN { coord: field.coord_of(i).expect("index in range") }),
         None => Ok(()),
     }
