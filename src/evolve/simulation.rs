@@ -511,25 +511,34 @@ impl Simulation {
     }
 
     /// The voxels of [`Simulation::for_each_inside_run`] folded over the thread pool
-    /// ([`Settings::pool`]) on tiles, where the stored ones come as runs along each tile
-    /// row: every part of the band folds its runs into its own `identity()` with `visit`,
-    /// and `combine` joins the parts. Neither the parts, nor the runs and their order, nor
-    /// the grouping of `combine` is fixed (they follow the thread count), so the result is
-    /// deterministic when `combine` and `visit` commute exactly: counts and integer sums,
-    /// or [`crate::exact::ExactSum`]. Other representations fold in one part.
-    pub fn fold_inside_runs<T: Send>(
+    /// ([`Settings::pool`]). On tiles, each stored tile comes whole, as the mask of its
+    /// voxels with φ ≤ 0 (bit `l` for voxel `l` of the tile, x fastest; on a planar
+    /// lattice the first z-slice only, the low 16 bits) given to `tile` with the tile's
+    /// first voxel, and the unstored interior as x-runs given to `run`: between the tiles
+    /// of a row, and, within `span` (voxel x), before a row's first tile and after its
+    /// last where the band's border flags say the inside goes on there (where
+    /// [`crate::storage::tiles::TileGrid::value`] reads −γ: a region that meets the image's
+    /// x faces away from the band). Other representations give every voxel as a run, in
+    /// one part (with their own rule for what lies beyond the band). Every part of the band
+    /// folds into its own `identity()`, and `combine` joins the parts. Neither the parts,
+    /// nor the order of the tiles and runs, nor the grouping of `combine` is fixed (they
+    /// follow the thread count), so the result is deterministic when the callbacks and
+    /// `combine` commute exactly: counts and integer sums, or [`crate::exact::ExactSum`].
+    pub fn fold_inside<T: Send>(
         &self,
+        span: std::ops::Range<i32>,
         identity: impl Fn() -> T + Sync + Send,
-        visit: impl Fn(&mut T, Coord, u32) + Sync + Send,
+        tile: impl Fn(&mut T, Coord, u64) + Sync + Send,
+        run: impl Fn(&mut T, Coord, u32) + Sync + Send,
         combine: impl Fn(T, T) -> T + Sync + Send,
     ) -> T {
         match &self.rep {
             Rep::Tiles(t) => super::in_pool(&self.settings.pool, || {
-                t.fold_inside_runs(&identity, &visit, &combine)
+                t.fold_inside(span, &identity, &tile, &run, &combine)
             }),
             _ => {
                 let mut acc = identity();
-                self.for_each_inside_run(|c, len| visit(&mut acc, c, len));
+                self.for_each_inside_run(|c, len| run(&mut acc, c, len));
                 acc
             }
         }

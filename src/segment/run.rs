@@ -428,7 +428,7 @@ fn segment_in_pool(
     let mut leak = None;
     volumes.push(voxels);
     let mut seconds_steps = 0.0;
-    let mut near = change_since(tiles_of(&sim), &[], 1.0, h_min, planar).2;
+    let mut near = change_since(tiles_of(&sim), &Near::default(), 1.0, h_min, planar).2;
     let stop = loop {
         if sim.steps() >= params.max_iterations {
             break Stop::MaxIterations;
@@ -1131,9 +1131,61 @@ fn sum_of_flows(flows: Vec<Flow>) -> Flow {
     flow
 }
 
-/// A band voxel near the interface before a step: its tile's coordinate, its place in
-/// the tile, and φⁿ.
-type Near = (Coord, u8, f32);
+/// The band voxels near the interface before a step, in the parts of the tile list that
+/// [`change_since`] found them in (none empty; in tile order across the parts): per tile
+/// its coordinate, the mask of its near voxels (bit `l` for voxel `l`) and where their
+/// values (φⁿ, in voxel order) start in the part's `values`. Kept in parts, so that no
+/// step copies them into one list.
+#[derive(Default)]
+struct Near {
+    parts: Vec<NearPart>,
+}
+
+#[derive(Default)]
+struct NearPart {
+    tiles: Vec<(Coord, u64, u32)>,
+    values: Vec<f32>,
+}
+
+/// A place in a [`Near`]: (part, tile within it); past the end at `(parts, 0)`.
+type NearAt = (usize, usize);
+
+impl Near {
+    /// Near voxels.
+    fn len(&self) -> usize {
+        self.parts.iter().map(|p| p.values.len()).sum()
+    }
+
+    /// Whether there are none.
+    fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+
+    /// The place of the first tile at or after coordinate `c`.
+    fn position(&self, c: Coord) -> NearAt {
+        let p = self.parts.partition_point(|q| q.tiles.last().is_some_and(|t| t.0 < c));
+        match self.parts.get(p) {
+            Some(q) => (p, q.tiles.partition_point(|t| t.0 < c)),
+            None => (p, 0),
+        }
+    }
+
+    /// The tile at `at` (before the end): its coordinate, mask and values.
+    fn tile(&self, (p, i): NearAt) -> (Coord, u64, &[f32]) {
+        let q = &self.parts[p];
+        let (c, mask, start) = q.tiles[i];
+        (c, mask, &q.values[start as usize..start as usize + mask.count_ones() as usize])
+    }
+
+    /// The place after `at`.
+    fn next(&self, (p, i): NearAt) -> NearAt {
+        if i + 1 < self.parts[p].tiles.len() {
+            (p, i + 1)
+        } else {
+            (p + 1, 0)
+        }
+    }
+}
 
 /// Tiles per part of [`change_since`]: small, for load balance (its sum is exact, so the
 /// split does not change it).
@@ -1144,12 +1196,12 @@ fn tiles_of(sim: &Simulation) -> &TileGrid {
     sim.tiles().expect("a segmentation evolves on tiles")
 }
 
-/// The step's change at the voxels `near` held before it (in list order): the sum over
-/// them of ((φⁿ⁺¹ − φⁿ)/Δt)², where a voxel that left the band reads ±γ; the band voxels
-/// after it; and its own band voxels with |φ| < `h`, in list order (the next step's
-/// `near`). The old and new lists are merged tile by tile in parts of the new list, in
-/// parallel; a part takes the old voxels from its first tile up to the next part's
-/// (before the first part: all from the start), so every old voxel is met once.
+/// The step's change at the voxels `near` held before it: the sum over them of
+/// ((φⁿ⁺¹ − φⁿ)/Δt)², where a voxel that left the band reads ±γ; the band voxels after
+/// it; and its own band voxels with |φ| < `h` (the next step's `near`). The old and new
+/// tiles are merged in parts of the new list, in parallel; a part takes the old tiles
+/// from its first tile up to the next part's (before the first part: all from the
+/// start), so every old voxel is met once.
 ///
 /// On a planar lattice (`planar`) only each tile's first z-slice is read: the image's
 /// voxels, of which the other three slices are copies (the sweep copies them, see
@@ -1161,30 +1213,29 @@ fn tiles_of(sim: &Simulation) -> &TileGrid {
 /// whatever the parts and the thread count, as the engine's reductions are. The fixed
 /// point resolves 2⁻³² ≈ 2·10⁻¹⁰ voxel² a term; at the default stopping RMS (0.01) a term
 /// is about 10⁻⁶ voxel² (Δt of 0.1–0.25 h on the 128³ phantoms).
-fn change_since(
-    grid: &TileGrid,
-    near: &[Near],
-    dt: f64,
-    h: f64,
-    planar: bool,
-) -> (f64, usize, Vec<Near>) {
+fn change_since(grid: &TileGrid, near: &Near, dt: f64, h: f64, planar: bool) -> (f64, usize, Near) {
     let coords = grid.tile_coords();
     let image_voxels = if planar { SLICE_LEN } else { TILE_LEN };
     let values = grid.values();
     let gamma = grid.gamma();
     let parts = coords.len().div_ceil(CHANGE_CHUNK).max(1);
+    let end = (near.parts.len(), 0);
     let start_of = |part: usize| match part {
-        0 => 0,
-        _ if part * CHANGE_CHUNK >= coords.len() => near.len(),
-        _ => near.partition_point(|e| e.0 < coords[part * CHANGE_CHUNK]),
+        0 => (0, 0),
+        _ if part * CHANGE_CHUNK >= coords.len() => end,
+        _ => near.position(coords[part * CHANGE_CHUNK]),
     };
     let inv_h = 1.0 / h;
-    let results: Vec<(ExactSum, usize, Vec<Near>)> = (0..parts)
+    let results: Vec<(ExactSum, usize, NearPart)> = (0..parts)
         .into_par_iter()
         .map(|part| {
             let tiles = part * CHANGE_CHUNK..((part + 1) * CHANGE_CHUNK).min(coords.len());
-            let old = &near[start_of(part)..start_of(part + 1)];
-            let (mut band, mut next, mut k) = (0usize, Vec::with_capacity(old.len()), 0);
+            let (mut k, stop) = (start_of(part), start_of(part + 1));
+            let mut band = 0usize;
+            let mut next = NearPart {
+                tiles: Vec::with_capacity(tiles.len()),
+                values: Vec::with_capacity(tiles.len() * 8),
+            };
             // Terms gathered in blocks for the sum's vectorised addition.
             let mut sq = ExactSum::default();
             let (mut terms, mut held) = ([0.0f32; 64], 0);
@@ -1199,45 +1250,59 @@ fn change_since(
             };
             for p in tiles {
                 let tc = coords[p];
-                while k < old.len() && old[k].0 < tc {
-                    diff(old[k].2, sim_value_left(old[k].2, gamma));
-                    k += 1;
-                }
                 let vals = &values[p].0[..image_voxels];
-                // The old voxels of this tile, in voxel order, read where they are.
-                while k < old.len() && old[k].0 == tc {
-                    let (l, o) = (old[k].1 as usize, old[k].2);
-                    let v = vals[l];
-                    diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
-                    k += 1;
+                // The old tiles before this one left the band: their voxels read ±γ. This
+                // tile's old voxels are read where they are.
+                while k < stop {
+                    let (c, mask, old) = near.tile(k);
+                    if c > tc {
+                        break;
+                    }
+                    let mut bits = mask;
+                    for &o in old {
+                        let v = if c == tc { vals[bits.trailing_zeros() as usize] } else { gamma };
+                        diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
+                        bits &= bits - 1;
+                    }
+                    k = near.next(k);
                 }
-                // The band voxels and those within h as bits (branch-free), then the latter
-                // taken bit by bit.
-                let (in_band, mut near_bits) =
+                // The band voxels and those within h as bits (branch-free).
+                let (in_band, near_bits) =
                     vals.iter().enumerate().fold((0u64, 0u64), |(b, n), (l, &v)| {
                         let in_band = v.abs() < gamma;
                         let near = in_band & ((v.abs() as f64) < h);
                         (b | (in_band as u64) << l, n | (near as u64) << l)
                     });
                 band += in_band.count_ones() as usize;
-                while near_bits != 0 {
-                    let l = near_bits.trailing_zeros() as usize;
-                    next.push((tc, l as u8, vals[l]));
-                    near_bits &= near_bits - 1;
+                if near_bits != 0 {
+                    let start =
+                        u32::try_from(next.values.len()).expect("fewer near voxels than 2^32");
+                    next.tiles.push((tc, near_bits, start));
+                    let mut bits = near_bits;
+                    while bits != 0 {
+                        next.values.push(vals[bits.trailing_zeros() as usize]);
+                        bits &= bits - 1;
+                    }
                 }
             }
-            for &(_, _, o) in &old[k..] {
-                diff(o, sim_value_left(o, gamma));
+            while k < stop {
+                for &o in near.tile(k).2 {
+                    diff(o, sim_value_left(o, gamma));
+                }
+                k = near.next(k);
             }
             sq.add_all(&terms[..held]);
             (sq, band, next)
         })
         .collect();
-    let (mut sq, mut band, mut next) = (ExactSum::default(), 0, Vec::with_capacity(near.len()));
+    let (mut sq, mut band) = (ExactSum::default(), 0);
+    let mut next = Near { parts: Vec::with_capacity(results.len()) };
     for (s, b, n) in results {
         sq = sq.merge(s);
         band += b;
-        next.extend(n);
+        if !n.tiles.is_empty() {
+            next.parts.push(n);
+        }
     }
     (sq.value() * (h / dt) * (h / dt), band, next)
 }
@@ -1321,7 +1386,46 @@ fn inside(sim: &Simulation, dims: [usize; 3], sums: Option<&FixedPoint>) -> (u64
     let combine = |a: (u64, i64, [u64; 6]), b: (u64, i64, [u64; 6])| {
         (a.0 + b.0, a.1 + b.1, std::array::from_fn(|i| a.2[i] + b.2[i]))
     };
-    sim.fold_inside_runs(|| (0, 0, [0; 6]), visit, combine)
+    // Whether the tile whose first voxel has coordinate `c` along an axis of `n` voxels
+    // lies in the image off its faces (an axis of one voxel: the first slice, no faces).
+    let off_faces = |c: i32, n: usize| {
+        if n > 1 {
+            c >= 1 && c as i64 + (TILE_DIM as i64) < n as i64
+        } else {
+            c == 0
+        }
+    };
+    let tile = |acc: &mut (u64, i64, [u64; 6]), c: Coord, mask: u64| {
+        if off_faces(c.x, nx) && off_faces(c.y, ny) && off_faces(c.z, nz) {
+            // No face and no clipping: the count, and the sum voxel by voxel.
+            acc.0 += mask.count_ones() as u64;
+            if let Some(fp) = sums {
+                let first = lookup.index(c).expect("inside the image");
+                let mut bits = mask;
+                while bits != 0 {
+                    let l = bits.trailing_zeros() as usize;
+                    let d = TILE_DIM as usize;
+                    let (x, y, z) = (l % d, l / d % d, l / SLICE_LEN);
+                    acc.1 += fp.q[first + x + nx * (y + ny * z)] as i64;
+                    bits &= bits - 1;
+                }
+            }
+            return;
+        }
+        // Otherwise the runs along each row of four voxels, clipped to the image.
+        for row in 0..TILE_DIM * TILE_DIM {
+            let mut nibble = (mask >> (TILE_DIM * row)) & 0xF;
+            while nibble != 0 {
+                let x0 = nibble.trailing_zeros();
+                let len = (nibble >> x0).trailing_ones();
+                let at = Coord::new(c.x + x0 as i32, c.y + row % TILE_DIM, c.z + row / TILE_DIM);
+                visit(acc, at, len);
+                nibble &= !(((1u64 << len) - 1) << x0);
+            }
+        }
+    };
+    let span = 0..i32::try_from(nx).expect("an image row in the i32 range");
+    sim.fold_inside(span, || (0, 0, [0; 6]), tile, visit, combine)
 }
 
 /// Adds to `faces` (x = 0, x = max, y = 0, y = max, z = 0, z = max) the voxels of the run
@@ -1736,3 +1840,146 @@ const NEIGHBOUR: f64 = 0.75;
 /// The threshold method's default smoothing puts the noise left in Ĩ this many times
 /// below the distance from the seeds' intensity to the nearer threshold.
 const THRESHOLD_MARGIN: f64 = 5.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A level set on the lattice of an image of `dims` (planar when `dims[2]` is 1, as
+    /// a segmentation extrudes it over one tile layer): distance-like values of a few
+    /// balls, with pseudo-random bumps, the band of the segmentation's half-width.
+    fn level_set(dims: [usize; 3], shift: f64) -> (Image, TileGrid) {
+        let planar = dims[2] == 1;
+        let image = Image {
+            dims,
+            spacing: [1.0; 3],
+            data: (0..dims.iter().product::<usize>())
+                .map(|i| ((i * 7919) % 1000) as f32 * 0.37 - 40.0)
+                .collect(),
+            to_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+        };
+        let layers = if planar { TILE_DIM as usize } else { dims[2] };
+        let balls = [([0.3, 0.4, 0.5], 0.3), ([0.75, 0.7, 0.4], 0.2), ([0.0, 1.0, 0.9], 0.35)];
+        let mut phi = Vec::with_capacity(dims[0] * dims[1] * layers);
+        for z in 0..layers {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let p = [x, y, if planar { 0 } else { z }];
+                    let d = balls
+                        .iter()
+                        .map(|(c, r)| {
+                            let q: f64 =
+                                (0..3).map(|a| (p[a] as f64 - c[a] * dims[a] as f64).powi(2)).sum();
+                            q.sqrt() - r * dims[0] as f64 + shift
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                    let bump = 0.3 * ((x * 13 + y * 7 + z * 3) % 5) as f64 / 5.0;
+                    phi.push((d + bump) as f32);
+                }
+            }
+        }
+        let field = DenseField::from_vec(Coord::new(0, 0, 0), [dims[0], dims[1], layers], phi)
+            .expect("a field");
+        let spec = GridSpec::new(1.0, [0.0; 3], HALF_WIDTH).expect("a spec");
+        (image, tiles_from_dense(&field, spec).expect("tiles"))
+    }
+
+    /// The count, integer sum and face counts of `inside` (whole tiles as masks, clipped
+    /// tiles and tiles on a face as runs, the interior between tiles as runs) equal those
+    /// of the mask read back from the tiles, on images whose sizes are not multiples of
+    /// the tile's and whose objects cross every face, in 3-D and on a planar lattice, on
+    /// one thread and on three.
+    #[test]
+    fn inside_counts_what_the_mask_holds() {
+        for dims in [[37, 29, 18], [45, 33, 1], [8, 8, 8]] {
+            let (image, tiles) = level_set(dims, 0.0);
+            let lattice = lattice_of(&image);
+            let settings = Settings {
+                lattice: Some(lattice),
+                renormalization: Renormalization::Coupled { weight: 1.0 },
+                ..Settings::default()
+            };
+            let sim = Simulation::from_tile_grid(
+                GridKind::Tiles(Lanes::Simd),
+                tiles,
+                Flow::rest(),
+                settings,
+            )
+            .expect("a simulation");
+            let mask = mask_of(&sim, dims).expect("the mask");
+            let (count, faces) = mask_faces(&mask, dims);
+            let fp = FixedPoint::new(&image.data);
+            let sum: i64 = mask.iter().zip(&fp.q).map(|(&m, &q)| m as i64 * q as i64).sum();
+            assert!(count > 0 && (count as usize) < mask.len(), "{dims:?}: {count}");
+            assert!(faces.iter().filter(|&&f| f > 0).count() >= 3, "{dims:?}: {faces:?}");
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let with_sums = pool.install(|| inside(&sim, dims, Some(&fp)));
+                assert_eq!(with_sums, (count, sum, faces), "{dims:?}, {threads} threads");
+                let without = pool.install(|| inside(&sim, dims, None));
+                assert_eq!(without, (count, 0, faces), "{dims:?}, {threads} threads");
+            }
+        }
+    }
+
+    /// `change_since` against a voxel-by-voxel reference: the near voxels of the grid
+    /// before (|φ| < h, the first slice on a planar lattice), each against its value after
+    /// (±γ on its side when it left the band), and the band after; with tiles added and
+    /// removed between the two, in parts on one thread and three; and the near set it
+    /// returns is the next step's.
+    #[test]
+    fn change_since_equals_a_voxel_by_voxel_reference() {
+        for dims in [[37, 29, 18], [45, 33, 1]] {
+            let planar = dims[2] == 1;
+            let read = if planar { SLICE_LEN } else { TILE_LEN };
+            let (_, before) = level_set(dims, 0.0);
+            let (_, after) = level_set(dims, -2.6);
+            let gamma = after.gamma();
+            let (h, dt) = (1.0, 0.25);
+            let voxels = |g: &TileGrid| -> Vec<(Coord, usize, f32)> {
+                let mut out = Vec::new();
+                for (p, &c) in g.tile_coords().iter().enumerate() {
+                    for (l, &v) in g.values()[p].0[..read].iter().enumerate() {
+                        out.push((c, l, v));
+                    }
+                }
+                out
+            };
+            let after_at: std::collections::HashMap<(Coord, usize), f32> =
+                voxels(&after).into_iter().map(|(c, l, v)| ((c, l), v)).collect();
+            let near: Vec<(Coord, usize, f32)> = voxels(&before)
+                .into_iter()
+                .filter(|&(_, _, v)| v.abs() < gamma && (v.abs() as f64) < h)
+                .collect();
+            let sq: f64 = near
+                .iter()
+                .map(|&(c, l, o)| {
+                    let v = after_at.get(&(c, l)).copied().unwrap_or(gamma);
+                    let new = if v.abs() < gamma { v } else { sim_value_left(o, gamma) };
+                    let d = (new - o) as f64 / h;
+                    ((d * d) as f32) as f64
+                })
+                .sum::<f64>()
+                * (h / dt)
+                * (h / dt);
+            let band = voxels(&after).iter().filter(|v| v.2.abs() < gamma).count();
+            let removed = before.tile_coords().iter().filter(|c| !after_at.contains_key(&(**c, 0)));
+            assert!(removed.count() > 0, "{dims:?}: tiles leave the band");
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let first = pool.install(|| change_since(&before, &Near::default(), dt, h, planar));
+                assert_eq!(first.0, 0.0);
+                assert_eq!(first.2.len(), near.len(), "{dims:?}");
+                let (got, got_band, next) =
+                    pool.install(|| change_since(&after, &first.2, dt, h, planar));
+                assert!((got - sq).abs() <= 1e-9 * sq, "{dims:?}: {got} against {sq}");
+                assert_eq!(got_band, band, "{dims:?}");
+                let near_after = voxels(&after)
+                    .iter()
+                    .filter(|v| v.2.abs() < gamma && (v.2.abs() as f64) < h)
+                    .count();
+                assert_eq!(next.len(), near_after, "{dims:?}");
+            }
+        }
+    }
+}

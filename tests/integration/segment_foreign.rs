@@ -439,3 +439,46 @@ fn the_fast_start_gives_the_seeds_region_in_fewer_steps() {
         }
     }
 }
+
+/// An initial region that meets the image's faces (a mask from another tool, cut at the
+/// image's edge): the region's volume and mean, which the stopping test and Chan–Vese's
+/// force read every step, count the inside away from the band up to the faces, so the
+/// result is the one from a region inside the image. In 2-D (two discs, the mask a
+/// rectangle from x = 0 or the whole rows 30–89) and 3-D (a ball, the mask a slab from
+/// the x = 0 face), on one thread and two: Dice at least 0.98.
+#[test]
+fn an_initial_region_that_meets_the_faces_segments_the_object() {
+    let discs = |p: [f64; 3]| {
+        (p[0] - 40.0).powi(2) + (p[1] - 60.0).powi(2) < 35.0f64.powi(2)
+            || (p[0] - 120.0).powi(2) + (p[1] - 60.0).powi(2) < 25.0f64.powi(2)
+    };
+    let (flat, flat_truth) = image([160, 120, 1], [1.0; 3], 0.3, 11, discs);
+    let (vol, vol_truth) = image([48, 40, 36], [1.0; 3], 0.3, 12, ball([20.0, 20.0, 18.0], 12.0));
+    let box_mask = |im: &Image, lo: [usize; 3], hi: [usize; 3]| -> Vec<u8> {
+        let [nx, ny, _] = im.dims;
+        (0..im.len())
+            .map(|i| {
+                let p = [i % nx, (i / nx) % ny, i / (nx * ny)];
+                (0..3).all(|a| (lo[a]..hi[a]).contains(&p[a])) as u8
+            })
+            .collect()
+    };
+    let cases = [
+        ("2-D, from x = 0", &flat, &flat_truth, box_mask(&flat, [0, 30, 0], [60, 90, 1])),
+        ("2-D, whole rows", &flat, &flat_truth, box_mask(&flat, [0, 30, 0], [160, 90, 1])),
+        ("3-D, from x = 0", &vol, &vol_truth, box_mask(&vol, [0, 10, 8], [30, 30, 28])),
+    ];
+    for (name, im, truth, mask) in cases {
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let params = Params {
+                leak_guard: false,
+                pool: Some(Arc::new(pool)),
+                ..Params::new(Method::chan_vese())
+            };
+            let s = run(im, &Init::Mask(mask.clone()), &params);
+            let d = dice(&s.mask, truth).unwrap();
+            assert!(d >= 0.98, "{name}, {threads} threads: Dice {d} ({:?})", s.report.stop);
+        }
+    }
+}

@@ -334,42 +334,63 @@ impl TilesRep {
         }
     }
 
-    /// The inside runs of `for_each_inside_run` (the stored voxels with φ ≤ 0 as runs
-    /// along each tile row, then the unstored interior between tiles), this rank's tiles
-    /// split over the current thread pool: each part folds its runs into its own
-    /// `identity()` with `visit`, and `combine` joins the parts in an order and grouping
-    /// that depend on the thread count. On a planar lattice, the runs of each tile's first
-    /// z-slice only: the other slices are its copies.
-    pub(crate) fn fold_inside_runs<T: Send>(
+    /// The inside of `for_each_inside_run`, this rank's tiles split over the current thread
+    /// pool: each stored tile as the mask of its voxels with φ ≤ 0 (bit `l` for voxel `l`,
+    /// x fastest) given to `tile` with the tile's first voxel, and the unstored interior
+    /// as x-runs given to `run`: between the tiles of a row, and within `span` (voxel x)
+    /// before a row's first tile and after its last where the tile's border flag says
+    /// the grid is inside there (as [`TileGrid::value`] reads it). Each part folds into
+    /// its own `identity()`, and `combine` joins the parts in an order and grouping that
+    /// depend on the thread count. On a planar lattice, each tile's first z-slice only
+    /// (the low 16 bits; the other slices are its copies).
+    pub(crate) fn fold_inside<T: Send>(
         &self,
+        span: std::ops::Range<i32>,
         identity: &(impl Fn() -> T + Sync),
-        visit: &(impl Fn(&mut T, Coord, u32) + Sync),
+        tile: &(impl Fn(&mut T, Coord, u64) + Sync),
+        run: &(impl Fn(&mut T, Coord, u32) + Sync),
         combine: &(impl Fn(T, T) -> T + Sync),
     ) -> T {
+        const PLUS_X: usize = crate::coord::direction_index(1, 0, 0);
+        const MINUS_X: usize = crate::coord::direction_index(-1, 0, 0);
         let coords = self.grid.tile_coords();
         let values = self.grid.values();
         let read = self.read_slices(self.planar).map_or(TILE_LEN, |(_, read)| read);
+        let same_row = |a: Coord, b: Coord| a.z == b.z && a.y == b.y;
+        // The run from x0 to x1 (within `span`) along each row of voxels read.
+        let open_end = |acc: &mut T, first: Coord, x0: i64, x1: i64| {
+            let (x0, x1) = (x0.max(span.start as i64), x1.min(span.end as i64));
+            if x0 < x1 {
+                for row in 0..(read / 4) as i32 {
+                    let at = Coord::new(x0 as i32, first.y + (row & 3), first.z + (row >> 2));
+                    run(acc, at, (x1 - x0) as u32);
+                }
+            }
+        };
         self.owned()
             .into_par_iter()
             .with_min_len(TILE_CHUNK)
             .fold(identity, |mut acc, p| {
-                // The runs of φ ≤ 0 along each of the tile's rows of 4 voxels that are read.
-                for (row, vals) in values[p].0[..read].chunks_exact(4).enumerate() {
-                    let mut x = 0;
-                    while x < 4 {
-                        let x0 = x;
-                        while x < 4 && vals[x] <= 0.0 {
-                            x += 1;
-                        }
-                        if x > x0 {
-                            visit(&mut acc, voxel_of(coords[p], 4 * row + x0), (x - x0) as u32);
-                        }
-                        x += 1;
-                    }
+                // Branch-free: one bit per voxel read.
+                let mask = values[p].0[..read]
+                    .iter()
+                    .enumerate()
+                    .fold(0u64, |m, (l, &v)| m | ((v <= 0.0) as u64) << l);
+                if mask != 0 {
+                    tile(&mut acc, voxel_of(coords[p], 0), mask);
                 }
                 if p > 0 {
-                    let f = &mut |c, len| visit(&mut acc, c, len);
+                    let f = &mut |c, len| run(&mut acc, c, len);
                     self.unstored_inside_runs_before(p, read / 4, f);
+                }
+                let (c, flags) = (coords[p], self.grid.border_flags(p));
+                let first = voxel_of(c, 0);
+                if (p == 0 || !same_row(coords[p - 1], c)) && flags & (1 << MINUS_X) != 0 {
+                    open_end(&mut acc, first, i64::MIN, first.x as i64);
+                }
+                if coords.get(p + 1).is_none_or(|&n| !same_row(c, n)) && flags & (1 << PLUS_X) != 0
+                {
+                    open_end(&mut acc, first, first.x as i64 + 4, i64::MAX);
                 }
                 acc
             })
