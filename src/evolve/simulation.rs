@@ -498,7 +498,10 @@ impl Simulation {
     /// Visits every voxel with φ ≤ 0 — the stored ones one at a time, the interior the
     /// representation does not store as x-runs — as `(first voxel, run length)`, in no
     /// particular order: region integrals over the inside (a segmentation's region means)
-    /// in O(stored voxels + interior runs).
+    /// in O(stored voxels + interior runs). The unstored interior is the runs between the
+    /// stored voxels of a row: an inside that goes on beyond a row's first or last stored
+    /// voxel (without end) is not visited; [`Simulation::fold_inside`] counts it within a
+    /// given x range.
     pub fn for_each_inside_run(&self, mut f: impl FnMut(Coord, u32)) {
         let rep = self.rep.get();
         rep.any_voxel(&mut |c, v| {
