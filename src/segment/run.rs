@@ -204,6 +204,17 @@ fn validate(image: &Image, init: &Init, params: &Params) -> Result<(), SegmentEr
     if image.spacing.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return invalid(format!("image spacing must be finite and > 0, got {:?}", image.spacing));
     }
+    // One voxel along x or y: a sheet or a line, not a volume the front can enclose (its
+    // band would collapse at once: the run would end "vanished" with an empty mask). A 2-D
+    // image has its one voxel along z.
+    if image.dims[0] == 1 || image.dims[1] == 1 {
+        return invalid(format!(
+            "the image has one voxel along x or y (dimensions x, y, z = {:?}): a segmentation \
+             needs at least two along x and y, and a 2-D image has its one voxel along z \
+             (transpose or squeeze the array)",
+            image.dims
+        ));
+    }
     let finite_pos = |name: &str, v: Option<f64>| match v {
         Some(v) if !(v.is_finite() && v >= 0.0) => {
             Err(SegmentError::InvalidParameter(format!("{name} must be finite and >= 0, got {v}")))

@@ -122,6 +122,19 @@ fn bad_input_is_refused_before_any_work() {
         Init::Seeds { seeds: vec![Seed { center: [1e4, 0.0, 0.0], radius: 2.0 }], world: false };
     let e = err(far, Params::new(Method::Gac));
     assert!(e.contains("empty"), "{e}");
+    // One voxel along x or y (a 2-D image the wrong way round, a line): refused, where the
+    // band would collapse and end with an empty mask.
+    for dims in [[1, 30, 20], [30, 1, 20], [40, 1, 1]] {
+        let n = dims.iter().product::<usize>();
+        let image = Image { dims, spacing: [1.0; 3], data: vec![0.0; n], to_world: IDENTITY };
+        let seed =
+            Init::Seeds { seeds: vec![Seed { center: [0.0; 3], radius: 1.0 }], world: false };
+        let e = segment(&image, &seed, &Params::new(Method::chan_vese()), &mut |_| true)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("one voxel along x or y"), "{dims:?}: {e}");
+    }
 }
 
 /// An initial mask works like seeds.
