@@ -147,8 +147,9 @@ const MAX_LANES: usize = 16;
 /// lane by lane (the voxel at `i` goes to lane `i` mod 16; the caller takes the largest
 /// lane). With a test per voxel, [`Inputs::band_maxima`] took 11–12 % of the samples of
 /// `levelset segment` of scikit-image's `coins()` by GAC on one thread, and 3–4 % this
-/// way (`perf record`, two runs each, 2-core AMD EPYC, 2026-11-30). A maximum does not depend on the
-/// order it is taken in, so the bits are those of a voxel-by-voxel scan.
+/// way (`perf record`, three runs of each build, 2-core AMD EPYC, 2026-11-30; decision
+/// 0046). A maximum does not depend on the order it is taken in, so the bits are those of
+/// a voxel-by-voxel scan.
 #[inline(always)]
 fn band_max_into<const N: usize>(
     acc: &mut [f32; MAX_LANES],

@@ -1259,22 +1259,23 @@ fn change_since(grid: &TileGrid, near: &Near, dt: f64, h: f64, planar: bool) -> 
                     held = 0;
                 }
             };
+            // Old tile `k` against the new values of its tile, or none when it left the
+            // band (its voxels then read ±γ).
+            let mut old_tile = |k: NearAt, now: Option<&[f32]>| {
+                let (_, mask, old) = near.tile(k);
+                let mut bits = mask;
+                for &o in old {
+                    let v = now.map_or(gamma, |vals| vals[bits.trailing_zeros() as usize]);
+                    diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
+                    bits &= bits - 1;
+                }
+            };
             for p in tiles {
                 let tc = coords[p];
                 let vals = &values[p].0[..image_voxels];
-                // The old tiles before this one left the band: their voxels read ±γ. This
-                // tile's old voxels are read where they are.
-                while k < stop {
-                    let (c, mask, old) = near.tile(k);
-                    if c > tc {
-                        break;
-                    }
-                    let mut bits = mask;
-                    for &o in old {
-                        let v = if c == tc { vals[bits.trailing_zeros() as usize] } else { gamma };
-                        diff(o, if v.abs() < gamma { v } else { sim_value_left(o, gamma) });
-                        bits &= bits - 1;
-                    }
+                // The old tiles up to this one: those before it left the band.
+                while k < stop && near.tile(k).0 <= tc {
+                    old_tile(k, (near.tile(k).0 == tc).then_some(vals));
                     k = near.next(k);
                 }
                 // The band voxels and those within h as bits (branch-free).
@@ -1297,9 +1298,7 @@ fn change_since(grid: &TileGrid, near: &Near, dt: f64, h: f64, planar: bool) -> 
                 }
             }
             while k < stop {
-                for &o in near.tile(k).2 {
-                    diff(o, sim_value_left(o, gamma));
-                }
+                old_tile(k, None);
                 k = near.next(k);
             }
             sq.add_all(&terms[..held]);

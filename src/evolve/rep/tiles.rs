@@ -26,6 +26,21 @@ use std::ops::Range;
 /// own and reductions are exact (see [`ExactSum`]).
 const TILE_CHUNK: usize = 64;
 
+/// Runs of `len` voxels from voxel x `x` along the first `rows` rows of voxels (of the
+/// sixteen, in z-slice order) of the tile row whose tiles' first voxel is at `first`'s y
+/// and z.
+fn row_runs(
+    first: Coord,
+    x: i32,
+    len: u32,
+    rows: usize,
+    f: &mut (impl FnMut(Coord, u32) + ?Sized),
+) {
+    for row in 0..rows as i32 {
+        f(Coord::new(x, first.y + (row & 3), first.z + (row >> 2)), len);
+    }
+}
+
 /// Bytes per tile of the grid's own arrays (values, coordinate, border and activity; the
 /// row directory is small against them).
 pub(crate) const TILE_GRID_BYTES: u64 =
@@ -327,10 +342,7 @@ impl TilesRep {
             && self.grid.border_flags(p - 1) & (1 << PLUS_X) != 0
         {
             let first = voxel_of(Coord::new(a.x + 1, a.y, a.z), 0);
-            let len = 4 * (b.x - a.x - 1) as u32;
-            for row in 0..rows as i32 {
-                f(Coord::new(first.x, first.y + (row & 3), first.z + (row >> 2)), len);
-            }
+            row_runs(first, first.x, 4 * (b.x - a.x - 1) as u32, rows, f);
         }
     }
 
@@ -361,10 +373,9 @@ impl TilesRep {
         let open_end = |acc: &mut T, first: Coord, x0: i64, x1: i64| {
             let (x0, x1) = (x0.max(span.start as i64), x1.min(span.end as i64));
             if x0 < x1 {
-                for row in 0..(read / 4) as i32 {
-                    let at = Coord::new(x0 as i32, first.y + (row & 3), first.z + (row >> 2));
-                    run(acc, at, (x1 - x0) as u32);
-                }
+                row_runs(first, x0 as i32, (x1 - x0) as u32, read / 4, &mut |c, len| {
+                    run(acc, c, len)
+                });
             }
         };
         self.owned()
