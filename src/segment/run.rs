@@ -1713,19 +1713,21 @@ fn closed_at_faces(
             })
         })
     };
-    let meets =
-        (0..3).any(|a| active[a] && (inside_on(a, 0) || inside_on(a, dims[a] - 1)));
+    let meets = (0..3).any(|a| active[a] && (inside_on(a, 0) || inside_on(a, dims[a] - 1)));
     if !meets {
         return Ok(None);
     }
     // The band's reach along each axis, in voxels, and a voxel more.
-    let pad: [usize; 3] = std::array::from_fn(|a| {
-        if active[a] {
-            (gamma as f64 / s[a]).ceil() as usize + 1
-        } else {
-            0
-        }
-    });
+    let pad: [usize; 3] =
+        std::array::from_fn(
+            |a| {
+                if active[a] {
+                    (gamma as f64 / s[a]).ceil() as usize + 1
+                } else {
+                    0
+                }
+            },
+        );
     let out_dims: [usize; 3] = std::array::from_fn(|a| dims[a] + 2 * pad[a]);
     let slice = out_dims[0] * out_dims[1];
     let count = out_dims.iter().map(|&n| n as u128).product::<u128>();
@@ -2001,8 +2003,7 @@ mod tests {
                         }
                     }
                 }
-                DenseField::from_vec(Coord::new(0, 0, 0), [dims[0], dims[1], layers], phi)
-                    .unwrap()
+                DenseField::from_vec(Coord::new(0, 0, 0), [dims[0], dims[1], layers], phi).unwrap()
             };
             let away = field(8.0);
             assert!(closed_at_faces(&away, &image, gamma).unwrap().is_none(), "{dims:?}");

@@ -456,9 +456,8 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
     let first = ball([40.0, 60.0, 0.0], 35.0);
     let second = ball([120.0, 60.0, 0.0], 25.0);
     let (flat, both) = image([160, 120, 1], [1.0; 3], 0.3, 11, |p| first(p) || second(p));
-    let disc: Vec<u8> = (0..flat.len())
-        .map(|i| first([(i % 160) as f64, (i / 160) as f64, 0.0]) as u8)
-        .collect();
+    let disc: Vec<u8> =
+        (0..flat.len()).map(|i| first([(i % 160) as f64, (i / 160) as f64, 0.0]) as u8).collect();
     let (vol, vol_truth) = image([48, 40, 36], [1.0; 3], 0.3, 12, ball([20.0, 20.0, 18.0], 12.0));
     let box_mask = |im: &Image, lo: [usize; 3], hi: [usize; 3]| -> Vec<u8> {
         let [nx, ny, _] = im.dims;
