@@ -445,7 +445,7 @@ fn the_fast_start_gives_the_seeds_region_in_fewer_steps() {
 /// run ends where the same start a voxel inside the image ends, and the region's volume and
 /// mean, which the stopping test and Chan–Vese's force read every step, count the inside
 /// up to the faces. In 2-D (two discs; the mask a rectangle from x = 0 around the first,
-/// or the whole rows 30–89 across both) and 3-D (a ball, the mask a slab from the x = 0
+/// the whole rows 30–89 across both, or the whole image) and 3-D (a ball, the mask a slab from the x = 0
 /// face), on one thread and two: Dice at least 0.98 against the objects the start holds,
 /// and at least 0.99 against the result of the start without its voxels on the faces.
 /// Without the closing, the region went on beyond the face and held the rows it crossed
@@ -485,6 +485,13 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
             box_mask(&flat, [1, 30, 0], [159, 90, 1]),
         ),
         (
+            "2-D, the whole image",
+            &flat,
+            &both,
+            box_mask(&flat, [0, 0, 0], [160, 120, 1]),
+            box_mask(&flat, [1, 1, 0], [159, 119, 1]),
+        ),
+        (
             "3-D, from x = 0",
             &vol,
             &vol_truth,
@@ -508,4 +515,14 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
             assert!(d >= 0.99, "{name}, {threads} threads: Dice {d} against the start a voxel in");
         }
     }
+    // GAC shrinking from the whole image (scikit-image's `init_level_set=np.ones(...)`),
+    // which was refused (every tile was interior), ends where it ends from a voxel in.
+    let params = Params { propagation: Some(-1.0), ..Params::new(Method::Gac) };
+    let s = run(&flat, &Init::Mask(vec![1u8; flat.len()]), &params);
+    let t = run(&flat, &Init::Mask(box_mask(&flat, [1, 1, 0], [159, 119, 1])), &params);
+    let d = dice(&s.mask, &t.mask).unwrap();
+    assert!(
+        d >= 0.99 && s.report.voxels > 0,
+        "GAC from the whole image: Dice {d} against a voxel in"
+    );
 }
