@@ -282,10 +282,10 @@ def test_an_initial_level_set_is_read_by_its_zero_level(method):
 
 def test_scikit_image_starts_on_the_faces_end_as_one_voxel_in():
     # scikit-image's snakes start from masks that meet the array's edge (np.ones, a
-    # checkerboard, a rectangle from column 0): nothing beyond the array is inside at the
-    # start, so each ends where the same start without its edge voxels ends. np.ones was
-    # refused ("no interface"); the rectangle from column 0 took a second disc that the
-    # start a voxel in does not reach.
+    # rectangle from the edge): nothing beyond the array is inside at the start, so each
+    # ends where the same start without its edge voxels ends. np.ones was refused ("no
+    # interface"); the rectangle from the edge took a second disc that the start a voxel
+    # in does not reach.
     y, x = np.mgrid[:120, :160]
     first = (x - 40) ** 2 + (y - 60) ** 2 < 35**2
     both = first | ((x - 120) ** 2 + (y - 60) ** 2 < 25**2)

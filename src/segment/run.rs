@@ -1683,8 +1683,8 @@ fn initial_field(
 /// slice) closed at the image's faces, when its region holds a voxel on one of them; `None`
 /// when it holds none (the field as it is).
 ///
-/// Beyond the image nothing is inside at the start: on a box grown beyond every face by the
-/// band's reach (along z only for a 3-D image), each voxel takes `max(φ, d)`, where `φ` is
+/// Beyond the image nothing is inside at the start: on a box grown beyond the faces by the
+/// band's reach (along x and y, and along z for a 3-D image), each voxel takes `max(φ, d)`, where `φ` is
 /// the value of the image's nearest voxel and `d` the signed distance to the image's box,
 /// whose faces lie half a voxel beyond its first and last voxels (negative inside): the
 /// level set of the intersection of the region with the box. Without it the tiles kept the
@@ -1718,16 +1718,8 @@ fn closed_at_faces(
         return Ok(None);
     }
     // The band's reach along each axis, in voxels, and a voxel more.
-    let pad: [usize; 3] =
-        std::array::from_fn(
-            |a| {
-                if active[a] {
-                    (gamma as f64 / s[a]).ceil() as usize + 1
-                } else {
-                    0
-                }
-            },
-        );
+    let reach = |a: usize| (gamma as f64 / s[a]).ceil() as usize + 1;
+    let pad: [usize; 3] = std::array::from_fn(|a| if active[a] { reach(a) } else { 0 });
     let out_dims: [usize; 3] = std::array::from_fn(|a| dims[a] + 2 * pad[a]);
     let slice = out_dims[0] * out_dims[1];
     let count = out_dims.iter().map(|&n| n as u128).product::<u128>();
