@@ -995,8 +995,10 @@ def segment(
     turns inward beyond the intensity midway across it (``report["params"]["edge_level"]``),
     so that a weak stretch of edge does not let the front run on, and Chan–Vese's outside
     mean is no farther from the inside's than the intensity beyond it (the neighbouring
-    tissue, not the whole outside); ``first_edge=False`` gives SimpleITK's plain balloon
-    and the textbook Chan–Vese.
+    tissue, not the whole outside). GAC shrinking a start (``propagation_scaling < 0``)
+    likewise turns outward beyond the first edge that rays from the start's boundary cross
+    inward, so that it does not eat an object the start cuts. ``first_edge=False`` gives
+    SimpleITK's plain balloon and the textbook Chan–Vese.
 
     From seeds, the level set starts from the part of the image the front is sure to
     cover (a flood fill through the voxels where the method's speed is clearly outward,

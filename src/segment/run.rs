@@ -867,7 +867,19 @@ fn prepare(
     } else {
         None
     };
-    let gate = edges.as_ref().filter(|_| use_first_edge).and_then(|(_, p, m)| first_edge(p, *m));
+    let gate = if use_first_edge {
+        edges.as_ref().and_then(|(_, p, m)| first_edge(p, *m))
+    } else if params.first_edge
+        && only_gac
+        && feature.is_none()
+        && params.propagation.unwrap_or(1.0) < 0.0
+        && !matches!(init, Init::Seeds { .. })
+    {
+        let factor = resolved_factor(&resolved, image, axes);
+        shrinking_gate(image, field, &smoothed, noise * factor)?
+    } else {
+        None
+    };
     resolved.edge_level = gate.map(|g| g.level as f64 * norm.scale + norm.center);
     let g = if has_gac {
         Some(match (feature, params.edge_scale, params.sigmoid) {
@@ -981,6 +993,61 @@ fn probe_of(
         stats::probe_edges(smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
     Ok((grad, probe, m))
 }
+
+/// The first edge inward from a shrinking start (GAC with β < 0 from a mask or a level set):
+/// rays from up to [`SHRINK_ORIGINS`] of the start's boundary voxels (inside, with a
+/// 6-neighbour outside the region or the image), m the median of Ĩ over all of them (the
+/// background the front starts in). Beyond the edge's level the balloon turns outward
+/// ([`first_edge`]; the same rule as a growing front's, seen from the other side), so that a
+/// front that starts inside an object the start cuts holds there instead of eating the
+/// object from within.
+fn shrinking_gate(
+    image: &Image,
+    field: &DenseField,
+    smoothed: &Image,
+    noise_left: f64,
+) -> Result<Option<Gate>, GridError> {
+    let [nx, ny, nz] = image.dims;
+    let phi = &field.data()[..image.len()];
+    let boundary: Vec<usize> = (0..image.len())
+        .into_par_iter()
+        .filter(|&k| {
+            if phi[k] > 0.0 {
+                return false;
+            }
+            let (x, y, z) = (k % nx, (k / nx) % ny, k / (nx * ny));
+            let out = |d: usize, n: usize, stride: usize| {
+                n > 1 && (d == 0 || d == n - 1 || phi[k - stride] > 0.0 || phi[k + stride] > 0.0)
+            };
+            out(x, nx, 1) || out(y, ny, nx) || out(z, nz, nx * ny)
+        })
+        .collect();
+    if boundary.is_empty() {
+        return Ok(None);
+    }
+    let values: Vec<f64> = boundary.iter().map(|&k| smoothed.data[k] as f64).collect();
+    let Some(m) = stats::quantile(&values, 0.5) else {
+        return Ok(None);
+    };
+    let every = boundary.len().div_ceil(SHRINK_ORIGINS);
+    let origins: Vec<[f64; 3]> = boundary
+        .iter()
+        .step_by(every)
+        .map(|&k| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
+        .collect();
+    let grad = voxel_gradient(smoothed)?;
+    let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
+    let mut probe =
+        stats::probe_edges(smoothed, &grad, &origins, m, edge_departure(noise_left), reach);
+    // About half of a boundary voxel's directions point out of the start, and those leave
+    // it (at a face, the image) at once: the share of rays that crossed an edge is counted
+    // over the other half.
+    probe.rays = probe.rays.div_ceil(2);
+    Ok(first_edge(&probe, m))
+}
+
+/// At most this many boundary voxels start the rays of [`shrinking_gate`].
+const SHRINK_ORIGINS: usize = 256;
 
 /// Where rays start, in voxel coordinates: the seeds' centres, or the deepest voxel of an
 /// initial mask or level set.
@@ -1567,9 +1634,20 @@ fn shrinking_start(
         (Method::Gac, Some(g)) => &g.data,
         _ => return None,
     };
-    // Outside the region counts as swept already: the fill starts there.
-    let confident: Vec<u8> =
-        g.par_iter().zip(region).map(|(&v, &r)| (r == 0 || v >= 0.5) as u8).collect();
+    // Outside the region counts as swept already: the fill starts there. With a first edge
+    // inward, only voxels on the start's side of its level are swept (where the balloon
+    // pushes inward in full), not an object's that the start cuts.
+    let smoothed = &inputs.smoothed.data;
+    let background = |i: f32| match inputs.gate {
+        Some(Gate { level, side, .. }) => side * (i - level) >= 0.0,
+        None => true,
+    };
+    let confident: Vec<u8> = g
+        .par_iter()
+        .zip(region)
+        .zip(smoothed.par_iter())
+        .map(|((&v, &r), &i)| (r == 0 || (v >= 0.5 && background(i))) as u8)
+        .collect();
     let outside: Vec<u8> = region.par_iter().map(|&r| (r == 0) as u8).collect();
     // GAC's balloon: s = 1 where g is 1, as for growing.
     let swept =

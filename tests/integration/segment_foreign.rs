@@ -516,13 +516,45 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
         }
     }
     // GAC shrinking from the whole image (scikit-image's `init_level_set=np.ones(...)`),
-    // which was refused (every tile was interior), ends where it ends from a voxel in.
+    // which was refused (every tile was interior), ends where it ends from a voxel in, with
+    // both discs (the first edge inward holds the balloon at them).
     let params = Params { propagation: Some(-1.0), ..Params::new(Method::Gac) };
     let s = run(&flat, &Init::Mask(vec![1u8; flat.len()]), &params);
     let t = run(&flat, &Init::Mask(box_mask(&flat, [1, 1, 0], [159, 119, 1])), &params);
     let d = dice(&s.mask, &t.mask).unwrap();
+    let found = dice(&s.mask, &both).unwrap();
     assert!(
-        d >= 0.99 && s.report.voxels > 0,
-        "GAC from the whole image: Dice {d} against a voxel in"
+        d >= 0.99 && found >= 0.98,
+        "GAC from the whole image: Dice {d} against a voxel in, {found} against the discs"
+    );
+}
+
+/// GAC shrinking from a start that cuts a flat object (scikit-image's `coins` recipe: a
+/// rectangle some pixels in, or the whole image, where the object meets the image's edge):
+/// rays from the start's boundary find the first edge inward, and beyond its level the
+/// balloon turns outward, so the front that starts inside the object holds there instead of
+/// eating the object from within. An ellipse cut by the x = 0 face and a disc, in noise of
+/// σ = 0.4 for unit contrast, from the rectangle 5 pixels in: Dice at least 0.88 (ITK's
+/// plain balloon, `first_edge: false`, ends at 0.39 on this image: it ate the ellipse).
+#[test]
+fn a_shrinking_front_does_not_eat_an_object_its_start_cuts() {
+    let ellipse =
+        |p: [f64; 3]| ((p[0] - 20.0) / 50.0).powi(2) + ((p[1] - 50.0) / 30.0).powi(2) < 1.0;
+    let disc = ball([105.0, 50.0, 0.0], 15.0);
+    let (im, truth) = image([140, 100, 1], [1.0; 3], 0.4, 21, |p| ellipse(p) || disc(p));
+    let start: Vec<u8> = (0..im.len())
+        .map(|i| {
+            let (x, y) = (i % 140, i / 140);
+            ((5..135).contains(&x) && (5..95).contains(&y)) as u8
+        })
+        .collect();
+    let params = Params { propagation: Some(-1.0), leak_guard: false, ..Params::new(Method::Gac) };
+    let s = run(&im, &Init::Mask(start), &params);
+    let d = dice(&s.mask, &truth).unwrap();
+    assert!(
+        d >= 0.88,
+        "Dice {d} ({:?}, edge level {:?})",
+        s.report.stop,
+        s.report.params.edge_level
     );
 }

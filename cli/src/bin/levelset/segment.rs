@@ -78,7 +78,9 @@ pub struct SegmentArgs {
     /// both: GAC's balloon turns inward beyond the intensity midway across it (the report's
     /// `edge_level`), so that a weak stretch of edge does not let the front run on, and
     /// Chan–Vese's outside mean is no farther from the inside's than the intensity beyond
-    /// it (the neighbouring tissue, not the whole outside)
+    /// it (the neighbouring tissue, not the whole outside). GAC shrinking a start
+    /// (--propagation < 0) likewise turns outward beyond the first edge that rays from the
+    /// start's boundary cross inward, so that it does not eat an object the start cuts
     #[arg(long)]
     pub no_first_edge: bool,
     /// Start the level set from the seeds' balls (or the --init-mask). By default it starts
