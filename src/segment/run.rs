@@ -876,7 +876,8 @@ fn prepare(
         && !matches!(init, Init::Seeds { .. })
     {
         let factor = resolved_factor(&resolved, image, axes);
-        shrinking_gate(image, field, &smoothed, noise * factor)?
+        let grad = edges.as_ref().map(|(grad, _, _)| grad);
+        shrinking_gate(image, field, &smoothed, grad, noise * factor)?
     } else {
         None
     };
@@ -1005,6 +1006,7 @@ fn shrinking_gate(
     image: &Image,
     field: &DenseField,
     smoothed: &Image,
+    grad: Option<&Image>,
     noise_left: f64,
 ) -> Result<Option<Gate>, GridError> {
     let [nx, ny, nz] = image.dims;
@@ -1035,10 +1037,18 @@ fn shrinking_gate(
         .step_by(every)
         .map(|&k| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
         .collect();
-    let grad = voxel_gradient(smoothed)?;
+    // |∇Ĩ| as the sigmoid's rays computed it, when they ran on this Ĩ.
+    let own;
+    let grad = match grad {
+        Some(g) => g,
+        None => {
+            own = voxel_gradient(smoothed)?;
+            &own
+        }
+    };
     let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
     let mut probe =
-        stats::probe_edges(smoothed, &grad, &origins, m, edge_departure(noise_left), reach);
+        stats::probe_edges(smoothed, grad, &origins, m, edge_departure(noise_left), reach);
     // About half of a boundary voxel's directions point out of the start, and those leave
     // it (at a face, the image) at once: the share of rays that crossed an edge is counted
     // over the other half.

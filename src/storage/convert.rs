@@ -108,8 +108,9 @@ fn dense_value(field: &DenseField, c: Coord, g: f32) -> f32 {
 /// The tile grid of a dense level-set field (φ < 0 inside, world units, voxel size and
 /// origin from `spec`; the field's own `origin` places it on the voxel grid). Voxels
 /// beyond the array read as outside (`+γ`): a band or interior that touches the array's
-/// boundary is closed there (see [`DenseField::boundary_touches`]). NaN is an error;
-/// ±∞ clamp to ±γ.
+/// boundary is closed there (see [`DenseField::boundary_touches`]; such an interior keeps
+/// the tiles at the array's x ends, and those its boundary crosses, without band voxels).
+/// NaN is an error; ±∞ clamp to ±γ.
 pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, GridError> {
     let g = spec.gamma();
     let (tlo, _) = tile_of(field.origin());
@@ -128,7 +129,7 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
                 for tx in tlo.x..=thi.x {
                     let t = Coord::new(tx, ty, tz);
                     let mut tile = Tile::splat(0.0);
-                    let mut band = false;
+                    let (mut band, mut inside, mut outside) = (false, false, false);
                     for (l, v) in tile.0.iter_mut().enumerate() {
                         let c = voxel_of(t, l);
                         *v = dense_value(field, c, g);
@@ -137,8 +138,18 @@ pub fn tiles_from_dense(field: &DenseField, spec: GridSpec) -> Result<TileGrid, 
                             nan = Some(nan.map_or(i, |n| n.min(i)));
                         }
                         band |= v.abs() < g;
+                        inside |= *v < 0.0;
+                        outside |= *v >= 0.0;
                     }
-                    if band {
+                    // An absent tile reads one sign in all its voxels, and a row's unstored
+                    // interior reaches as far as its first and last stored tiles say. So a
+                    // tile is kept without band voxels where the sign changes within it
+                    // (the array's y or z boundary inside a tile, or a field that is not a
+                    // distance), and at either x end of the array where it holds inside
+                    // voxels, so that the interior ends there (beyond it the absent tile
+                    // reads +γ) instead of going on beyond the array.
+                    let x_end = tx == tlo.x || tx == thi.x;
+                    if band || (inside && (outside || x_end)) {
                         out.push((t, tile));
                     }
                 }
@@ -497,6 +508,40 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let got = pool.install(|| tiles_from_dense(&field, spec)).unwrap_err();
             assert_eq!(got, want, "{threads} threads");
+        }
+    }
+
+    /// An interior that touches the array's boundary is closed there: the grid reads the
+    /// field's sign at every voxel of the array and `+γ` beyond it, also along x, where an
+    /// unstored interior run would otherwise reach on beyond the array (a slab from the
+    /// x = 0 face, a box meeting the x = max face, and one meeting every face; the DT-Grid
+    /// of the same field reads the same).
+    #[test]
+    fn an_interior_on_the_array_boundary_is_closed_there() {
+        let spec = GridSpec::new(1.0, [0.0; 3], 3.0).unwrap();
+        let g = spec.gamma();
+        let dims = [21, 14, 13];
+        let fields: [Box<dyn Fn(Coord) -> f32 + Sync>; 3] = [
+            Box::new(|c: Coord| (c.x as f32 - 9.5).clamp(-g, g)),
+            Box::new(|c: Coord| (6.5 - c.x as f32).max(3.5 - c.y as f32).clamp(-g, g)),
+            Box::new(|_| -g),
+        ];
+        for (k, f) in fields.iter().enumerate() {
+            let field = DenseField::from_fn(Coord::new(0, 0, 0), dims, f).unwrap();
+            let tiles = tiles_from_dense(&field, spec).unwrap();
+            let dt = dtgrid_from_dense(&field, spec).unwrap();
+            let (lo, hi) = (Coord::new(-6, -6, -6), Coord::new(27, 20, 19));
+            for z in lo.z..hi.z {
+                for y in lo.y..hi.y {
+                    for x in lo.x..hi.x {
+                        let c = Coord::new(x, y, z);
+                        let want = field.get(c).map_or(g, |v| v.clamp(-g, g));
+                        let got = tiles.value(c);
+                        assert_eq!(got < 0.0, want < 0.0, "field {k}, {c}: {got} against {want}");
+                        assert_eq!(dt.value(c).to_bits(), got.to_bits(), "field {k}, {c}");
+                    }
+                }
+            }
         }
     }
 
