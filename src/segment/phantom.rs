@@ -54,7 +54,7 @@ pub struct SplitMix64 {
 
 /// The SplitMix64 finaliser (a bijection of `u64`; Stafford's "Mix13" variant).
 #[inline]
-fn mix64(mut z: u64) -> u64 {
+pub(crate) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)

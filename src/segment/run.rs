@@ -440,6 +440,10 @@ fn segment_in_pool(
     let (initial_voxels, first_faces) = (seed_voxels, seed_faces);
     let image_voxels = image.len() as u64;
     let mut leak = None;
+    // A start that shrinks onto the objects (β < 0 from a mask or a level set) may reach
+    // the image's faces where the objects it cuts do (the first edge inward turns the
+    // balloon outward in them); it leaks only by outgrowing itself.
+    let shrinking = params.propagation.unwrap_or(1.0) < 0.0 && !matches!(init, Init::Seeds { .. });
     volumes.push(voxels);
     let mut seconds_steps = 0.0;
     let mut near = change_since(tiles_of(&sim), &Near::default(), 1.0, h_min, planar).2;
@@ -496,7 +500,8 @@ fn segment_in_pool(
             break Stop::Vanished;
         }
         if params.leak_guard {
-            leak = leak_of(&faces, &first_faces, image.dims, voxels, initial_voxels, image_voxels);
+            let sizes = [voxels, initial_voxels, image_voxels];
+            leak = leak_of(&faces, &first_faces, image.dims, sizes, shrinking);
             if leak.is_some() {
                 break Stop::Leaked;
             }
@@ -614,17 +619,20 @@ fn method_flow(
             let alpha = weight * resolved.advection;
             let gg = features::gradient(g)?.map(|c| c.data);
             let speed: Vec<f32> = match gate {
-                // The balloon pushes outward up to the first edge's level and, weakening,
-                // for two threshold scales w beyond it; then inward, in full 4w past it.
-                Some(Gate { level, side, .. }) => {
+                // Growing, the balloon pushes outward up to the first edge's level and,
+                // weakening, for two threshold scales w beyond it; then inward, in full 4w
+                // past it. Shrinking, it turns at the level itself: inward in full w before
+                // it, outward in full w past it (into an object the start cuts, whose
+                // intensity may lie less than 2w beyond the level in a noisy image).
+                Some(Gate { level, side, shrinking, .. }) => {
                     let inv = (1.0 / threshold_scale(level, f32::INFINITY, noise_smoothed)) as f32;
+                    let (gain, offset) = if shrinking { (1.0, 0.0) } else { (0.5, 1.0) };
                     g.data
                         .par_iter()
                         .zip(smoothed.data.par_iter())
                         .map(|(&v, &i)| {
-                            propagation
-                                * v
-                                * (0.5 * side * (i - level) * inv + 1.0).clamp(-1.0, 1.0)
+                            let turn = gain * side * (i - level) * inv + offset;
+                            propagation * v * turn.clamp(-1.0, 1.0)
                         })
                         .collect()
                 }
@@ -701,6 +709,8 @@ struct Gate {
     far: f32,
     /// +1 when the seeds are brighter than `level`, −1 when darker.
     side: f32,
+    /// Seen from a start that shrinks onto the objects ([`shrinking_gate`]).
+    shrinking: bool,
 }
 
 /// The first edge from the rays: the median intensity at the edges' gradient peaks (and
@@ -722,7 +732,7 @@ fn first_edge(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
     let same: Vec<f64> =
         probe.contrasts.iter().copied().filter(|&c| (c < 0.0) == (side > 0.0)).collect();
     let c = stats::quantile(&same, 0.5)?;
-    Some(Gate { level: (m + 0.5 * c) as f32, far: (m + c) as f32, side })
+    Some(Gate { level: (m + 0.5 * c) as f32, far: (m + c) as f32, side, shrinking: false })
 }
 
 /// The defaults of a run from the image's own statistics (module docs, "Defaults").
@@ -1031,11 +1041,19 @@ fn shrinking_gate(
     let Some(m) = stats::quantile(&values, 0.5) else {
         return Ok(None);
     };
-    let every = boundary.len().div_ceil(SHRINK_ORIGINS);
-    let origins: Vec<[f64; 3]> = boundary
+    // A sample spread over the whole boundary: the voxels of the smallest hashes of their
+    // indices. (Every n-th voxel in array order aliases with the rows: on a rectangle,
+    // with two boundary voxels a row, an even step took the left side alone.)
+    let mut sample: Vec<(u64, usize)> =
+        boundary.iter().map(|&k| (super::phantom::mix64(k as u64), k)).collect();
+    if sample.len() > SHRINK_ORIGINS {
+        sample.select_nth_unstable(SHRINK_ORIGINS);
+        sample.truncate(SHRINK_ORIGINS);
+    }
+    sample.sort_unstable();
+    let origins: Vec<[f64; 3]> = sample
         .iter()
-        .step_by(every)
-        .map(|&k| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
+        .map(|&(_, k)| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
         .collect();
     // |∇Ĩ| as the sigmoid's rays computed it, when they ran on this Ĩ.
     let own;
@@ -1053,7 +1071,7 @@ fn shrinking_gate(
     // it (at a face, the image) at once: the share of rays that crossed an edge is counted
     // over the other half.
     probe.rays = probe.rays.div_ceil(2);
-    Ok(first_edge(&probe, m))
+    Ok(first_edge(&probe, m).map(|g| Gate { shrinking: true, ..g }))
 }
 
 /// At most this many boundary voxels start the rays of [`shrinking_gate`].
@@ -1163,15 +1181,21 @@ fn par_count(mask: &[u8]) -> u64 {
 /// Why a run leaked, if it did: the region covers at least [`LEAK_FACE_FRACTION`] of a
 /// face of the image (and 16 voxels) that the initial region did not touch (a thin spur
 /// that brushes a face is not a leak; a front running into the background covers faces
-/// within a few steps), or it grew past half the image.
+/// within a few steps), or it grew past half the image. A `shrinking` run (a start larger
+/// than the objects, β < 0) leaks when it grows past its start. `sizes`: the region's,
+/// the initial region's and the image's voxels.
 fn leak_of(
     faces: &[u64; 6],
     first: &[u64; 6],
     dims: [usize; 3],
-    voxels: u64,
-    initial: u64,
-    image: u64,
+    sizes: [u64; 3],
+    shrinking: bool,
 ) -> Option<String> {
+    let [voxels, initial, image] = sizes;
+    if shrinking {
+        return (voxels > initial)
+            .then(|| format!("the region grew past its start, to {voxels} voxels from {initial}"));
+    }
     const NAMES: [&str; 6] = ["x = 0", "x = max", "y = 0", "y = max", "z = 0", "z = max"];
     let area = |f: usize| -> u64 {
         let [nx, ny, nz] = dims.map(|n| n as u64);
