@@ -985,7 +985,8 @@ def segment(
     the intensities compared in place of the image.
 
     A run whose region spreads over an image face the seeds did not touch (0.5 % of it),
-    or grows past half the image, is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
+    or grows past half the image (a start shrinking onto the objects, a negative
+    ``propagation_scaling`` from ``init_mask``: past itself), is stopped (``leak_guard=False`` turns that off): the result's ``leaked`` is
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
     pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``). A
     Chan–Vese region whose mean ends within four noise levels of the outside's issues a
@@ -1064,4 +1065,5 @@ class ContrastWarning(UserWarning):
 
 class LeakWarning(UserWarning):
     """A segmentation's region spread over an image face its seeds did not touch, or grew past
-    half the image: the leak guard stopped it (see :func:`segment`)."""
+    half the image (a shrinking start: past itself): the leak guard stopped it (see
+    :func:`segment`)."""

@@ -83,8 +83,9 @@
 //! than [`Params::volume_change`] over the window, or after [`Params::max_iterations`]
 //! steps; [`Report::stop`] says which. The leak guard ([`Params::leak_guard`], on by
 //! default) stops a region that covers part of a face of the image (0.5 %, at least 16
-//! voxels) that its initial region did not touch, or grows past half the image, as [`Stop::Leaked`]: a wrong answer is never
-//! returned as a normal stop.
+//! voxels) that its initial region did not touch, or grows past half the image (a start
+//! shrinking onto the objects, β < 0 from a mask: that grows past itself), as
+//! [`Stop::Leaked`]: a wrong answer is never returned as a normal stop.
 
 pub mod features;
 pub mod metrics;
@@ -202,8 +203,10 @@ pub struct Params {
     /// they compare in place of the image (smoothed only when `sigma` is given).
     pub feature: Option<Arc<crate::io::image::Image>>,
     /// Stop a run that leaks ([`Stop::Leaked`]): one whose region covers 0.5 % (at least
-    /// 16 voxels) of a face of the image that the initial region did not touch, or grows past half the image. On by
-    /// default; turn it off for objects that fill the image or cross its border.
+    /// 16 voxels) of a face of the image that the initial region did not touch, or grows
+    /// past half the image; a start that shrinks onto the objects (β < 0 from a mask or a
+    /// level set) leaks when it grows past itself. On by default; turn it off for objects
+    /// that fill the image or cross its border.
     pub leak_guard: bool,
     /// The first edge that rays from the seeds cross shapes the flows (on by default, for
     /// a positive propagation): GAC's balloon turns inward beyond its intensity level
@@ -304,7 +307,8 @@ pub enum Stop {
     /// The monitor asked to stop.
     Cancelled,
     /// The leak guard stopped a region that reached a face of the image the initial
-    /// region did not touch, or grew past half the image ([`Report::leak`] says which):
+    /// region did not touch, or grew past half the image (a shrinking start: past itself;
+    /// [`Report::leak`] says which):
     /// the mask is not a segmentation of the seeded object.
     Leaked,
 }

@@ -759,6 +759,17 @@ fn prepare(
     let axes = image.dims.iter().filter(|&&n| n > 1).count().max(1);
     let m_in = inside_quantile(&normed, field, 0.5)?;
     let planar = image.is_2d();
+    // GAC shrinking a start onto the objects estimates from the start's boundary, where the
+    // front starts, what a growing front estimates from its seeds.
+    let shrinks = only_gac
+        && feature.is_none()
+        && params.propagation.unwrap_or(1.0) < 0.0
+        && !matches!(init, Init::Seeds { .. });
+    let boundary = if shrinks { StartBoundary::of(image, field) } else { None };
+    let site = match &boundary {
+        Some(b) => Site::Boundary(b),
+        None => Site::Seeds(init),
+    };
     let smooth = |v: f64| -> Result<Image, GridError> {
         if v <= 0.0 {
             return Ok(par_clone(&normed));
@@ -804,7 +815,7 @@ fn prepare(
             Some(margin_smoothing(noise, (m_in - lo).min(hi - m_in), axes))
         }
         (None, Method::Gac) => {
-            let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
+            let probe = gac_probe(image, &site, field, &smooth, 1.0, noise, axes)?;
             let contrast = probe.2.contrast();
             let v = match contrast {
                 Some(c) if noise > 0.0 => {
@@ -830,7 +841,7 @@ fn prepare(
             // As for the threshold method, with the decision level midway between the
             // seeds' intensity and the first edge's far side; one voxel when the rays
             // found no edge.
-            let probe = gac_probe(image, init, field, &smooth, 1.0, noise, axes)?;
+            let probe = gac_probe(image, &site, field, &smooth, 1.0, noise, axes)?;
             let v = match probe.2.contrast() {
                 Some(c) if c > 0.0 => margin_smoothing(noise, 0.5 * c, axes),
                 _ => 1.0,
@@ -871,7 +882,7 @@ fn prepare(
             Some(edges) => edges,
             None => {
                 let factor = resolved_factor(&resolved, image, axes);
-                probe_of(image, init, field, &smoothed, noise * factor)?
+                probe_of(image, &site, field, &smoothed, noise * factor)?
             }
         })
     } else {
@@ -879,15 +890,19 @@ fn prepare(
     };
     let gate = if use_first_edge {
         edges.as_ref().and_then(|(_, p, m)| first_edge(p, *m))
-    } else if params.first_edge
-        && only_gac
-        && feature.is_none()
-        && params.propagation.unwrap_or(1.0) < 0.0
-        && !matches!(init, Init::Seeds { .. })
-    {
-        let factor = resolved_factor(&resolved, image, axes);
-        let grad = edges.as_ref().map(|(grad, _, _)| grad);
-        shrinking_gate(image, field, &smoothed, grad, noise * factor)?
+    } else if params.first_edge && boundary.is_some() {
+        // The first edge inward from the start's boundary (`shrinking_gate`): the same
+        // rays as the sigmoid's, or, with the sigmoid given, their own.
+        let own;
+        let (_, probe, m) = match &edges {
+            Some(e) => e,
+            None => {
+                let factor = resolved_factor(&resolved, image, axes);
+                own = probe_of(image, &site, field, &smoothed, noise * factor)?;
+                &own
+            }
+        };
+        shrinking_gate(probe, *m)
     } else {
         None
     };
@@ -911,7 +926,7 @@ fn prepare(
                         let v = smoothing_voxels_of(&resolved, image).unwrap_or(0.5);
                         let s = noise * f / (std::f64::consts::SQRT_2 * v);
                         let chi999 = if axes >= 3 { 4.03 } else { 3.72 };
-                        sigmoid_from_edges(&grad, field, Some(&probe), chi999 * s)?
+                        sigmoid_from_edges(&grad, &site, field, Some(&probe), chi999 * s)?
                     }
                 };
                 resolved.sigmoid = Some((alpha * norm.scale, beta * norm.scale));
@@ -974,7 +989,7 @@ fn voxel_gradient(smoothed: &Image) -> Result<Image, GridError> {
 /// GAC's pilot: Ĩ at `v` voxels, its gradient and the rays' edges.
 fn gac_probe(
     image: &Image,
-    init: &Init,
+    site: &Site<'_>,
     field: &DenseField,
     smooth: &dyn Fn(f64) -> Result<Image, GridError>,
     v: f64,
@@ -983,99 +998,117 @@ fn gac_probe(
 ) -> Result<(Image, Image, stats::EdgeProbe, f64), GridError> {
     let smoothed = smooth(v)?;
     let (grad, probe, m) =
-        probe_of(image, init, field, &smoothed, noise * stats::noise_factor(v, axes).min(1.0))?;
+        probe_of(image, site, field, &smoothed, noise * stats::noise_factor(v, axes).min(1.0))?;
     Ok((smoothed, grad, probe, m))
 }
 
-/// |∇Ĩ|, the rays' edges through `smoothed` (Ĩ, holding `noise_left`) and the seeds'
-/// median intensity m.
+/// Where the rays that estimate a run's edges start, and whose intensity they depart from.
+enum Site<'a> {
+    /// The seeds' centres, or the deepest voxel of an initial mask or level set; m is the
+    /// median of Ĩ over the initial region.
+    Seeds(&'a Init),
+    /// The boundary of a start that shrinks onto the objects.
+    Boundary(&'a StartBoundary),
+}
+
+/// The boundary voxels of an initial region (inside, with a 6-neighbour outside the region
+/// or the image), where a front that shrinks onto the objects starts, and a sample of up
+/// to [`SHRINK_ORIGINS`] of them spread over it, the rays' origins.
+struct StartBoundary {
+    voxels: Vec<usize>,
+    origins: Vec<[f64; 3]>,
+}
+
+impl StartBoundary {
+    /// The boundary of `field`'s region (φ ≤ 0) over the image; `None` when it is empty.
+    fn of(image: &Image, field: &DenseField) -> Option<Self> {
+        let [nx, ny, nz] = image.dims;
+        let phi = &field.data()[..image.len()];
+        let voxels: Vec<usize> = (0..image.len())
+            .into_par_iter()
+            .filter(|&k| {
+                if phi[k] > 0.0 {
+                    return false;
+                }
+                let (x, y, z) = (k % nx, (k / nx) % ny, k / (nx * ny));
+                let out = |d: usize, n: usize, stride: usize| {
+                    n > 1
+                        && (d == 0 || d == n - 1 || phi[k - stride] > 0.0 || phi[k + stride] > 0.0)
+                };
+                out(x, nx, 1) || out(y, ny, nx) || out(z, nz, nx * ny)
+            })
+            .collect();
+        if voxels.is_empty() {
+            return None;
+        }
+        // A sample spread over the whole boundary: the voxels of the smallest hashes of
+        // their indices. (Every n-th voxel in array order aliases with the rows: on a
+        // rectangle, with two boundary voxels a row, an even step took the left side alone.)
+        let mut sample: Vec<(u64, usize)> =
+            voxels.iter().map(|&k| (super::phantom::mix64(k as u64), k)).collect();
+        if sample.len() > SHRINK_ORIGINS {
+            sample.select_nth_unstable(SHRINK_ORIGINS);
+            sample.truncate(SHRINK_ORIGINS);
+        }
+        sample.sort_unstable();
+        let origins = sample
+            .iter()
+            .map(|&(_, k)| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
+            .collect();
+        Some(StartBoundary { voxels, origins })
+    }
+
+    /// The `q`-quantile of `values` over the boundary voxels.
+    fn quantile(&self, values: &Image, q: f64) -> Option<f64> {
+        let v: Vec<f64> = self.voxels.iter().map(|&k| values.data[k] as f64).collect();
+        stats::quantile(&v, q)
+    }
+}
+
+/// At most this many boundary voxels start the rays from a shrinking start.
+const SHRINK_ORIGINS: usize = 256;
+
+/// |∇Ĩ|, the rays' edges through `smoothed` (Ĩ, holding `noise_left`) from `site`, and the
+/// intensity m they depart from.
+///
+/// From a start's boundary, m is the median of Ĩ over all of its voxels (the background the
+/// front starts in), and about half of a boundary voxel's directions point out of the
+/// start and leave it (at a face, the image) at once: the share of rays that crossed an edge
+/// is counted over the other half.
 fn probe_of(
     image: &Image,
-    init: &Init,
+    site: &Site<'_>,
     field: &DenseField,
     smoothed: &Image,
     noise_left: f64,
 ) -> Result<(Image, stats::EdgeProbe, f64), GridError> {
     let grad = voxel_gradient(smoothed)?;
-    let m = inside_quantile(smoothed, field, 0.5)?;
     let tau = edge_departure(noise_left);
     let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
-    let probe =
-        stats::probe_edges(smoothed, &grad, &ray_origins(image, init, field), m, tau, reach);
+    let (probe, m) = match site {
+        Site::Seeds(init) => {
+            let m = inside_quantile(smoothed, field, 0.5)?;
+            let origins = ray_origins(image, init, field);
+            (stats::probe_edges(smoothed, &grad, &origins, m, tau, reach), m)
+        }
+        Site::Boundary(b) => {
+            let m = b.quantile(smoothed, 0.5).unwrap_or(0.0);
+            let mut probe = stats::probe_edges(smoothed, &grad, &b.origins, m, tau, reach);
+            probe.rays = probe.rays.div_ceil(2);
+            (probe, m)
+        }
+    };
     Ok((grad, probe, m))
 }
 
-/// The first edge inward from a shrinking start (GAC with β < 0 from a mask or a level set):
-/// rays from up to [`SHRINK_ORIGINS`] of the start's boundary voxels (inside, with a
-/// 6-neighbour outside the region or the image), m the median of Ĩ over all of them (the
-/// background the front starts in). Beyond the edge's level the balloon turns outward
-/// ([`first_edge`]; the same rule as a growing front's, seen from the other side), so that a
-/// front that starts inside an object the start cuts holds there instead of eating the
-/// object from within.
-fn shrinking_gate(
-    image: &Image,
-    field: &DenseField,
-    smoothed: &Image,
-    grad: Option<&Image>,
-    noise_left: f64,
-) -> Result<Option<Gate>, GridError> {
-    let [nx, ny, nz] = image.dims;
-    let phi = &field.data()[..image.len()];
-    let boundary: Vec<usize> = (0..image.len())
-        .into_par_iter()
-        .filter(|&k| {
-            if phi[k] > 0.0 {
-                return false;
-            }
-            let (x, y, z) = (k % nx, (k / nx) % ny, k / (nx * ny));
-            let out = |d: usize, n: usize, stride: usize| {
-                n > 1 && (d == 0 || d == n - 1 || phi[k - stride] > 0.0 || phi[k + stride] > 0.0)
-            };
-            out(x, nx, 1) || out(y, ny, nx) || out(z, nz, nx * ny)
-        })
-        .collect();
-    if boundary.is_empty() {
-        return Ok(None);
-    }
-    let values: Vec<f64> = boundary.iter().map(|&k| smoothed.data[k] as f64).collect();
-    let Some(m) = stats::quantile(&values, 0.5) else {
-        return Ok(None);
-    };
-    // A sample spread over the whole boundary: the voxels of the smallest hashes of their
-    // indices. (Every n-th voxel in array order aliases with the rows: on a rectangle,
-    // with two boundary voxels a row, an even step took the left side alone.)
-    let mut sample: Vec<(u64, usize)> =
-        boundary.iter().map(|&k| (super::phantom::mix64(k as u64), k)).collect();
-    if sample.len() > SHRINK_ORIGINS {
-        sample.select_nth_unstable(SHRINK_ORIGINS);
-        sample.truncate(SHRINK_ORIGINS);
-    }
-    sample.sort_unstable();
-    let origins: Vec<[f64; 3]> = sample
-        .iter()
-        .map(|&(_, k)| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
-        .collect();
-    // |∇Ĩ| as the sigmoid's rays computed it, when they ran on this Ĩ.
-    let own;
-    let grad = match grad {
-        Some(g) => g,
-        None => {
-            own = voxel_gradient(smoothed)?;
-            &own
-        }
-    };
-    let reach = 3.0 * image.spacing.iter().fold(0.0f64, |a, &b| a.max(b));
-    let mut probe =
-        stats::probe_edges(smoothed, grad, &origins, m, edge_departure(noise_left), reach);
-    // About half of a boundary voxel's directions point out of the start, and those leave
-    // it (at a face, the image) at once: the share of rays that crossed an edge is counted
-    // over the other half.
-    probe.rays = probe.rays.div_ceil(2);
-    Ok(first_edge(&probe, m).map(|g| Gate { shrinking: true, ..g }))
+/// The first edge inward from a shrinking start (GAC with β < 0 from a mask or a level set),
+/// from the rays of [`probe_of`] from the start's boundary: beyond the edge's level the
+/// balloon turns outward ([`first_edge`]; the same rule as a growing front's, seen from the
+/// other side, turning at the level itself), so that a front that starts inside an object
+/// the start cuts holds there instead of eating the object from within.
+fn shrinking_gate(probe: &stats::EdgeProbe, m: f64) -> Option<Gate> {
+    first_edge(probe, m).map(|g| Gate { shrinking: true, ..g })
 }
-
-/// At most this many boundary voxels start the rays of [`shrinking_gate`].
-const SHRINK_ORIGINS: usize = 256;
 
 /// Where rays start, in voxel coordinates: the seeds' centres, or the deepest voxel of an
 /// initial mask or level set.
@@ -1111,10 +1144,12 @@ fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> 
 /// and 0.05 at K₂), with both measured without a truth:
 ///
 /// * K₁ = t, the 90th percentile of |∇Ĩ| inside the initial region (the seeds lie in the
-///   object);
+///   object); from a start that shrinks onto the objects, over the start's boundary (the
+///   region the front crosses first, where the initial region holds the objects too);
 /// * K₂ = e, the 10th percentile of the peak gradients of the first edge that the rays
-///   from the seeds cross ([`stats::probe_edges`]): the guide's "minimum value along the
-///   contour", robustly, when at least a quarter of the rays met an edge.
+///   from the seeds (or the start's boundary) cross ([`stats::probe_edges`]): the guide's
+///   "minimum value along the contour", robustly, when at least a quarter of the rays met
+///   an edge.
 ///
 /// When no such edge stands 1.5 K₁ above the inside (thin objects, whose seeds lie partly
 /// on their edge), β comes from the noise instead: β = max(n, min(t, e/2)), α = β/8
@@ -1123,11 +1158,15 @@ fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> 
 /// percentile of |∇Ĩ| over the image when the rays found no edge.
 fn sigmoid_from_edges(
     grad: &Image,
+    site: &Site<'_>,
     initial: &DenseField,
     probe: Option<&stats::EdgeProbe>,
     noise_gradient: f64,
 ) -> Result<(f64, f64), GridError> {
-    let texture = inside_quantile(grad, initial, 0.9)?;
+    let texture = match site {
+        Site::Seeds(_) => inside_quantile(grad, initial, 0.9)?,
+        Site::Boundary(b) => b.quantile(grad, 0.9).unwrap_or(0.0),
+    };
     let edge = probe.filter(|p| p.crossed()).and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
     if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * texture) {
         return Ok(((k2 - texture) / 6.0, 0.5 * (texture + k2)));

@@ -70,7 +70,8 @@ pub struct SegmentArgs {
     #[arg(long, value_name = "IMAGE")]
     pub feature: Option<PathBuf>,
     /// Do not stop a run that leaks (one whose region spreads over an image face the seeds
-    /// did not touch, or grows past half the image): for objects that fill the image.
+    /// did not touch, or grows past half the image; a start shrinking onto the objects,
+    /// past itself): for objects that fill the image.
     #[arg(long)]
     pub no_leak_guard: bool,
     /// ITK's plain GAC balloon (outward wherever the edge potential lets it) and the
