@@ -1073,8 +1073,8 @@ const SHRINK_ORIGINS: usize = 256;
 ///
 /// From a start's boundary, m is the median of Ĩ over all of its voxels (the background the
 /// front starts in), and about half of a boundary voxel's directions point out of the
-/// start and leave it (at a face, the image) at once: the share of rays that crossed an edge
-/// is counted over the other half.
+/// start and leave it (at a face, the image) at once: an edge is found when a sixteenth of
+/// the other half crossed one.
 fn probe_of(
     image: &Image,
     site: &Site<'_>,
@@ -1094,7 +1094,11 @@ fn probe_of(
         Site::Boundary(b) => {
             let m = b.quantile(smoothed, 0.5).unwrap_or(0.0);
             let mut probe = stats::probe_edges(smoothed, &grad, &b.origins, m, tau, reach);
-            probe.rays = probe.rays.div_ceil(2);
+            // Half of the rays point inward; of those, the objects fill part of the view
+            // (a ball of a fifth of a box's width, a sixth of it from the box's faces), so
+            // a sixteenth of them, not a quarter, must cross an edge: `crossed` asks for a
+            // quarter of `rays`.
+            probe.rays = probe.rays.div_ceil(8);
             (probe, m)
         }
     };
