@@ -539,8 +539,8 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
 /// A noisy 3-D phantom (contrast 1, noise σ = 0.4) shrunk onto from the whole image and from
 /// a box 3 voxels in: three objects of a few per cent of the view each, a rod among them
 /// through the face x = 0. The rays from the start's boundary estimate the smoothing, the
-/// sigmoid and the first edge (from the start's deepest voxel, in the background, they found
-/// no edge, and the run ate the objects: Dice 0.49).
+/// sigmoid and the first edge (Dice 0.962 and 0.951; from the start's deepest voxel, in the
+/// background, they found no edge, and both runs ended at 0.881).
 #[test]
 fn a_noisy_volume_shrinks_onto_its_objects() {
     let ellipsoid = |p: [f64; 3]| {
@@ -563,7 +563,7 @@ fn a_noisy_volume_shrinks_onto_its_objects() {
         let s = run(&im, &Init::Mask(start), &params);
         let d = dice(&s.mask, &truth).unwrap();
         assert!(
-            d >= 0.95 && s.report.leak.is_none(),
+            d >= 0.93 && s.report.leak.is_none(),
             "inset {inset}: Dice {d} ({:?}, edge level {:?})",
             s.report.stop,
             s.report.params.edge_level
