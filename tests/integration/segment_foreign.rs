@@ -535,7 +535,19 @@ fn an_initial_region_that_meets_the_faces_segments_the_object() {
 /// balloon turns outward, so the front that starts inside the object holds there instead of
 /// eating the object from within. An ellipse cut by the x = 0 face and a disc, in noise of
 /// σ = 0.4 for unit contrast, from the rectangle 5 pixels in: Dice at least 0.88 (ITK's
-/// plain balloon, `first_edge: false`, ends at 0.39 on this image: it ate the ellipse).
+/// plain balloon, `first_edge: false`, ends at 0.39 on this image: it ate the ellipse), and
+/// from the whole image, whose boundary in array order is two voxels a row (the rays' origins
+/// must not all fall on one side). The ellipse reaches the face x = 0, where the start does
+/// not: the region reaching it is no leak.
+#[test]
+fn a_shrinking_front_does_not_eat_an_object_its_start_cuts() {
+    let ellipse =
+        |p: [f64; 3]| ((p[0] - 20.0) / 50.0).powi(2) + ((p[1] - 50.0) / 30.0).powi(2) < 1.0;
+    let disc = ball([105.0, 50.0, 0.0], 15.0);
+    let (im, truth) = image([140, 100, 1], [1.0; 3], 0.4, 21, |p| ellipse(p) || disc(p));
+    shrinks_from_boxes(&im, &truth, &[5, 0], 0.88);
+}
+
 /// A noisy 3-D phantom (contrast 1, noise σ = 0.4) shrunk onto from the whole image and from
 /// a box 3 voxels in: three objects of a few per cent of the view each, a rod among them
 /// through the face x = 0. The rays from the start's boundary estimate the smoothing, the
@@ -552,46 +564,26 @@ fn a_noisy_volume_shrinks_onto_its_objects() {
     let rod = |p: [f64; 3]| p[0] < 30.0 && (p[1] - 50.0).powi(2) + (p[2] - 14.0).powi(2) < 16.0;
     let ball = ball([20.0, 40.0, 36.0], 10.0);
     let (im, truth) = image([64; 3], [1.0; 3], 0.4, 7, |p| ball(p) || ellipsoid(p) || rod(p));
-    for inset in [0, 3] {
-        let start: Vec<u8> = (0..im.len())
-            .map(|i| {
-                [i % 64, (i / 64) % 64, i / 4096].iter().all(|&q| (inset..64 - inset).contains(&q))
-                    as u8
-            })
-            .collect();
-        let params = Params { propagation: Some(-1.0), ..Params::new(Method::Gac) };
-        let s = run(&im, &Init::Mask(start), &params);
-        let d = dice(&s.mask, &truth).unwrap();
-        assert!(
-            d >= 0.93 && s.report.leak.is_none(),
-            "inset {inset}: Dice {d} ({:?}, edge level {:?})",
-            s.report.stop,
-            s.report.params.edge_level
-        );
-    }
+    shrinks_from_boxes(&im, &truth, &[0, 3], 0.93);
 }
 
-#[test]
-fn a_shrinking_front_does_not_eat_an_object_its_start_cuts() {
-    let ellipse =
-        |p: [f64; 3]| ((p[0] - 20.0) / 50.0).powi(2) + ((p[1] - 50.0) / 30.0).powi(2) < 1.0;
-    let disc = ball([105.0, 50.0, 0.0], 15.0);
-    let (im, truth) = image([140, 100, 1], [1.0; 3], 0.4, 21, |p| ellipse(p) || disc(p));
-    // Five voxels in, and the whole image (whose boundary, in array order, is two voxels a
-    // row: the rays' origins must not all fall on one side). The ellipse reaches the face
-    // x = 0, where the start does not: the region reaching it is no leak.
-    for inset in [5, 0] {
+/// GAC with β = −1 from the box `inset` voxels in from every face (of the axes with more
+/// than one voxel), for each inset: Dice at least `min_dice`, and no leak.
+fn shrinks_from_boxes(im: &Image, truth: &[u8], insets: &[usize], min_dice: f64) {
+    let [nx, ny, nz] = im.dims;
+    for &inset in insets {
+        let within = |q: usize, n: usize| n == 1 || (inset..n - inset).contains(&q);
         let start: Vec<u8> = (0..im.len())
             .map(|i| {
-                let (x, y) = (i % 140, i / 140);
-                ((inset..140 - inset).contains(&x) && (inset..100 - inset).contains(&y)) as u8
+                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+                (within(x, nx) && within(y, ny) && within(z, nz)) as u8
             })
             .collect();
         let params = Params { propagation: Some(-1.0), ..Params::new(Method::Gac) };
-        let s = run(&im, &Init::Mask(start), &params);
-        let d = dice(&s.mask, &truth).unwrap();
+        let s = run(im, &Init::Mask(start), &params);
+        let d = dice(&s.mask, truth).unwrap();
         assert!(
-            d >= 0.88 && s.report.leak.is_none(),
+            d >= min_dice && s.report.leak.is_none(),
             "inset {inset}: Dice {d} ({:?}, edge level {:?})",
             s.report.stop,
             s.report.params.edge_level
