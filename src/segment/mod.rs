@@ -52,6 +52,10 @@
 //! inside the seeds and K₂ on those rays; GAC's weights are (β, ε, α) = (1, 1.5 h, 3).
 //! That first edge also shapes the flows ([`Params::first_edge`]): GAC's balloon turns
 //! back beyond its intensity level, and Chan–Vese competes with the tissue beyond it.
+//! GAC shrinking a start onto the objects (a negative propagation from a mask or a level
+//! set) measures all of these where its front starts: rays from voxels spread over the
+//! start's boundary, K₁ over the boundary, and its balloon turns outward at the first edge
+//! inward, so that it does not eat an object the start cuts.
 //! [`Report::params`] holds every value chosen.
 //!
 //! # The fast start
