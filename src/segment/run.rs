@@ -443,7 +443,7 @@ fn segment_in_pool(
     // A start that shrinks onto the objects (β < 0 from a mask or a level set) may reach
     // the image's faces where the objects it cuts do (the first edge inward turns the
     // balloon outward in them); it leaks only by outgrowing itself.
-    let shrinking = params.propagation.unwrap_or(1.0) < 0.0 && !matches!(init, Init::Seeds { .. });
+    let shrinking = shrinks_onto_objects(params, init);
     volumes.push(voxels);
     let mut seconds_steps = 0.0;
     let mut near = change_since(tiles_of(&sim), &Near::default(), 1.0, h_min, planar).2;
@@ -761,10 +761,7 @@ fn prepare(
     let planar = image.is_2d();
     // GAC shrinking a start onto the objects estimates from the start's boundary, where the
     // front starts, what a growing front estimates from its seeds.
-    let shrinks = only_gac
-        && feature.is_none()
-        && params.propagation.unwrap_or(1.0) < 0.0
-        && !matches!(init, Init::Seeds { .. });
+    let shrinks = only_gac && feature.is_none() && shrinks_onto_objects(params, init);
     let boundary = if shrinks { StartBoundary::of(image, field) } else { None };
     let site = match &boundary {
         Some(b) => Site::Boundary(b),
@@ -1002,6 +999,18 @@ fn gac_probe(
     Ok((smoothed, grad, probe, m))
 }
 
+/// Whether the run starts from a region larger than the objects and shrinks onto them: a
+/// negative propagation from a mask or a level set.
+fn shrinks_onto_objects(params: &Params, init: &Init) -> bool {
+    params.propagation.unwrap_or(1.0) < 0.0 && !matches!(init, Init::Seeds { .. })
+}
+
+/// The voxel coordinates of the voxel at array index `k` of an image of `dims`.
+fn voxel_position(k: usize, dims: [usize; 3]) -> [f64; 3] {
+    let [nx, ny, _] = dims;
+    [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64]
+}
+
 /// Where the rays that estimate a run's edges start, and whose intensity they depart from.
 enum Site<'a> {
     /// The seeds' centres, or the deepest voxel of an initial mask or level set; m is the
@@ -1051,17 +1060,15 @@ impl StartBoundary {
             sample.truncate(SHRINK_ORIGINS);
         }
         sample.sort_unstable();
-        let origins = sample
-            .iter()
-            .map(|&(_, k)| [(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64])
-            .collect();
+        let origins = sample.iter().map(|&(_, k)| voxel_position(k, image.dims)).collect();
         Some(StartBoundary { voxels, origins })
     }
 
-    /// The `q`-quantile of `values` over the boundary voxels.
-    fn quantile(&self, values: &Image, q: f64) -> Option<f64> {
-        let v: Vec<f64> = self.voxels.iter().map(|&k| values.data[k] as f64).collect();
-        stats::quantile(&v, q)
+    /// The `q`-quantile (lower order statistic) of `values` over the boundary voxels.
+    fn quantile(&self, values: &Image, q: f64) -> f64 {
+        let v: Vec<f32> = self.voxels.par_iter().map(|&k| values.data[k]).collect();
+        let k = (q * (v.len() - 1) as f64).floor() as usize;
+        stats::order_statistics(&v, [k])[0] as f64
     }
 }
 
@@ -1092,13 +1099,14 @@ fn probe_of(
             (stats::probe_edges(smoothed, &grad, &origins, m, tau, reach), m)
         }
         Site::Boundary(b) => {
-            let m = b.quantile(smoothed, 0.5).unwrap_or(0.0);
+            let m = b.quantile(smoothed, 0.5);
             let mut probe = stats::probe_edges(smoothed, &grad, &b.origins, m, tau, reach);
-            // Half of the rays point inward; of those, the objects fill part of the view
-            // (a ball of a fifth of a box's width, a sixth of it from the box's faces), so
-            // a sixteenth of them, not a quarter, must cross an edge: `crossed` asks for a
-            // quarter of `rays`.
-            probe.rays = probe.rays.div_ceil(8);
+            // Half of the rays point out of the start and leave it at once. Of the inward
+            // half, the objects fill only part of the view: seen from a box's faces, a ball
+            // a fifth of the box wide fills about a sixth. So a sixteenth of them, not the
+            // quarter asked of rays from inside an object, must cross an edge.
+            probe.rays = probe.rays.div_ceil(2);
+            probe.share = 16;
             (probe, m)
         }
     };
@@ -1136,8 +1144,7 @@ fn ray_origins(image: &Image, init: &Init, field: &DenseField) -> Vec<[f64; 3]> 
                 (0, f32::INFINITY),
                 |(bk, bv), (k, &v)| if v < bv { (k, v) } else { (bk, bv) },
             );
-            let [nx, ny, _] = image.dims;
-            vec![[(k % nx) as f64, ((k / nx) % ny) as f64, (k / (nx * ny)) as f64]]
+            vec![voxel_position(k, image.dims)]
         }
     }
 }
@@ -1169,7 +1176,7 @@ fn sigmoid_from_edges(
 ) -> Result<(f64, f64), GridError> {
     let texture = match site {
         Site::Seeds(_) => inside_quantile(grad, initial, 0.9)?,
-        Site::Boundary(b) => b.quantile(grad, 0.9).unwrap_or(0.0),
+        Site::Boundary(b) => b.quantile(grad, 0.9),
     };
     let edge = probe.filter(|p| p.crossed()).and_then(|p| stats::quantile(&p.peaks, EDGE_QUANTILE));
     if let Some(k2) = edge.filter(|&k2| k2 > 1.5 * texture) {

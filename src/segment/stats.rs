@@ -305,8 +305,11 @@ pub(crate) fn smoothing_voxels(lo: f64, hi: f64, ok: impl Fn(f64) -> bool) -> f6
 /// What rays from the seeds saw of the first edge they crossed.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct EdgeProbe {
-    /// Rays cast, and those that crossed an edge.
+    /// Rays cast (that could meet an edge), and those that crossed one.
     pub rays: usize,
+    /// The edge counts as found when at least 1/`share` of the rays crossed it: 4 from
+    /// seeds inside the object ([`probe_edges`]).
+    pub share: usize,
     /// Per edge-crossing ray: the contrast `2 (Ĩ(s*) − m)` at the gradient peak s* of the
     /// edge (the intensity halfway across a symmetric edge), and the peak gradient.
     pub contrasts: Vec<f64>,
@@ -314,9 +317,9 @@ pub(crate) struct EdgeProbe {
 }
 
 impl EdgeProbe {
-    /// At least a quarter of the rays crossed an edge (and one did).
+    /// At least 1/`share` of the rays crossed an edge (and one did).
     pub fn crossed(&self) -> bool {
-        !self.peaks.is_empty() && self.peaks.len() * 4 >= self.rays
+        !self.peaks.is_empty() && self.peaks.len() * self.share >= self.rays
     }
 
     /// The edge's contrast, the median of |contrast| over the rays that crossed it, when
@@ -433,7 +436,7 @@ pub(crate) fn probe_edges(
             Some((c, best))
         })
         .collect();
-    let mut probe = EdgeProbe { rays: results.len(), ..Default::default() };
+    let mut probe = EdgeProbe { rays: results.len(), share: 4, ..Default::default() };
     for (c, g) in results.into_iter().flatten() {
         probe.contrasts.push(c);
         probe.peaks.push(g);
