@@ -54,6 +54,7 @@ __all__ = [
     "Segmentation",
     "LeakWarning",
     "ContrastWarning",
+    "VanishedWarning",
     "save_mesh",
     "load_mesh",
     "__version__",
@@ -913,6 +914,13 @@ class Segmentation:
         return json.loads(self._seg.report_json)
 
     @property
+    def vanished(self) -> bool:
+        """Whether nothing is left inside (``report["stop"] == "vanished"``, or an empty
+        mask): the mask then segments no object (see :class:`VanishedWarning`)."""
+        r = self.report
+        return r["stop"] == "vanished" or r["voxels"] == 0
+
+    @property
     def leaked(self) -> bool:
         """Whether the leak guard stopped the run (``report["stop"] == "leaked"``, the
         reason in ``report["leak"]``): the mask is then not the seeded object."""
@@ -990,7 +998,8 @@ def segment(
     True and a :class:`LeakWarning` is issued, so that an interactive user sees it and a
     pipeline can make it an error (``warnings.simplefilter("error", LeakWarning)``). A
     Chan–Vese region whose mean ends within four noise levels of the outside's issues a
-    :class:`ContrastWarning` the same way.
+    :class:`ContrastWarning` the same way, and a run that ends with nothing inside (an
+    empty mask, ``vanished`` True) a :class:`VanishedWarning`.
 
     The first edge that rays from the seeds cross shapes GAC and Chan–Vese: GAC's balloon
     turns inward beyond the intensity midway across it (``report["params"]["edge_level"]``),
@@ -1052,6 +1061,14 @@ def segment(
             LeakWarning,
             stacklevel=2,
         )
+    if result.vanished:
+        warnings.warn(
+            "the segmentation vanished: nothing is left inside and the mask is empty (the "
+            "method found no object where the front started; check the seeds or the initial "
+            "mask, the window, and the sign of propagation_scaling)",
+            VanishedWarning,
+            stacklevel=2,
+        )
     if result.report.get("weak_contrast"):
         warnings.warn(result.report["weak_contrast"], ContrastWarning, stacklevel=2)
     return result
@@ -1061,6 +1078,12 @@ class ContrastWarning(UserWarning):
     """A Chan–Vese region was not told apart from its surroundings: its mean lies within four
     noise levels of the outside's (``report["weak_contrast"]`` says by how much), so the mask
     segments nothing in particular, though the run stopped normally."""
+
+
+class VanishedWarning(UserWarning):
+    """A segmentation ended with nothing inside: the mask is empty (``report["stop"]`` is
+    ``"vanished"``), so it segments no object. A start holding no object the method finds
+    ends so, as does a front shrinking through edges too weak to stop it."""
 
 
 class LeakWarning(UserWarning):

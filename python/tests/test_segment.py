@@ -234,6 +234,26 @@ def test_a_leak_is_a_warning_and_a_flag():
 
 
 
+def test_a_segmentation_that_vanishes_warns():
+    # GAC shrinking from a box over Gaussian noise: no object to stop on, nothing left.
+    rng = np.random.default_rng(3)
+    image = rng.normal(0.5, 0.1, (96, 96)).astype(np.float32)
+    box = np.zeros(image.shape, np.uint8)
+    box[10:-10, 10:-10] = 1
+    with pytest.warns(sl.VanishedWarning, match="vanished"):
+        seg = sl.segment(image, "gac", init_mask=box, propagation_scaling=-1)
+    assert seg.vanished and seg.report["stop"] == "vanished" and seg.mask.sum() == 0
+    assert seg.mask.shape == image.shape and not seg.leaked
+    # A disc in the same noise is found, without a warning.
+    y, x = np.mgrid[:96, :96]
+    disc = (x - 48) ** 2 + (y - 48) ** 2 < 20**2
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        found = sl.segment(image + disc.astype(np.float32), "gac", init_mask=box, propagation_scaling=-1)
+    assert not found.vanished and found.mask.sum() > 0
+
+
 def test_chan_vese_that_tells_nothing_apart_warns():
     # A closed bright shell at SNR 2, seeded in its cavity of the background's intensity:
     # the region's mean ends within a noise level of the outside's.

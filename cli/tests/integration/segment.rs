@@ -207,6 +207,52 @@ fn a_leak_is_reported_with_exit_code_3() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A run that ends with nothing inside (GAC shrinking from a box over noise, with no object
+/// to stop on) writes its empty mask, warns, says `"vanished": true` and exits with 3; a
+/// batch counts it.
+#[test]
+fn an_empty_segmentation_is_reported_with_exit_code_3() {
+    let dir = std::env::temp_dir().join(format!("levelset-segvanish-{}", std::process::id()));
+    let (input, output) = (dir.join("in"), dir.join("out"));
+    std::fs::create_dir_all(&input).unwrap();
+    let n = 64usize;
+    // Uniform noise around 0.5 (a multiplicative hash, no object), and a box 8 pixels in.
+    let noise: Vec<u8> = (0..n * n)
+        .flat_map(|i| {
+            let u = ((i as u64).wrapping_mul(2654435761) % 1000) as f32 / 1000.0;
+            (0.5 + 0.1 * (u - 0.5)).to_le_bytes()
+        })
+        .collect();
+    let image = input.join("noise.npy");
+    common::write_npy(&image, "<f4", &[n, n], &noise);
+    let inside = |i: usize| (8..n - 8).contains(&(i % n)) && (8..n - 8).contains(&(i / n));
+    let start: Vec<u8> = (0..n * n).map(|i| u8::from(inside(i))).collect();
+    let box_mask = dir.join("box.npy");
+    common::write_npy(&box_mask, "|u1", &[n, n], &start);
+    let mask = dir.join("mask.npy");
+    let (i, b, m) = (image.to_str().unwrap(), box_mask.to_str().unwrap(), mask.to_str().unwrap());
+    let shrink = ["--method", "gac", "--propagation", "-1", "--init-mask", b];
+    let mut a = vec!["segment", i, "-o", m, "--json", "--threads", "2"];
+    a.extend(shrink);
+    let o = levelset(&a);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("warning:") && stderr(&o).contains("vanished"), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!((v["stop"].as_str(), v["voxels"].as_u64()), (Some("vanished"), Some(0)), "{v}");
+    assert_eq!(v["vanished"], true);
+    assert!(mask.is_file(), "the empty mask is written");
+    // A batch over the folder of the noise image.
+    let mut a = vec!["segment", input.to_str().unwrap(), "-o", output.to_str().unwrap()];
+    a.extend(shrink);
+    let run = levelset(&a);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert!(stdout(&run).contains(", 1 vanished"), "{}", stdout(&run));
+    let summary = std::fs::read_to_string(output.join("summary.json")).unwrap();
+    let s: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    assert_eq!(s["vanished"], 1, "{s}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// A threshold window open at the top: `--lower` alone.
 #[test]
 fn an_open_threshold_window_from_the_command_line() {

@@ -83,7 +83,8 @@ fn main() -> ExitCode {
         sparse_levelset::io::fsutil::abandon_writes();
         std::process::exit(130);
     });
-    // Ok(Some(code)): finished with a distinct exit code (3: a segmentation leaked).
+    // Ok(Some(code)): finished with a distinct exit code (3: a segmentation leaked, vanished
+    // or told nothing apart).
     let plain = |r: Result<(), String>| r.map(|()| None::<u8>);
     // Every refusal exits with 1 (README), a bad flag included; --help and --version are
     // answers (0).

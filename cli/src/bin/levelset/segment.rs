@@ -467,6 +467,7 @@ fn execute(
     v["dice"] = serde_json::json!(j.truth.as_ref().and_then(|t| dice(&result.mask, t).ok()));
     v["voxel_updates_per_s"] = serde_json::json!(r.voxel_updates / r.seconds_evolution.max(1e-12));
     v["leaked"] = serde_json::json!(r.stop == Stop::Leaked);
+    v["vanished"] = serde_json::json!(r.stop == Stop::Vanished || r.voxels == 0);
     Ok(v)
 }
 
@@ -485,8 +486,9 @@ fn summary_line(v: &serde_json::Value) -> String {
 }
 
 /// The exit code of a run (or batch) whose mask is not a segmentation of the seeded
-/// object: it leaked ([`Stop::Leaked`]), or Chan–Vese's region was not told apart from its
-/// surroundings (`weak_contrast`). Its outputs are written, and a warning says why.
+/// object: it leaked ([`Stop::Leaked`]), it vanished (nothing is left inside:
+/// [`Stop::Vanished`]), or Chan–Vese's region was not told apart from its surroundings
+/// (`weak_contrast`). Its outputs are written, and a warning says why.
 pub const EXIT_LEAKED: u8 = 3;
 
 /// The warning for a record whose mask is not the seeded object, if it is not.
@@ -500,11 +502,18 @@ fn warning_of(v: &serde_json::Value) -> Option<String> {
             v["leak"].as_str().unwrap_or("?")
         ));
     }
+    if v["vanished"].as_bool() == Some(true) {
+        return Some(format!(
+            "warning: {image}: the segmentation vanished: nothing is left inside and the mask is \
+             empty (the method found no object where the front started; check the seeds or the \
+             initial mask, the window, and the sign of --propagation)"
+        ));
+    }
     v["weak_contrast"].as_str().map(|why| format!("warning: {image}: {why}"))
 }
 
-/// Runs `levelset segment`; `Ok(true)` when a mask is not the seeded object (a leak or
-/// weak contrast: [`EXIT_LEAKED`]).
+/// Runs `levelset segment`; `Ok(true)` when a mask is not the seeded object (a leak, an
+/// empty mask or weak contrast: [`EXIT_LEAKED`]).
 pub fn run(a: &SegmentArgs) -> Result<bool, String> {
     let threads = a.threads.map_or_else(rayon::current_num_threads, |t| t as usize);
     if a.image.is_dir() {
@@ -596,6 +605,7 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
     };
     let leaked = count(|v| v["leaked"].as_bool() == Some(true));
     let weak = count(|v| v["weak_contrast"].is_string());
+    let vanished = count(|v| v["vanished"].as_bool() == Some(true));
     let records: Vec<serde_json::Value> = images
         .iter()
         .zip(results)
@@ -609,15 +619,20 @@ fn batch(a: &SegmentArgs, threads: usize) -> Result<bool, String> {
         ("failed", failed.into()),
         ("leaked", leaked.into()),
         ("weak_contrast", weak.into()),
+        ("vanished", vanished.into()),
     ];
     let (summary, how) = batch::write_summary(&a.output, fields, records, t, threads, start)?;
-    let weak_note = if weak > 0 { format!(", {weak} with weak contrast") } else { String::new() };
-    outln!("{} images, {failed} failed, {leaked} leaked{weak_note}, {how}", images.len());
+    let note = |n: usize, what: &str| if n > 0 { format!(", {n} {what}") } else { String::new() };
+    let (weak_note, vanished_note) = (note(weak, "with weak contrast"), note(vanished, "vanished"));
+    outln!(
+        "{} images, {failed} failed, {leaked} leaked{weak_note}{vanished_note}, {how}",
+        images.len()
+    );
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
     }
     if failed > 0 {
         return Err(format!("{failed} of {} images failed (see above)", images.len()));
     }
-    Ok(leaked + weak > 0)
+    Ok(leaked + weak + vanished > 0)
 }
