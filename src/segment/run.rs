@@ -762,7 +762,7 @@ fn prepare(
     // GAC shrinking a start onto the objects estimates from the start's boundary, where the
     // front starts, what a growing front estimates from its seeds.
     let shrinks = only_gac && feature.is_none() && shrinks_onto_objects(params, init);
-    let boundary = if shrinks { StartBoundary::of(image, field) } else { None };
+    let boundary = if shrinks { StartBoundary::of(image, field)? } else { None };
     let site = match &boundary {
         Some(b) => Site::Boundary(b),
         None => Site::Seeds(init),
@@ -1030,38 +1030,61 @@ struct StartBoundary {
 
 impl StartBoundary {
     /// The boundary of `field`'s region (φ ≤ 0) over the image; `None` when it is empty.
-    fn of(image: &Image, field: &DenseField) -> Option<Self> {
+    /// Refused before it is collected when the machine cannot hold it (with the copy of
+    /// the image's values over it that [`StartBoundary::quantile`] takes): a start whose
+    /// every other voxel is boundary (a checkerboard) holds half the image's voxels.
+    fn of(image: &Image, field: &DenseField) -> Result<Option<Self>, GridError> {
         let [nx, ny, nz] = image.dims;
         let phi = &field.data()[..image.len()];
-        let voxels: Vec<usize> = (0..image.len())
-            .into_par_iter()
-            .filter(|&k| {
-                if phi[k] > 0.0 {
-                    return false;
-                }
-                let (x, y, z) = (k % nx, (k / nx) % ny, k / (nx * ny));
-                let out = |d: usize, n: usize, stride: usize| {
-                    n > 1
-                        && (d == 0 || d == n - 1 || phi[k - stride] > 0.0 || phi[k + stride] > 0.0)
-                };
-                out(x, nx, 1) || out(y, ny, nx) || out(z, nz, nx * ny)
-            })
-            .collect();
-        if voxels.is_empty() {
-            return None;
+        let on_boundary = |k: usize| {
+            if phi[k] > 0.0 {
+                return false;
+            }
+            let (x, y, z) = (k % nx, (k / nx) % ny, k / (nx * ny));
+            let out = |d: usize, n: usize, stride: usize| {
+                n > 1 && (d == 0 || d == n - 1 || phi[k - stride] > 0.0 || phi[k + stride] > 0.0)
+            };
+            out(x, nx, 1) || out(y, ny, nx) || out(z, nz, nx * ny)
+        };
+        let count = (0..image.len()).into_par_iter().filter(|&k| on_boundary(k)).count();
+        if count == 0 {
+            return Ok(None);
         }
+        let per_voxel = std::mem::size_of::<usize>() + std::mem::size_of::<f32>();
+        crate::memory::check(
+            crate::memory::bytes_of(count as u128, per_voxel),
+            "the initial region's boundary voxels",
+        )?;
+        let voxels: Vec<usize> =
+            (0..image.len()).into_par_iter().filter(|&k| on_boundary(k)).collect();
         // A sample spread over the whole boundary: the voxels of the smallest hashes of
         // their indices. (Every n-th voxel in array order aliases with the rows: on a
         // rectangle, with two boundary voxels a row, an even step took the left side alone.)
-        let mut sample: Vec<(u64, usize)> =
-            voxels.iter().map(|&k| (super::phantom::mix64(k as u64), k)).collect();
-        if sample.len() > SHRINK_ORIGINS {
-            sample.select_nth_unstable(SHRINK_ORIGINS);
-            sample.truncate(SHRINK_ORIGINS);
-        }
+        // Kept to the smallest few per chunk as it goes: the same set, whatever the chunks.
+        let smallest = |mut v: Vec<(u64, usize)>| {
+            if v.len() > SHRINK_ORIGINS {
+                v.select_nth_unstable(SHRINK_ORIGINS);
+                v.truncate(SHRINK_ORIGINS);
+            }
+            v
+        };
+        let mut sample = voxels
+            .par_iter()
+            .fold(Vec::new, |mut acc, &k| {
+                acc.push((super::phantom::mix64(k as u64), k));
+                if acc.len() >= 4 * SHRINK_ORIGINS {
+                    acc = smallest(acc);
+                }
+                acc
+            })
+            .map(smallest)
+            .reduce(Vec::new, |mut a, b| {
+                a.extend(b);
+                smallest(a)
+            });
         sample.sort_unstable();
         let origins = sample.iter().map(|&(_, k)| voxel_position(k, image.dims)).collect();
-        Some(StartBoundary { voxels, origins })
+        Ok(Some(StartBoundary { voxels, origins }))
     }
 
     /// The `q`-quantile (lower order statistic) of `values` over the boundary voxels.
