@@ -915,10 +915,9 @@ class Segmentation:
 
     @property
     def vanished(self) -> bool:
-        """Whether nothing is left inside (``report["stop"] == "vanished"``, or an empty
-        mask): the mask then segments no object (see :class:`VanishedWarning`)."""
-        r = self.report
-        return r["stop"] == "vanished" or r["voxels"] == 0
+        """Whether nothing is left inside (``report["stop"] == "vanished"``: the mask is
+        empty): it then segments no object (see :class:`VanishedWarning`)."""
+        return bool(self._seg.vanished)
 
     @property
     def leaked(self) -> bool:

@@ -148,6 +148,12 @@ impl Segmentation {
         self.seg.report.stop == seglib::Stop::Leaked
     }
 
+    /// Whether the run ended with nothing inside (an empty mask).
+    #[getter]
+    fn vanished(&self) -> bool {
+        self.seg.report.stop == seglib::Stop::Vanished
+    }
+
     /// The run's figures as JSON (the Python layer returns a dict).
     #[getter]
     fn report_json(&self) -> &str {

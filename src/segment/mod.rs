@@ -306,7 +306,8 @@ pub enum Stop {
     Volume,
     /// [`Params::max_iterations`] steps were taken.
     MaxIterations,
-    /// Nothing is left inside: the segmentation vanished.
+    /// Nothing is left inside: the segmentation vanished (the mask is empty; any run that
+    /// was not cancelled and ends so reports this).
     Vanished,
     /// The monitor asked to stop.
     Cancelled,

@@ -521,6 +521,9 @@ fn segment_in_pool(
     let seconds_evolution = evolution.elapsed().as_secs_f64();
     let mask = mask_of(&sim, image.dims)?;
     let voxels = par_count(&mask);
+    // An empty mask segments no object, whatever else ended the run in the step that
+    // emptied it (the step limit, the RMS test); a cancelled run says it was cancelled.
+    let stop = if voxels == 0 && stop != Stop::Cancelled { Stop::Vanished } else { stop };
     let weak_contrast = means.and_then(|[c1, c2]| weak_contrast(c1, c2, resolved.noise_smoothed));
     let report = Report {
         params: resolved,

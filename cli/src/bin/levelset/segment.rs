@@ -467,7 +467,7 @@ fn execute(
     v["dice"] = serde_json::json!(j.truth.as_ref().and_then(|t| dice(&result.mask, t).ok()));
     v["voxel_updates_per_s"] = serde_json::json!(r.voxel_updates / r.seconds_evolution.max(1e-12));
     v["leaked"] = serde_json::json!(r.stop == Stop::Leaked);
-    v["vanished"] = serde_json::json!(r.stop == Stop::Vanished || r.voxels == 0);
+    v["vanished"] = serde_json::json!(r.stop == Stop::Vanished);
     Ok(v)
 }
 
