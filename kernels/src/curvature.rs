@@ -121,3 +121,26 @@ pub fn curvature_speed_aniso<L: Lane, W: Window<L>>(w: &W, inv_spacing: [L; 3]) 
     let (n, big_g) = numerator(&scaled);
     L::splat(0.5) * n / big_g.max(L::splat(4.0 * GRAD2_MIN))
 }
+
+/// [`curvature_speed_aniso`] with the z-axis dropped (`inv_spacing` 0 along z: a planar
+/// lattice, one slice of a 2-D image), from the 3×3 square of the slice alone: the z-terms
+/// of eq. (4) are finite differences times 0, so they add nothing, and the value is that
+/// of [`curvature_speed_aniso`] (up to the sign of an exact zero) without reading a voxel
+/// off the slice.
+#[inline(always)]
+pub fn curvature_speed_planar<L: Lane, W: Window<L>>(w: &W, inv_spacing: [L; 2]) -> L {
+    let c = w.centre();
+    let two_c = c + c;
+    let (xm, xp) = (w.at::<-1, 0, 0>(), w.at::<1, 0, 0>());
+    let (ym, yp) = (w.at::<0, -1, 0>(), w.at::<0, 1, 0>());
+    let mxy = (w.at::<1, 1, 0>() - w.at::<1, -1, 0>()) - (w.at::<-1, 1, 0>() - w.at::<-1, -1, 0>());
+    let [ix, iy] = inv_spacing;
+    let (gx, gy) = ((xp - xm) * ix, (yp - ym) * iy);
+    let (dxx, dyy) = (((xp + xm) - two_c) * (ix * ix), ((yp + ym) - two_c) * (iy * iy));
+    let mxy = mxy * (ix * iy);
+    let (sx, sy) = (gx * gx, gy * gy);
+    // `numerator` with g_z, d2_z and the mixed z-terms 0.
+    let diag = dxx.mul_add(sy, dyy * sx);
+    let n = ((gx * gy) * mxy).mul_add(L::splat(-0.5), diag);
+    L::splat(0.5) * n / (sx + sy).max(L::splat(4.0 * GRAD2_MIN))
+}

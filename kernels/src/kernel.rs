@@ -6,7 +6,7 @@
 //! ([`Eq3Rate`], [`AdvectionRate`]) compute 𝓛(φ); [`Euler`] and [`Rk3`] wrap a rate into
 //! a time step.
 
-use crate::curvature::{curvature_speed, curvature_speed_aniso};
+use crate::curvature::{curvature_speed, curvature_speed_aniso, curvature_speed_planar};
 use crate::diff::{diff_minus, diff_plus, upwind_norms, Axis, X, Y, Z};
 use crate::error::KernelError;
 use crate::lane::Lane;
@@ -353,10 +353,23 @@ impl<S: Scheme, F: ScalarField, E: ScalarField, V: VectorField> VoxelKernel
         let inv = [L::splat(ix), L::splat(iy), L::splat(iz)];
         let (xm, xp) = S::one_sided::<L, W, X>(w, inv[0]);
         let (ym, yp) = S::one_sided::<L, W, Y>(w, inv[1]);
-        let (zm, zp) = S::one_sided::<L, W, Z>(w, inv[2]);
+        // A dropped z-axis (a planar lattice) is not read at all: its derivatives would be
+        // finite values times 0, which add nothing to the norms, the curvature or the
+        // advection (the same values; see `curvature_speed_planar`). The test is the same
+        // for every voxel of a sweep, so the branch costs nothing.
+        let planar = iz == 0.0;
+        let (zm, zp) = if planar {
+            (L::splat(0.0), L::splat(0.0))
+        } else {
+            S::one_sided::<L, W, Z>(w, inv[2])
+        };
         let (dm, dp) = ([xm, ym, zm], [xp, yp, zp]);
         let (grad_plus, grad_minus) = upwind_norms(dm, dp);
-        let kappa_grad = curvature_speed_aniso(w, inv);
+        let kappa_grad = if planar {
+            curvature_speed_planar(w, [inv[0], inv[1]])
+        } else {
+            curvature_speed_aniso(w, inv)
+        };
         let sign = smoothed_sign(w.centre(), L::splat(self.sign_width));
         let rate = eq3_speed(
             self.speed.lanes::<L>(first),

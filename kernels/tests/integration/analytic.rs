@@ -429,3 +429,45 @@ fn curvature_and_speed_match_literal_formulas() {
         );
     }
 }
+
+/// On a planar lattice (`inv_spacing` 0 along z) the image rate reads the slice alone: its
+/// value does not change when every voxel off the slice is NaN, and its curvature term is
+/// the three-axis one with the z-axis dropped.
+#[test]
+fn a_dropped_z_axis_is_not_read() {
+    use levelset_kernels::curvature::{curvature_speed_aniso, curvature_speed_planar};
+    use levelset_kernels::ImageRate;
+    let mut rng = Rng(23);
+    for _ in 0..5000 {
+        let n = [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)];
+        let noise = rng.range(0.0, 0.5);
+        let (mut b, mut s) =
+            stencils(&|p: [f64; 3]| n[0] * p[0] + n[1] * p[1] + n[2] * p[2], [0.0; 3], 1.0, 0.0);
+        for v in b.iter_mut().chain(s.iter_mut()) {
+            *v += (noise * rng.range(-1.0, 1.0)) as f32;
+        }
+        // The star's shared points are read from the box.
+        s[0] = b[box27_index(0, 0, 0)];
+        let inv = [rng.range(0.5, 2.0) as f32, rng.range(0.5, 2.0) as f32, 0.0];
+        let (speed, eps) = (rng.range(-2.0, 2.0) as f32, rng.range(0.0, 1.0) as f32);
+        let u = [rng.range(-1.0, 1.0) as f32, rng.range(-1.0, 1.0) as f32, 0.0];
+        let rate = ImageRate::<Weno5, f32, f32, [f32; 3]>::new(speed, eps, Some(u), 1.0, inv, 1.0);
+        let w = BoxStarWindow::new(&b, &s);
+        let full = rate.eval::<f32, _>(&w, 0);
+        let k3 = curvature_speed_aniso::<f32, _>(&w, inv);
+        let k2 = curvature_speed_planar::<f32, _>(&w, [inv[0], inv[1]]);
+        assert!(k2 == k3, "planar curvature {k2} against {k3} with z dropped");
+        for dz in [-1, 1] {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    b[box27_index(dx, dy, dz)] = f32::NAN;
+                }
+            }
+        }
+        for dz in [-3, -2, 2, 3] {
+            s[star19_index(0, 0, dz)] = f32::NAN;
+        }
+        let sliced = rate.eval::<f32, _>(&BoxStarWindow::new(&b, &s), 0);
+        assert!(full.is_finite() && full.to_bits() == sliced.to_bits(), "{full} against {sliced}");
+    }
+}

@@ -223,10 +223,11 @@ impl<const R: usize> PaddedBlock<R> {
     }
 
     /// [`PaddedBlock::gather_star_row`] for a kernel that computes the tile's first
-    /// z-slice alone (a planar lattice, see `levelset_kernels::TileBlock::apply_slices`):
-    /// the box rows with z in −1..=1, the slice's row along y and the tile column's rows
-    /// along z (up to `R`). For `R = 3` 74 of the 140 row copies. Other entries keep what
-    /// they held (NaN in debug builds).
+    /// z-slice alone from that slice's values (a planar lattice, see
+    /// `levelset_kernels::TileBlock::apply_slices` and `levelset_kernels::ImageRate`, which
+    /// reads nothing along z there): the slice's box rows and its rows along y (up to `R`).
+    /// For `R = 3` 22 of the 140 row copies. Other entries keep what they held (NaN in
+    /// debug builds, so that a kernel reading off the slice fails the tests' comparisons).
     #[inline(always)]
     pub fn gather_star_row_planar<S: TileSource>(
         &mut self,
@@ -291,11 +292,11 @@ impl<const R: usize> PaddedBlock<R> {
         self.box_min_abs_of::<false>(gamma, out)
     }
 
-    /// [`PaddedBlock::box_min_abs`] of the first z-slice, from the box rows with z in
-    /// −1..=1 ([`PaddedBlock::gather_star_row_planar`]), copied into the other three
-    /// slices: on a planar lattice they are the first's copies, and so are their masks (the
-    /// same bits as the whole computation where the tiles above and below are absent: their
-    /// ±γ is never below a box's minimum, which is at most γ).
+    /// [`PaddedBlock::box_min_abs`] of the first z-slice over its 3×3 squares, from the
+    /// slice's box rows ([`PaddedBlock::gather_star_row_planar`]), copied into the other
+    /// three slices. On a planar lattice every slice is a copy of the first, and the tiles
+    /// above and below are absent (their ±γ is never below a minimum, which is at most γ)
+    /// or copies too: the 3×3×3 box's minimum is the square's, the same bits.
     #[inline(always)]
     pub fn box_min_abs_planar(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
         self.box_min_abs_of::<true>(gamma, out)
@@ -305,13 +306,14 @@ impl<const R: usize> PaddedBlock<R> {
     fn box_min_abs_of<const PLANAR: bool>(&self, gamma: f32, out: &mut [f32; 64]) -> bool {
         use levelset_kernels::{wide::f32x4, Lane};
         let (sx, w, r) = (Self::SX, Self::W, R);
-        // z-rows of the box computed: −1..5 (all four slices) or −1..2 (the first).
-        let nz = if PLANAR { 3 } else { 6 };
+        // z-rows of the box computed (index z + 1): −1..5 (all four slices) or the first
+        // slice's alone.
+        let zs = if PLANAR { 1..2 } else { 0..6 };
         let d = &self.data[..];
         let row = |i: usize| <f32x4 as Lane>::load(&d[i..i + 4]).abs();
         // Along x: rows y, z in -1..5 (index y + 6 z).
         let mut mx = [f32x4::splat(0.0); 36];
-        for z in 0..nz {
+        for z in zs.clone() {
             let slice = 3 + sx * (r - 1) + sx * w * (z + r - 1);
             for y in 0..6 {
                 let base = slice + sx * y;
@@ -320,7 +322,7 @@ impl<const R: usize> PaddedBlock<R> {
         }
         // Along y: rows y in 0..4, z in -1..5 (index y + 4 z).
         let mut my = [f32x4::splat(0.0); 24];
-        for z in 0..nz {
+        for z in zs {
             for y in 0..4 {
                 let j = y + 6 * z;
                 my[y + 4 * z] = Lane::min(Lane::min(mx[j], mx[j + 1]), mx[j + 2]);
@@ -331,7 +333,8 @@ impl<const R: usize> PaddedBlock<R> {
         let mut any = false;
         let computed = if PLANAR { 16 } else { 64 };
         for (i, o) in out[..computed].chunks_exact_mut(4).enumerate() {
-            let v = Lane::min(Lane::min(my[i], my[i + 4]), my[i + 8]);
+            let v =
+                if PLANAR { my[i + 4] } else { Lane::min(Lane::min(my[i], my[i + 4]), my[i + 8]) };
             Lane::store(v, o);
             any |= g.any_gt(v);
         }
@@ -382,16 +385,14 @@ impl<const R: usize> PaddedBlock<R> {
             for y in 0..w {
                 // `in_box`: the row needs its three x-pieces; `in_star`: it is read at all.
                 let (in_box, in_star) = if PLANAR {
-                    // The rows the first z-slice's voxels read: the box's with z in
-                    // −1..=1 (or the slice's own rows, whose x-neighbours the axes
-                    // read), the slice's row along y and the column's along z.
-                    let (cy, first) = (core.contains(&y), z == r);
-                    let in_box = if BOX {
-                        box_rows.contains(&y) && (r - 1..r + 2).contains(&z)
-                    } else {
-                        cy && first
-                    };
-                    (in_box, in_box || first || (cy && z <= 2 * r))
+                    // The rows the first z-slice's voxels read, a kernel on a planar
+                    // lattice reading nothing off the slice (`inv_spacing` 0 along z, see
+                    // `levelset_kernels::ImageRate`): the slice's box rows (or its own
+                    // rows, whose x-neighbours the axes read) and its rows along y.
+                    let first = z == r;
+                    let in_box =
+                        first && if BOX { box_rows.contains(&y) } else { core.contains(&y) };
+                    (in_box, first)
                 } else if !BOX {
                     let (cy, cz) = (core.contains(&y), core.contains(&z));
                     (cy && cz, cy || cz)
