@@ -38,6 +38,8 @@ pub(crate) struct Inputs {
     /// change with time: sampled again only when the layout has changed.
     base_layout: Layout,
     curvature_layout: Layout,
+    /// The weight `curvature`'s samples carry (ε times the lattice's factor).
+    curvature_weight: f32,
 }
 
 /// The layout per-voxel samples were taken on: the representation's units
@@ -52,13 +54,6 @@ impl Layout {
     /// Whether samples taken on this layout are those of `rep`'s voxels now.
     fn holds(&self, rep: &dyn Representation) -> bool {
         !self.units.is_empty() && self.spec == Some(rep.spec()) && self.units == rep.unit_keys()
-    }
-
-    /// Samples were taken on `rep`'s layout now.
-    fn set(&mut self, rep: &dyn Representation) {
-        self.units.clear();
-        self.units.extend_from_slice(rep.unit_keys());
-        self.spec = Some(rep.spec());
     }
 
     fn clear(&mut self) {
@@ -94,6 +89,7 @@ impl Default for Inputs {
             curvature: Vec::new(),
             base_layout: Layout::default(),
             curvature_layout: Layout::default(),
+            curvature_weight: f32::NAN,
         }
     }
 }
@@ -178,6 +174,40 @@ fn band_max_into<const N: usize>(
     *acc = lanes;
 }
 
+/// The samples `out` of a scalar field of the position alone on `rep`'s voxels, taken on
+/// `layout`: those of the units that stay are kept, the others sampled and passed through
+/// `finish` ([`Representation::fill_static_scalar`]; `spare` holds the previous samples
+/// meanwhile). Returns whether every new sample was acceptable; if not, `layout` is
+/// cleared, so that a retry of the step samples everything anew.
+#[allow(clippy::too_many_arguments)] // the inputs' parts, borrowed apart
+fn resample(
+    rep: &dyn Representation,
+    f: &dyn super::field::ScalarFn,
+    planar: bool,
+    pool: &Option<Arc<rayon::ThreadPool>>,
+    layout: &mut Layout,
+    out: &mut Vec<f32>,
+    spare: &mut Vec<f32>,
+    finish: &(dyn Fn(&mut [f32]) -> bool + Sync),
+) -> bool {
+    if layout.spec != Some(rep.spec()) || out.len() != 64 * layout.units.len() {
+        layout.clear();
+    }
+    layout.spec = Some(rep.spec());
+    std::mem::swap(out, spare);
+    if layout.units.is_empty() {
+        // Nothing to reuse: no copy of the old samples either.
+        spare.clear();
+    }
+    resize_exact(out, rep.flat().len(), 0.0);
+    let keys = &mut layout.units;
+    let ok = in_pool(pool, || rep.fill_static_scalar(f, planar, keys, spare, out, finish));
+    if !ok {
+        layout.clear();
+    }
+    ok
+}
+
 impl Inputs {
     /// Bytes held, used or not.
     pub fn bytes(&self) -> usize {
@@ -205,14 +235,21 @@ impl Inputs {
             b += growth_bytes(&self.curvature, n)
                 + growth_bytes(&self.curvature_layout.units, n / 64);
         }
+        // The previous samples while new ones are taken: a time-separable velocity's three
+        // components and their keys (a tile's coordinate per 64 voxels), or one array for
+        // a static speed or curvature field.
+        let mut spares = 0;
         if let Some(Velocity::Field(f)) = &flow.velocity
             && f.time_scale(0.0).is_some()
         {
-            // The previous samples and their keys (a tile's coordinate per 64 voxels).
-            b += self.spare.iter().map(|c| growth_bytes(c, n)).sum::<u64>()
-                + growth_bytes(&self.velocity_layout.units, n / 64);
+            spares = 3;
+            b += growth_bytes(&self.velocity_layout.units, n / 64);
         }
-        b
+        let static_speed = matches!(&flow.speed, Speed::Field(f) if !f.time_dependent());
+        if static_speed || flow.curvature_field.as_ref().is_some_and(|z| !z.time_dependent()) {
+            spares = spares.max(1);
+        }
+        b + self.spare[..spares].iter().map(|c| growth_bytes(c, n)).sum::<u64>()
     }
 
     /// Fills the per-voxel F and u of `rep`'s voxels for a stage at time `t` of step
@@ -288,19 +325,17 @@ impl Inputs {
                 self.speed.clear();
             }
             Speed::Field(f) => {
-                // Every stage when F depends on time; else in stage 1, unless the layout
-                // is the one F was sampled on.
-                let sample = f.time_dependent()
-                    || (first && !(self.base.len() == n && self.base_layout.holds(rep)));
-                if sample {
+                // Every stage when F depends on time; else in stage 1, for the units new
+                // to the layout F was sampled on (the speed is checked below, as a whole).
+                if f.time_dependent() {
+                    self.base_layout.clear();
                     resize_exact(&mut self.base, n, 0.0);
                     let base = &mut self.base;
                     in_pool(pool, || rep.fill_scalar(f.as_ref(), t, planar, base));
-                    if f.time_dependent() {
-                        self.base_layout.clear();
-                    } else {
-                        self.base_layout.set(rep);
-                    }
+                } else if first && !(self.base.len() == n && self.base_layout.holds(rep)) {
+                    let (base, spare) = (&mut self.base, &mut self.spare[0]);
+                    let layout = &mut self.base_layout;
+                    resample(rep, f.as_ref(), planar, pool, layout, base, spare, &|_| true);
                 }
                 let (speed, base) = (&mut self.speed, &self.base);
                 in_pool(pool, || {
@@ -365,33 +400,38 @@ impl Inputs {
             return true;
         }
         // A field that does not change with time, on the layout it was sampled (and
-        // checked) on: as it is.
+        // checked) on with the same weight: as it is.
         let n = rep.flat().len();
+        let eps = flow.curvature * factor;
+        if self.curvature_weight.to_bits() != eps.to_bits() {
+            self.curvature_layout.clear();
+            self.curvature_weight = eps;
+        }
         if !z.time_dependent() && self.curvature.len() == n && self.curvature_layout.holds(rep) {
             return true;
+        }
+        // Each new sample checked, then weighted.
+        let weigh = |c: &mut [f32]| {
+            let ok = c.iter().fold(true, |ok, &v| ok & (v.is_finite() & (v >= 0.0)));
+            c.iter_mut().for_each(|v| *v *= eps);
+            ok
+        };
+        if !z.time_dependent() {
+            let (out, spare) = (&mut self.curvature, &mut self.spare[0]);
+            let layout = &mut self.curvature_layout;
+            return resample(rep, z.as_ref(), planar(settings), pool, layout, out, spare, &weigh);
         }
         self.curvature_layout.clear();
         resize_exact(&mut self.curvature, n, 0.0);
         let out = &mut self.curvature;
         in_pool(pool, || rep.fill_scalar(z.as_ref(), t, planar(settings), out));
-        let eps = flow.curvature * factor;
         let curvature = &mut self.curvature;
-        let ok = in_pool(pool, || {
+        in_pool(pool, || {
             curvature
                 .par_chunks_mut(CHUNK)
-                .map(|c| {
-                    read_parts_mut(c, part).fold(true, |ok, c| {
-                        let here = c.iter().fold(true, |ok, &v| ok & (v.is_finite() & (v >= 0.0)));
-                        c.iter_mut().for_each(|v| *v *= eps);
-                        ok && here
-                    })
-                })
+                .map(|c| read_parts_mut(c, part).fold(true, |ok, c| weigh(c) & ok))
                 .reduce(|| true, |a, b| a && b)
-        });
-        if ok && !z.time_dependent() {
-            self.curvature_layout.set(rep);
-        }
-        ok
+        })
     }
 
     /// Advection velocity u; returns what was written (and how it is to be checked).

@@ -37,6 +37,7 @@ use crate::grid::{GridError, GridSpec};
 use crate::memory::grown_capacity;
 use levelset_kernels::speed::kappa_bar_integrands;
 use levelset_kernels::{Lane, VoxelKernel, Window};
+use rayon::prelude::*;
 
 /// What every representation does for the evolution.
 pub(crate) trait Representation: Send + Sync {
@@ -69,7 +70,9 @@ pub(crate) trait Representation: Send + Sync {
     /// reusing earlier samples: `prev` holds, unit by unit (a representation's run of
     /// voxels in flat order, 64 per tile), the samples of the units `keys` names, and
     /// `keys` becomes the units of `out`, or empty when the representation keeps no keys.
-    /// The samples are the field's, so reused and fresh ones have the same bits. Returns
+    /// The samples are the field's, so reused and fresh ones have the same bits (on a
+    /// planar lattice only the reused units' voxels that the sweeps read are kept,
+    /// [`Representation::read_slices`]). Returns
     /// whether every sample written anew is finite (the reused ones were checked when
     /// they were sampled). The default samples everything anew.
     fn fill_static_vector(
@@ -84,6 +87,32 @@ pub(crate) trait Representation: Send + Sync {
         let [u, v, w] = out;
         self.fill_vector(f, 0.0, [&mut *u, &mut *v, &mut *w]);
         [u, v, w].iter().all(|c| c.iter().all(|x| x.is_finite()))
+    }
+    /// [`Representation::fill_static_vector`] for a scalar field of the position alone,
+    /// sampled at the voxels the sweeps read (`planar`: see
+    /// [`Representation::fill_scalar`]). `finish` is applied to the samples of every unit
+    /// taken anew (the voxels the sweeps read; it may scale them) and says whether they are
+    /// acceptable; reused samples are those `finish` left. Returns whether all new ones
+    /// were. The default samples everything anew.
+    fn fill_static_scalar(
+        &self,
+        f: &dyn ScalarFn,
+        planar: bool,
+        keys: &mut Vec<Coord>,
+        prev: &[f32],
+        out: &mut [f32],
+        finish: &(dyn Fn(&mut [f32]) -> bool + Sync),
+    ) -> bool {
+        let _ = prev;
+        keys.clear();
+        self.fill_scalar(f, 0.0, planar, out);
+        let (unit, read) = self.read_slices(planar).unwrap_or((4096, 4096));
+        out.par_chunks_mut(unit)
+            .map(|u| {
+                let n = read.min(u.len());
+                finish(&mut u[..n])
+            })
+            .reduce(|| true, |a, b| a && b)
     }
     /// Runs one stage: the current values become the stage's result; in stages 2 and 3
     /// the kernel reads φⁿ, kept from stage 1. `last` marks the step's final stage. On

@@ -423,6 +423,60 @@ impl TilesRep {
     /// with their border flags, gathered in rank order, which is [`Coord`] order. A tile's
     /// 26 neighbours lie in its rank's own or ghost slabs, so its flags are the whole
     /// band's. A copy of the grid when the band is not distributed.
+    /// Per-voxel samples of a field of the position alone, in `N` arrays, on the current
+    /// list: a tile that was in the list `keys` keeps its samples from `prev` (the first
+    /// `read` of its 64, those the sweeps read: on a planar lattice its first slice; the
+    /// others are never read), a tile new to it is sampled by `sample(its coordinate, its
+    /// 64 voxels in each array)`, which
+    /// returns whether they are acceptable (checked: reused samples were checked when they
+    /// were taken). `keys` becomes the current list. Both lists are sorted, so each chunk
+    /// of the current list finds its first predecessor by binary search and then merges
+    /// forward. Returns whether every new sample was acceptable.
+    fn merge_static<const N: usize>(
+        &self,
+        read: usize,
+        keys: &mut Vec<Coord>,
+        prev: [&[f32]; N],
+        out: [&mut [f32]; N],
+        sample: impl Fn(Coord, [&mut [f32]; N]) -> bool + Sync,
+    ) -> bool {
+        let coords = self.grid.tile_coords();
+        let old: &[Coord] = keys;
+        debug_assert!(prev.iter().all(|c| c.len() == 64 * old.len()), "samples per key");
+        const CHUNK: usize = 64 * TILE_CHUNK;
+        let mut outs = out.map(|o| o.chunks_mut(CHUNK));
+        let chunks: Vec<[&mut [f32]; N]> = coords
+            .chunks(TILE_CHUNK)
+            .map(|_| std::array::from_fn(|c| outs[c].next().expect("64 samples per tile")))
+            .collect();
+        let ok = chunks
+            .into_par_iter()
+            .zip(coords.par_chunks(TILE_CHUNK))
+            .map(|(mut out, tiles)| {
+                let mut j = old.partition_point(|k| *k < tiles[0]);
+                let mut ok = true;
+                for (i, &tc) in tiles.iter().enumerate() {
+                    while j < old.len() && old[j] < tc {
+                        j += 1;
+                    }
+                    let r = 64 * i..64 * i + 64;
+                    if j < old.len() && old[j] == tc {
+                        for (o, p) in out.iter_mut().zip(prev) {
+                            o[64 * i..64 * i + read].copy_from_slice(&p[64 * j..64 * j + read]);
+                        }
+                    } else {
+                        let tile = out.each_mut().map(|o| &mut o[r.clone()]);
+                        ok &= sample(tc, tile);
+                    }
+                }
+                ok
+            })
+            .reduce(|| true, |a, b| a && b);
+        keys.clear();
+        keys.extend_from_slice(coords);
+        ok
+    }
+
     pub(crate) fn gather(&self) -> Result<TileGrid, crate::grid::GridError> {
         let Some(p) = &self.part else { return Ok(self.grid.clone()) };
         const RECORD: usize = 16 + 4 * crate::storage::tiles::TILE_LEN;
@@ -1052,10 +1106,6 @@ impl Representation for TilesRep {
             .for_each(|(((u, v), w), &tc)| f.fill_tile(&spec, voxel_of(tc, 0), t, [u, v, w]));
     }
 
-    /// Tiles that stay in the list keep their samples: the previous and the current
-    /// list are both sorted, so each chunk of the current list finds its first
-    /// predecessor by binary search and then merges forward; only tiles new to the list
-    /// are sampled (and checked).
     fn fill_static_vector(
         &self,
         f: &dyn VectorFn,
@@ -1064,43 +1114,32 @@ impl Representation for TilesRep {
         out: [&mut [f32]; 3],
     ) -> bool {
         let spec = self.spec();
-        let coords = self.grid.tile_coords();
-        let old: &[Coord] = keys;
-        debug_assert!(prev.iter().all(|c| c.len() == 64 * old.len()), "samples per key");
-        let [u, v, w] = out;
-        const CHUNK: usize = 64 * TILE_CHUNK;
-        let finite = u
-            .par_chunks_mut(CHUNK)
-            .zip(v.par_chunks_mut(CHUNK))
-            .zip(w.par_chunks_mut(CHUNK))
-            .zip(coords.par_chunks(TILE_CHUNK))
-            .map(|(((u, v), w), tiles)| {
-                let mut j = old.partition_point(|k| *k < tiles[0]);
-                let mut finite = true;
-                for (i, &tc) in tiles.iter().enumerate() {
-                    while j < old.len() && old[j] < tc {
-                        j += 1;
-                    }
-                    let r = 64 * i..64 * i + 64;
-                    let out = [&mut u[r.clone()], &mut v[r.clone()], &mut w[r]];
-                    if j < old.len() && old[j] == tc {
-                        for (o, p) in out.into_iter().zip(prev) {
-                            o.copy_from_slice(&p[64 * j..64 * j + 64]);
-                        }
-                    } else {
-                        f.fill_tile(&spec, voxel_of(tc, 0), 0.0, out);
-                        let r = 64 * i..64 * i + 64;
-                        finite &= [&u[r.clone()], &v[r.clone()], &w[r]]
-                            .iter()
-                            .all(|c| c.iter().all(|x| x.is_finite()));
-                    }
-                }
-                finite
-            })
-            .reduce(|| true, |a, b| a && b);
-        keys.clear();
-        keys.extend_from_slice(coords);
-        finite
+        let read = self.read_slices(self.planar).map_or(TILE_LEN, |(_, read)| read);
+        self.merge_static(read, keys, prev, out, |tc, [u, v, w]| {
+            f.fill_tile(&spec, voxel_of(tc, 0), 0.0, [&mut *u, &mut *v, &mut *w]);
+            [u, v, w].iter().all(|c| c.iter().all(|x| x.is_finite()))
+        })
+    }
+
+    fn fill_static_scalar(
+        &self,
+        f: &dyn ScalarFn,
+        planar: bool,
+        keys: &mut Vec<Coord>,
+        prev: &[f32],
+        out: &mut [f32],
+        finish: &(dyn Fn(&mut [f32]) -> bool + Sync),
+    ) -> bool {
+        let spec = self.spec();
+        let sampled = self.read_slices(planar).map_or(TILE_LEN, |(_, read)| read);
+        self.merge_static(sampled, keys, [prev], [out], |tc, [o]| {
+            let (sampled, unread) = o.split_at_mut(sampled);
+            unread.fill(0.0);
+            for (row, o) in sampled.chunks_mut(4).enumerate() {
+                f.fill_run(&spec, voxel_of(tc, 4 * row), 0.0, o);
+            }
+            finish(sampled)
+        })
     }
 
     fn stage(
