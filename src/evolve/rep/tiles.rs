@@ -978,6 +978,23 @@ impl Waiting {
     }
 }
 
+/// Samples `f` at time `t` at the first `sampled` voxels of the tile at `tc` into `o` (its
+/// 64 voxels), row by row; the others (a planar lattice's unread slices) are set to 0.
+fn sample_tile(
+    f: &dyn ScalarFn,
+    spec: &GridSpec,
+    tc: Coord,
+    t: f64,
+    sampled: usize,
+    o: &mut [f32],
+) {
+    let (sampled, unread) = o.split_at_mut(sampled);
+    unread.fill(0.0);
+    for (row, o) in sampled.chunks_mut(4).enumerate() {
+        f.fill_run(spec, voxel_of(tc, 4 * row), t, o);
+    }
+}
+
 /// The band mask of a tile from its voxels' box minima: bit `i` set iff `m[i] < gamma`.
 #[inline(always)]
 fn band_bits(m: &[f32; 64], gamma: f32) -> u64 {
@@ -1077,14 +1094,9 @@ impl Representation for TilesRep {
         // A planar lattice's sweeps read the first z-slice only; the other slices are set
         // to 0.
         let sampled = self.read_slices(planar).map_or(TILE_LEN, |(_, read)| read);
-        out.par_chunks_mut(TILE_LEN).zip(coords.par_iter()).for_each(|(o, &tc)| {
-            let (sampled, unread) = o.split_at_mut(sampled);
-            unread.fill(0.0);
-            for (row, o) in sampled.chunks_mut(4).enumerate() {
-                let start = voxel_of(tc, 4 * row);
-                f.fill_run(&spec, start, t, o);
-            }
-        });
+        out.par_chunks_mut(TILE_LEN)
+            .zip(coords.par_iter())
+            .for_each(|(o, &tc)| sample_tile(f, &spec, tc, t, sampled, o));
     }
 
     fn read_slices(&self, planar: bool) -> Option<(usize, usize)> {
@@ -1133,12 +1145,8 @@ impl Representation for TilesRep {
         let spec = self.spec();
         let sampled = self.read_slices(planar).map_or(TILE_LEN, |(_, read)| read);
         self.merge_static(sampled, keys, [prev], [out], |tc, [o]| {
-            let (sampled, unread) = o.split_at_mut(sampled);
-            unread.fill(0.0);
-            for (row, o) in sampled.chunks_mut(4).enumerate() {
-                f.fill_run(&spec, voxel_of(tc, 4 * row), 0.0, o);
-            }
-            finish(sampled)
+            sample_tile(f, &spec, tc, 0.0, sampled, o);
+            finish(&mut o[..sampled])
         })
     }
 
