@@ -538,7 +538,7 @@ def python_section(meta):
     out = [
         "## Python beside scikit-fmm and scikit-image",
         "",
-        f"Two runs of `{runs[0]['command']}` (first / second; the fastest of its repeats each):"
+        f"Two runs of `{runs[0]['command']}` (first / second; calls of the two alternated, the fastest of each side's):"
         " `sparse_levelset.distance` against `skfmm.distance` (order 2) on a distorted torus"
         " (n³) and circle (n²),"
         " `sparse_levelset.isosurface` against `skimage.measure.marching_cubes` on a sphere;"
