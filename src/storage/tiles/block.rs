@@ -478,16 +478,7 @@ unsafe fn copy_row(data: &mut [f32], dst: usize, part: &[f32; 64], src: usize) {
 /// Prefetches the four cache lines of `tile` into every cache level.
 #[inline(always)]
 fn prefetch_tile(tile: &[f32; 64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = tile.as_ptr().cast::<i8>();
-        for line in 0..4 {
-            // SAFETY: a prefetch is a hint that never faults, whatever the address (this
-            // one is inside `tile`); SSE is part of every x86_64 target.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) };
-        }
+    for line in 0..4 {
+        crate::memory::prefetch_line(tile.as_ptr().wrapping_add(16 * line));
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = tile;
 }

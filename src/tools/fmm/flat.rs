@@ -292,23 +292,21 @@ impl Flat {
         solve_terms(&mut terms[..n], 1.0)
     }
 
-    /// Asks the CPU for the cache lines the updates around voxel `i` read (the voxels
-    /// within two steps along y and z, and the four diagonal neighbours in the y–z plane).
-    /// A hint only. The loop calls it for the next voxel to freeze (the heap's least
-    /// entry after a pop), so the lines arrive while the current voxel's neighbours are
-    /// updated: the value array of a 96³ box is 7.5 MB, beyond the L2 cache, and the
-    /// y and z neighbours are rows and slabs apart. `dense_distance` of
-    /// docs/python_bench.py's torus, order 2, in a Rust timing binary (fastest of 7 or 3,
-    /// alternated runs, 2-core AMD EPYC, 2026-12-02; the same bits): at 96³ the medians
-    /// of six runs 126 ms without, 115 ms with; at 160³ 690–741 ms without, 609–625 ms
-    /// with. (Holding the heap's time keys and indices in two arrays, so that the
-    /// tournament compares 64-bit keys, gave back the gain: 126 ms.)
+    /// Asks the CPU for the cache lines the updates around voxel `i` read: its own, the
+    /// ±1 and ±2 rows along y and z, and the four diagonal neighbours in the y–z plane
+    /// (thirteen lines). A hint only. The loop calls it for the next voxel to freeze (the
+    /// heap's least entry after a pop), so the lines arrive while the current voxel's
+    /// neighbours are updated: the value array of a 96³ box is 7.5 MB, beyond the L2
+    /// cache, and the y and z neighbours are rows and slabs apart. Measured in decision
+    /// 0052 (same bits; at 160³ 690–741 ms without, 609–625 ms with).
     #[inline(always)]
     fn prefetch_around(&self, i: usize) {
         let (sy, sz) = (self.strides[1], self.strides[2]);
-        for o in [0, sy, 2 * sy, sz, 2 * sz, sy + sz, sz - sy] {
-            prefetch(self.value.as_ptr().wrapping_add(i + o));
-            prefetch(self.value.as_ptr().wrapping_add(i.wrapping_sub(o)));
+        let at = |k: usize| crate::memory::prefetch_line(self.value.as_ptr().wrapping_add(k));
+        at(i);
+        for o in [sy, 2 * sy, sz, 2 * sz, sy + sz, sz - sy] {
+            at(i + o);
+            at(i.wrapping_sub(o));
         }
     }
 
@@ -363,20 +361,6 @@ impl Flat {
         }
         Ok(())
     }
-}
-
-/// A prefetch hint for the cache line of `p` (never faults, whatever the address).
-#[inline(always)]
-fn prefetch(p: *const f64) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // SAFETY: a prefetch is a hint that never faults, whatever the address; SSE is
-        // part of every x86_64 target.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 /// The array voxels of one side: the least and one past the largest coordinate per axis
