@@ -1146,3 +1146,96 @@ fn inside_above_threads_and_degenerate_triangles() {
     assert!(!runs[0].mesh.is_empty());
     assert!(runs.iter().all(|r| *r == runs[0]), "thread counts differ");
 }
+
+/// The per-vertex values are scikit-image's: for every vertex the largest, over the
+/// triangles that use it, of the value range (in f64, rounded to f32) of the eight corners
+/// of the triangle's cell, the cell found from the triangle's centroid and read from the
+/// array here (beyond a closed border: the outside value `iso ± γ` of the side meshed as
+/// outside, γ that of the lattice of `step`). On a busy field (several crossings per cell, values that are not distances),
+/// for every combination of border, mask, side and step; vertices with a triangle whose
+/// centroid lies on a cell face (its cell ambiguous) are not compared.
+#[test]
+fn values_are_the_largest_cell_range_of_the_triangles_on_each_vertex() {
+    let spec = GridSpec::default();
+    let dims = [19usize, 17, 15];
+    let f = DenseField::from_fn(Coord::new(-4, 3, 1), dims, |c| {
+        let (x, y, z) = (c.x as f64, c.y as f64, c.z as f64);
+        (40.0 * (0.61 * x).sin() * (0.47 * y + 0.3).cos() + 13.0 * (0.83 * z).sin() + 3.0 * x)
+            as f32
+    })
+    .unwrap();
+    let o = f.origin();
+    let mask: Vec<bool> = (0..f.data().len()).map(|i| (i * 7919) % 11 < 8).collect();
+    let mut compared = 0;
+    for (border, use_mask, inside, step) in [
+        (Border::Closed, false, Inside::Below, 1u32),
+        (Border::Open, false, Inside::Above, 1),
+        (Border::Closed, true, Inside::Above, 1),
+        (Border::Open, true, Inside::Below, 2),
+        (Border::Closed, false, Inside::Above, 3),
+    ] {
+        let iso = 7.25;
+        let opts = DenseMeshOptions {
+            iso: Some(iso),
+            inside,
+            step,
+            mask: use_mask.then_some(&mask[..]),
+            border,
+            ..Default::default()
+        };
+        let s = isosurface_dense_with(&f, &spec, &opts).unwrap();
+        assert!(s.mesh.num_triangles() > 100, "{border:?} {step}");
+        // In the frame the surface is computed in (negated for `Above`).
+        let sign = if inside == Inside::Above { -1.0 } else { 1.0 };
+        // γ of the sampled lattice, whose voxels are `step` wide.
+        let outside = (sign * iso + step as f64 * spec.gamma() as f64) as f32;
+        let k = step as i64;
+        let read = |c: [i64; 3]| {
+            let p = Coord::new(
+                (o.x as i64 + k * c[0]) as i32,
+                (o.y as i64 + k * c[1]) as i32,
+                (o.z as i64 + k * c[2]) as i32,
+            );
+            f.get(p).map_or(outside, |v| sign as f32 * v)
+        };
+        let mut expected = vec![f32::NEG_INFINITY; s.mesh.num_vertices()];
+        let mut ambiguous = vec![false; s.mesh.num_vertices()];
+        for t in &s.mesh.triangles {
+            let p = t.map(|v| s.mesh.positions[v as usize]);
+            // Lattice coordinates of the centroid, relative to the array's first voxel.
+            let at = |a: usize, c: i32| ((p[0][a] + p[1][a] + p[2][a]) / 3.0 - c as f64) / k as f64;
+            let g = [at(0, o.x), at(1, o.y), at(2, o.z)];
+            if g.iter().any(|g| (g - g.round()).abs() < 1e-6) {
+                t.iter().for_each(|&v| ambiguous[v as usize] = true);
+                continue;
+            }
+            let lo = g.map(|g| g.floor() as i64);
+            let (mut l, mut h) = (f32::INFINITY, f32::NEG_INFINITY);
+            for c in 0..8 {
+                let v = read([lo[0] + (c & 1), lo[1] + ((c >> 1) & 1), lo[2] + (c >> 2)]);
+                (l, h) = (l.min(v), h.max(v));
+            }
+            let range = (h as f64 - l as f64) as f32;
+            for &v in t {
+                expected[v as usize] = expected[v as usize].max(range);
+            }
+        }
+        let mut n = 0;
+        for (i, (&e, &got)) in expected.iter().zip(&s.values).enumerate() {
+            if !ambiguous[i] {
+                assert_eq!(
+                    got, e,
+                    "vertex {i} ({border:?}, mask {use_mask}, {inside:?}, step {step})"
+                );
+                n += 1;
+            }
+        }
+        println!(
+            "{border:?}, mask {use_mask}, {inside:?}, step {step}: {n} of {} vertices compared",
+            expected.len()
+        );
+        assert!(n * 10 >= 9 * expected.len(), "too few vertices compared: {n}");
+        compared += n;
+    }
+    assert!(compared > 1000);
+}

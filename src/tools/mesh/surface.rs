@@ -57,9 +57,10 @@
 //! [`Source::meshed_cells`]: a bit per cell of the tile's block, in the layout of the
 //! cut-cell masks, ANDed with them in both passes, so counts and writes agree. The
 //! vertices stay those of the cut edges; the ones no admitted cell uses are dropped
-//! afterwards, in order. Pass 2 can also write, per triangle, the value range of its
-//! cell (scikit-image's per-vertex `values` are the largest of these around a vertex).
-//! Without a rule every cell is admitted and nothing else changes.
+//! afterwards, in order. Pass 2 can also write, per vertex, scikit-image's `values`: the
+//! largest value range (largest minus smallest corner value) of the admitted cells around
+//! the vertex's edge, −1 for a vertex no admitted cell uses ([`vertex_value`]). Without a
+//! rule every cell is admitted and nothing else changes.
 //!
 //! # Speed
 //! On the r = 100 sphere (753 990 band voxels, 563 606 vertices, 1 127 208 triangles;
@@ -749,13 +750,12 @@ fn orphan_key(t: Coord, v: [usize; 3], d: u8) -> Orphan {
 }
 
 /// The mesh of a source in two passes over its slots (see the module docs). With
-/// `ranges`, also per triangle the range (largest minus smallest) of the values at the
-/// eight corners of its cell, as the block reads them; otherwise an empty vector.
+/// `values`, also per vertex its [`vertex_value`]; otherwise an empty vector.
 fn run<S: Source>(
     src: &S,
     iso: f64,
     ticker: &Ticker,
-    ranges: bool,
+    values: bool,
 ) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     let coords = src.coords();
     let n = coords.len();
@@ -861,8 +861,8 @@ fn run<S: Source>(
     let placer = Placer::new(src.spec(), vmin, vmax)?;
     // The precision is decided once, outside the loops.
     match placer.precision {
-        Precision::F32 => fill::<S, true>(src, iso, ticker, &counted, &placer, ranges),
-        Precision::F64 => fill::<S, false>(src, iso, ticker, &counted, &placer, ranges),
+        Precision::F32 => fill::<S, true>(src, iso, ticker, &counted, &placer, values),
+        Precision::F64 => fill::<S, false>(src, iso, ticker, &counted, &placer, values),
     }
 }
 
@@ -886,15 +886,15 @@ impl Counted {
 }
 
 /// Pass 2: every slot writes its vertices and triangles into its own ranges of the mesh,
-/// chunks in parallel; then the orphans. `F32`: the placer's precision. `want_ranges`:
-/// also the value range of each triangle's cell (see [`run`]).
+/// chunks in parallel; then the orphans. `F32`: the placer's precision. `want_values`:
+/// also each vertex's [`vertex_value`].
 fn fill<S: Source, const F32: bool>(
     src: &S,
     iso: f64,
     ticker: &Ticker,
     c: &Counted,
     placer: &Placer,
-    want_ranges: bool,
+    want_values: bool,
 ) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     let coords = src.coords();
     let n = coords.len();
@@ -916,12 +916,13 @@ fn fill<S: Source, const F32: bool>(
     let (slot_pos, orphan_pos) = positions.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let (slot_nrm, orphan_nrm) = normals.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let vstart = |s: usize| if s < n { info[s].base[0] as usize } else { slot_verts };
-    // Cell ranges per triangle, when asked for (zeroed: a plain, safe buffer).
-    let mut ranges = vec![0f32; if want_ranges { tris } else { 0 }];
+    // Values per vertex, when asked for (zeroed: a plain, safe buffer).
+    let mut vvalues = vec![0f32; if want_values { verts } else { 0 }];
+    let (slot_val, orphan_val) = vvalues.split_at_mut(if want_values { slot_verts } else { 0 });
     let mut work = Vec::with_capacity(n.div_ceil(CHUNK));
     {
         let (mut p, mut q, mut r, mut g) =
-            (slot_pos, slot_nrm, &mut triangles.spare_capacity_mut()[..tris], &mut ranges[..]);
+            (slot_pos, slot_nrm, &mut triangles.spare_capacity_mut()[..tris], slot_val);
         for start in (0..n).step_by(CHUNK) {
             let end = (start + CHUNK).min(n);
             let nv = vstart(end) - vstart(start);
@@ -929,7 +930,7 @@ fn fill<S: Source, const F32: bool>(
             let (p0, p1) = p.split_at_mut(nv);
             let (q0, q1) = q.split_at_mut(nv);
             let (r0, r1) = r.split_at_mut(nt);
-            let (g0, g1) = g.split_at_mut(if want_ranges { nt } else { 0 });
+            let (g0, g1) = g.split_at_mut(if want_values { nv } else { 0 });
             work.push((start, end, p0, q0, r0, g0));
             (p, q, r, g) = (p1, q1, r1, g1);
         }
@@ -941,8 +942,8 @@ fn fill<S: Source, const F32: bool>(
     let missing: Vec<bool> = work
         .into_par_iter()
         .map_init(
-            || (Box::new([0f32; BLOCK]), VertexBatch::new()),
-            |(values, batch), (start, end, pos, nrm, tri, rng)| {
+            || (Box::new([0f32; BLOCK]), VertexBatch::new(), Box::new([0f32; BLOCK])),
+            |(values, batch, ranges), (start, end, pos, nrm, tri, val)| {
                 ticker.check()?;
                 let mut missing = false;
                 let (v0, t0) = (vstart(start), tri_start[start]);
@@ -955,6 +956,10 @@ fn fill<S: Source, const F32: bool>(
                     let w = me.base[0] as usize - v0;
                     let t = nb.coord;
                     let tile = [4 * t.x as i64, 4 * t.y as i64, 4 * t.z as i64];
+                    let meshed = src.meshed_cells(t);
+                    if want_values {
+                        cell_ranges(values, &meshed, ranges);
+                    }
                     batch.clear();
                     for (k, &e) in me.edges.iter().enumerate() {
                         let mut m = e;
@@ -962,6 +967,10 @@ fn fill<S: Source, const F32: bool>(
                             let l = m.trailing_zeros() as usize;
                             m &= m - 1;
                             let (lx, ly, lz) = (l & 3, (l >> 2) & 3, l >> 4);
+                            if want_values {
+                                let v = [lx + 2, ly + 2, lz + 2];
+                                val[w + batch.len()] = vertex_value(ranges, v, k + 1);
+                            }
                             let at = bidx(lx + 2, ly + 2, lz + 2) as i32;
                             let lo =
                                 [tile[0] + lx as i64, tile[1] + ly as i64, tile[2] + lz as i64];
@@ -983,7 +992,6 @@ fn fill<S: Source, const F32: bool>(
                         std::array::from_fn(|k| nb.get(k).map(|p| &info[p]));
                     let mut w = tri_start[nb.pos] - t0;
                     let mut idx = [0u32; CELL_EDGES];
-                    let meshed = src.meshed_cells(t);
                     for_each_cut_cell(&s, stored, &meshed, |x, y, z, p| {
                         let case = &cases[p];
                         for (i, &e) in idx.iter_mut().zip(&case.edges[..case.n_edges as usize]) {
@@ -998,10 +1006,6 @@ fn fill<S: Source, const F32: bool>(
                                 }
                                 None => orphan_index(orphan_key(t, v, d)),
                             };
-                        }
-                        if want_ranges {
-                            let range = cell_range(values, x, y, z);
-                            rng[w..w + case.n_tris as usize].fill(range);
                         }
                         for tr in &case.tris[..case.n_tris as usize] {
                             tri[w].write(tr.map(|k| idx[k as usize]));
@@ -1030,6 +1034,11 @@ fn fill<S: Source, const F32: bool>(
             });
         }
         let at = k * TILE_VERTS;
+        if want_values {
+            for (&(v, d), val) in group.iter().zip(&mut orphan_val[at..]) {
+                *val = orphan_value(src, [v[2], v[1], v[0]], d as usize);
+            }
+        }
         missing |=
             batch.finish::<F32>(&placer.placement(), &mut orphan_pos[at..], &mut orphan_nrm[at..]);
     }
@@ -1047,20 +1056,108 @@ fn fill<S: Source, const F32: bool>(
     if missing {
         mesh.fill_missing_normals();
     }
-    Ok((mesh, ranges))
+    Ok((mesh, vvalues))
 }
 
-/// The largest minus the smallest value at the eight corners of the cell whose lower
-/// corner is block voxel `(x, y, z)`, computed in f64 and rounded to f32.
-#[inline]
-fn cell_range(values: &[f32; BLOCK], x: usize, y: usize, z: usize) -> f32 {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for c in 0..8 {
-        let v = values[bidx(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2))];
-        lo = lo.min(v);
-        hi = hi.max(v);
+/// Per direction `d` (bit mask over x, y, z) of a Kuhn edge, the block index offsets from
+/// its lower voxel down to the lower corners of the cells that hold the edge: the
+/// 2^(3 − |d|) corners one voxel lower or not along each axis outside `d` (the Kuhn edges
+/// of a cube are those from a corner to a corner above it). Unused entries repeat 0.
+const EDGE_CELLS: [[usize; 4]; 8] = {
+    let mut t = [[0; 4]; 8];
+    let mut d = 1;
+    while d < 8 {
+        let free = 7 & !d;
+        let (mut u, mut k) = (free, 0);
+        loop {
+            t[d][k] = bidx(u & 1, (u >> 1) & 1, u >> 2);
+            k += 1;
+            if u == 0 {
+                break;
+            }
+            u = (u - 1) & free;
+        }
+        d += 1;
     }
-    (hi as f64 - lo as f64) as f32
+    t
+};
+
+/// scikit-image's `values` of the vertex on the Kuhn edge from block voxel `v` in
+/// direction `d`: the largest of the [`cell_ranges`] of the cells that hold the edge
+/// ([`EDGE_CELLS`]), −1 when the rule admits none of them (the vertex is then on no
+/// triangle). Each admitted one has a triangle on the vertex (every tetrahedron of the
+/// cell with a cut edge has a polygon with a vertex on that edge), so this is the largest
+/// range over the triangles that use the vertex, computed per vertex rather than
+/// scattered from the triangles.
+#[inline]
+fn vertex_value(ranges: &[f32; BLOCK], v: [usize; 3], d: usize) -> f32 {
+    let i = bidx(v[0], v[1], v[2]);
+    EDGE_CELLS[d].iter().fold(-1f32, |m, &o| m.max(ranges[i - o]))
+}
+
+/// [`vertex_value`] of a vertex on an edge that starts in a tile without a slot (lower
+/// voxel `lo`, direction `d`), from [`Source::value`] and the rule of each cell's owner.
+fn orphan_value<S: Source>(src: &S, lo: [i64; 3], d: usize) -> f32 {
+    let free = 7 & !d;
+    let mut best = -1f32;
+    let mut u = free;
+    loop {
+        let c = [0, 1, 2].map(|a| lo[a] - ((u >> a) & 1) as i64);
+        let t = c.map(|c| c.div_euclid(4));
+        let b = [0, 1, 2].map(|a| (c[a] - 4 * t[a] + 2) as usize);
+        let owner = Coord::new(t[0] as i32, t[1] as i32, t[2] as i32);
+        if src.meshed_cells(owner)[b[2]] >> (b[0] + 8 * b[1]) & 1 == 1 {
+            let (mut l, mut h) = (f32::INFINITY, f32::NEG_INFINITY);
+            for k in 0..8 {
+                let p = [0, 1, 2].map(|a| c[a] + ((k >> a) & 1) as i64);
+                let x = src.value(p);
+                (l, h) = (l.min(x), h.max(x));
+            }
+            best = best.max(h - l);
+        }
+        if u == 0 {
+            return best;
+        }
+        u = (u - 1) & free;
+    }
+}
+
+/// Per cell of the block, the largest minus the smallest value at its eight corners, at
+/// the index of its lower corner (block voxel `(x, y, z)`, [`bidx`]; valid for x, y, z < 7),
+/// or −1 where `meshed` does not admit the cell. The minima and maxima are taken one axis
+/// at a time over the whole block, in loops the compiler vectorises (by comparisons: the
+/// values hold no NaN, so these are `f32::min` and `max`). The difference in f32 is the
+/// f64 difference rounded to f32 (53 ≥ 2 · 24 + 2 bits: a double rounding of a sum is the
+/// single one).
+fn cell_ranges(values: &[f32; BLOCK], meshed: &[u64; 8], out: &mut [f32; BLOCK]) {
+    /// `lo`, `hi` ← the smaller and the larger of `a` at i and at i + `step`.
+    #[inline(always)]
+    fn pair(a: &[f32], b: &[f32], step: usize, lo: &mut [f32; BLOCK], hi: &mut [f32; BLOCK]) {
+        let n = BLOCK - step;
+        for (o, (&x, &y)) in lo[..n].iter_mut().zip(a[..n].iter().zip(&a[step..])) {
+            *o = if y < x { y } else { x };
+        }
+        for (o, (&x, &y)) in hi[..n].iter_mut().zip(b[..n].iter().zip(&b[step..])) {
+            *o = if y > x { y } else { x };
+        }
+    }
+    let (mut lo, mut hi) = ([0f32; BLOCK], [0f32; BLOCK]);
+    let (mut lo2, mut hi2) = ([0f32; BLOCK], [0f32; BLOCK]);
+    pair(values, values, bidx(1, 0, 0), &mut lo, &mut hi);
+    pair(&lo, &hi, bidx(0, 1, 0), &mut lo2, &mut hi2);
+    pair(&lo2, &hi2, bidx(0, 0, 1), &mut lo, &mut hi);
+    for ((o, &h), &l) in out.iter_mut().zip(&hi).zip(&lo) {
+        *o = h - l;
+    }
+    for (z, &m) in meshed.iter().enumerate() {
+        if m != !0 {
+            for (b, o) in out[bidx(0, 0, z)..bidx(0, 0, z + 1)].iter_mut().enumerate() {
+                if m >> b & 1 == 0 {
+                    *o = -1.0;
+                }
+            }
+        }
+    }
 }
 
 /// Floating-point precision of a mesh's positions (see the module docs, "Precision").
@@ -1219,8 +1316,8 @@ pub(super) fn check_nan(field: &DenseField) -> Result<(), MeshError> {
     }
 }
 
-/// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), the value
-/// range of each triangle's cell when `ranges` (see [`run`]), and progress in tiles. The
+/// [`isosurface_dense`] with only the cells `cells` admits (all for `None`), each
+/// vertex's [`vertex_value`] when `values` (see [`run`]), and progress in tiles. The
 /// caller has checked that the field holds no NaN ([`check_nan`]). `negate`: mesh `−field`
 /// (the same bits as a negated copy, without the copy).
 pub(super) fn dense_mesh(
@@ -1229,7 +1326,7 @@ pub(super) fn dense_mesh(
     spec: &GridSpec,
     iso: f64,
     cells: Option<CellRule>,
-    ranges: bool,
+    values: bool,
     progress: &crate::progress::Progress,
 ) -> Result<(TriangleMesh, Vec<f32>), MeshError> {
     check_iso(iso)?;
@@ -1255,7 +1352,7 @@ pub(super) fn dense_mesh(
     let coords = src.crossed_tiles(f32_threshold(iso));
     src.coords = coords;
     let ticker = progress.start(src.coords.len() as u64);
-    run(&src, iso, &ticker, ranges)
+    run(&src, iso, &ticker, values)
 }
 
 #[cfg(test)]
