@@ -495,6 +495,12 @@ impl DenseSource<'_> {
     /// [`Coord`] order: the tiles whose filled block is not [`uniform`], found without
     /// filling blocks (each voxel's side is read once, then the windows are merged one
     /// axis at a time: along x per voxel row, along y per tile column, along z per tile).
+    ///
+    /// With an open border only the array's voxels count: a meshed cell has its eight
+    /// corners in the array, so the tiles that own it or a vertex of it have both sides
+    /// among the array's voxels of their reach, and a tile crossed only beyond the array
+    /// (by the extrapolation) would hold vertices that no triangle uses, which are dropped.
+    /// The mesh is the same; the extrapolation is read for the normals only ([`Self::fill`]).
     fn crossed_tiles(&self, below: f32) -> Vec<Coord> {
         let (tlo, thi) = (self.tlo, self.thi);
         let tn = [0, 1, 2].map(|a| (thi[a] - tlo[a] + 1).max(0) as usize);
@@ -508,6 +514,7 @@ impl DenseSource<'_> {
         let hi = [0, 1, 2].map(|a| o[a] + dims[a] as i64 - 1);
         let data = self.field.data();
         let (nx, ny) = (dims[0], dims[1]);
+        let open = self.clamps();
         // Sides along x: per voxel row (y, z) and tile x, bit 0 = a voxel below iso in the
         // tile's window, bit 1 = one not below.
         let mut fx = vec![0u8; vn[2] * vn[1] * tn[0]];
@@ -518,58 +525,29 @@ impl DenseSource<'_> {
                 let y = vlo[1] + yi as i64;
                 let (py, pz) = (y.clamp(o[1], hi[1]), z.clamp(o[2], hi[2]));
                 let row_in = py == y && pz == z;
-                // The voxels of the row above the array's x range: the array's own, or
-                // for an open border a row beyond it in y or z, extrapolated from the
-                // array's rows as [`DenseSource::beyond`] does (the same operations).
+                // The voxels of the row within the array's x range, when the row is in it.
                 let (xa, xb) = (o[0] - vlo[0], hi[0] + 1 - vlo[0]);
                 let (xa, xb) =
                     (xa.clamp(0, vn[0] as i64) as usize, xb.clamp(0, vn[0] as i64) as usize);
-                let (xa, xb) = if row_in || self.clamps() { (xa, xb) } else { (0, 0) };
+                let (xa, xb) = if row_in { (xa, xb) } else { (0, 0) };
                 if xa < xb {
-                    let row_at = |y: i64, z: i64| {
-                        let i = (vlo[0] + xa as i64 - o[0]) as usize
-                            + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
-                        &data[i..i + (xb - xa)]
-                    };
-                    let base = row_at(py, pz);
-                    // Per axis y, z beyond the array: the distance and the row one voxel
-                    // inward from the base row.
-                    let (by, bz) = (y - py, z - pz);
-                    let inner_y = (by != 0 && o[1] < hi[1]).then(|| row_at(py - by.signum(), pz));
-                    let inner_z = (bz != 0 && o[2] < hi[2]).then(|| row_at(py, pz - bz.signum()));
-                    if row_in {
-                        // The common case on its own, in a loop the compiler vectorises
-                        // when the row has no infinite value (`read` is then the product
-                        // with the sign).
-                        let sides = side[xa..xb].iter_mut().zip(base);
-                        if finite(base) {
-                            let sign = self.sign;
-                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(sign * x < below));
-                        } else {
-                            sides.for_each(|(sd, &x)| *sd = 2 - u8::from(self.read(x) < below));
-                        }
+                    let i = (vlo[0] + xa as i64 - o[0]) as usize
+                        + nx * ((y - o[1]) as usize + ny * (z - o[2]) as usize);
+                    let base = &data[i..i + (xb - xa)];
+                    // A loop the compiler vectorises when the row has no infinite value
+                    // (`read` is then the product with the sign).
+                    let sides = side[xa..xb].iter_mut().zip(base);
+                    if finite(base) {
+                        let sign = self.sign;
+                        sides.for_each(|(sd, &x)| *sd = 2 - u8::from(sign * x < below));
                     } else {
-                        for (k, sd) in side[xa..xb].iter_mut().enumerate() {
-                            let b = self.read(base[k]) as f64;
-                            let mut v = b;
-                            if let Some(r) = inner_y {
-                                v += by.abs() as f64 * (b - self.read(r[k]) as f64);
-                            }
-                            if let Some(r) = inner_z {
-                                v += bz.abs() as f64 * (b - self.read(r[k]) as f64);
-                            }
-                            *sd = if (v as f32) < below { 1 } else { 2 };
-                        }
+                        sides.for_each(|(sd, &x)| *sd = 2 - u8::from(self.read(x) < below));
                     }
                 }
-                for (xi, sd) in side.iter_mut().enumerate() {
-                    if (xa..xb).contains(&xi) {
-                        continue;
-                    }
-                    let x = vlo[0] + xi as i64;
-                    let v = self.beyond([x, y, z], [x.clamp(o[0], hi[0]), py, pz]);
-                    *sd = if v < below { 1 } else { 2 };
-                }
+                // Beyond the array: no side with an open border, else the outside value's.
+                let beyond = if open { 0 } else { 2 - u8::from(self.outside < below) };
+                side[..xa].fill(beyond);
+                side[xb.max(xa)..].fill(beyond);
                 for (t, f) in row.iter_mut().enumerate() {
                     *f = side[4 * t..4 * t + 6].iter().fold(0, |a, &b| a | b);
                 }
@@ -1390,8 +1368,9 @@ mod tests {
     }
 
     /// A dense array's crossed tiles, found separably, are the tiles whose filled block is
-    /// not uniform (the scan over every block), at open and closed borders, with ±∞,
-    /// negated reads and arrays one voxel thick along an axis.
+    /// not uniform (the scan over every block) at a closed border, and at an open one the
+    /// tiles with both sides among the array's voxels of their reach; with ±∞, negated
+    /// reads and arrays one voxel thick along an axis.
     #[test]
     fn crossed_tiles_are_the_tiles_with_a_mixed_block() {
         let mut rng = fastrand::Rng::with_seed(5);
@@ -1425,11 +1404,35 @@ mod tests {
                     let below = f32_threshold(iso as f64);
                     let mut scan = Vec::new();
                     let mut values = Box::new([0f32; BLOCK]);
+                    // With an open border, the tiles with both sides among the array's
+                    // voxels of their reach (4 t − 1 ..= 4 t + 4).
+                    let (flo, fhi) = (field.origin(), field.max_coord());
+                    let (flo, fhi) = (
+                        [flo.x, flo.y, flo.z].map(i64::from),
+                        [fhi.x, fhi.y, fhi.z].map(i64::from),
+                    );
+                    let in_array_mixed = |t: [i64; 3]| {
+                        let r = |a: usize| (4 * t[a] - 1).max(flo[a])..=(4 * t[a] + 4).min(fhi[a]);
+                        let mut sides = 0;
+                        for z in r(2) {
+                            for y in r(1) {
+                                for x in r(0) {
+                                    sides |= if src.at([x, y, z]) < below { 1 } else { 2 };
+                                }
+                            }
+                        }
+                        sides == 3
+                    };
                     for z in src.tlo[2]..=src.thi[2] {
                         for y in src.tlo[1]..=src.thi[1] {
                             for x in src.tlo[0]..=src.thi[0] {
-                                src.fill([x, y, z], &mut values);
-                                if !uniform(&signs(&values, below)) {
+                                let crossed = if open {
+                                    in_array_mixed([x, y, z])
+                                } else {
+                                    src.fill([x, y, z], &mut values);
+                                    !uniform(&signs(&values, below))
+                                };
+                                if crossed {
                                     scan.push(Coord::new(x as i32, y as i32, z as i32));
                                 }
                             }
