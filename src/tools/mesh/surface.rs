@@ -1037,10 +1037,11 @@ fn fill<S: Source, const F32: bool>(
     Ok((mesh, vvalues))
 }
 
-/// Per direction `d` (bit mask over x, y, z) of a Kuhn edge, the block index offsets from
-/// its lower voxel down to the lower corners of the cells that hold the edge: the
-/// 2^(3 − |d|) corners one voxel lower or not along each axis outside `d` (the Kuhn edges
-/// of a cube are those from a corner to a corner above it). Unused entries repeat 0.
+/// Per direction `d` (bit mask over x, y, z) of a Kuhn edge, the cells that hold the edge,
+/// as the axes (bit mask) along which their lower corner lies one voxel below the edge's
+/// lower voxel: the 2^(3 − |d|) subsets of the axes outside `d` (the Kuhn edges of a cube
+/// are those from a corner to a corner above it). Unused entries repeat 0 (the same cell
+/// again, which leaves a maximum unchanged).
 const EDGE_CELLS: [[usize; 4]; 8] = {
     let mut t = [[0; 4]; 8];
     let mut d = 1;
@@ -1048,12 +1049,28 @@ const EDGE_CELLS: [[usize; 4]; 8] = {
         let free = 7 & !d;
         let (mut u, mut k) = (free, 0);
         loop {
-            t[d][k] = bidx(u & 1, (u >> 1) & 1, u >> 2);
+            t[d][k] = u;
             k += 1;
             if u == 0 {
                 break;
             }
             u = (u - 1) & free;
+        }
+        d += 1;
+    }
+    t
+};
+
+/// [`EDGE_CELLS`] as block index offsets (down from the edge's lower voxel).
+const EDGE_CELL_OFFSETS: [[usize; 4]; 8] = {
+    let mut t = [[0; 4]; 8];
+    let mut d = 0;
+    while d < 8 {
+        let mut k = 0;
+        while k < 4 {
+            let u = EDGE_CELLS[d][k];
+            t[d][k] = bidx(u & 1, (u >> 1) & 1, u >> 2);
+            k += 1;
         }
         d += 1;
     }
@@ -1070,34 +1087,27 @@ const EDGE_CELLS: [[usize; 4]; 8] = {
 #[inline]
 fn vertex_value(ranges: &[f32; BLOCK], v: [usize; 3], d: usize) -> f32 {
     let i = bidx(v[0], v[1], v[2]);
-    EDGE_CELLS[d].iter().fold(-1f32, |m, &o| m.max(ranges[i - o]))
+    EDGE_CELL_OFFSETS[d].iter().fold(-1f32, |m, &o| m.max(ranges[i - o]))
 }
 
 /// [`vertex_value`] of a vertex on an edge that starts in a tile without a slot (lower
 /// voxel `lo`, direction `d`), from [`Source::value`] and the rule of each cell's owner.
 fn orphan_value<S: Source>(src: &S, lo: [i64; 3], d: usize) -> f32 {
-    let free = 7 & !d;
-    let mut best = -1f32;
-    let mut u = free;
-    loop {
+    EDGE_CELLS[d].iter().fold(-1f32, |best, &u| {
         let c = [0, 1, 2].map(|a| lo[a] - ((u >> a) & 1) as i64);
         let t = c.map(|c| c.div_euclid(4));
         let b = [0, 1, 2].map(|a| (c[a] - 4 * t[a] + 2) as usize);
         let owner = Coord::new(t[0] as i32, t[1] as i32, t[2] as i32);
-        if src.meshed_cells(owner)[b[2]] >> (b[0] + 8 * b[1]) & 1 == 1 {
-            let (mut l, mut h) = (f32::INFINITY, f32::NEG_INFINITY);
-            for k in 0..8 {
-                let p = [0, 1, 2].map(|a| c[a] + ((k >> a) & 1) as i64);
-                let x = src.value(p);
-                (l, h) = (l.min(x), h.max(x));
-            }
-            best = best.max(h - l);
-        }
-        if u == 0 {
+        if src.meshed_cells(owner)[b[2]] >> (b[0] + 8 * b[1]) & 1 == 0 {
             return best;
         }
-        u = (u - 1) & free;
-    }
+        let (mut l, mut h) = (f32::INFINITY, f32::NEG_INFINITY);
+        for k in 0..8 {
+            let x = src.value([0, 1, 2].map(|a| c[a] + ((k >> a) & 1) as i64));
+            (l, h) = (l.min(x), h.max(x));
+        }
+        best.max(h - l)
+    })
 }
 
 /// Per cell of the block, the largest minus the smallest value at its eight corners, at
