@@ -1151,9 +1151,10 @@ fn inside_above_threads_and_degenerate_triangles() {
 /// triangles that use it, of the value range (in f64, rounded to f32) of the eight corners
 /// of the triangle's cell, the cell found from the triangle's centroid and read from the
 /// array here (beyond a closed border: the outside value `iso ± γ` of the side meshed as
-/// outside, γ that of the lattice of `step`). On a busy field (several crossings per cell, values that are not distances),
-/// for every combination of border, mask, side and step; vertices with a triangle whose
-/// centroid lies on a cell face (its cell ambiguous) are not compared.
+/// outside, γ that of the lattice of `step`). On a busy field (several crossings per
+/// cell, values that are not distances), for every combination of border, mask, side and
+/// step; vertices with a triangle whose centroid lies on a cell face (its cell ambiguous)
+/// are not compared.
 #[test]
 fn values_are_the_largest_cell_range_of_the_triangles_on_each_vertex() {
     let spec = GridSpec::default();

@@ -7,11 +7,10 @@
 //! after the two passes of the surface module: the step samples the array,
 //! `Inside::Above` negates it (as it is read, without a copy when the step is 1), and the
 //! removal of zero-area triangles and of the vertices no triangle uses run over the
-//! finished mesh, in order. The values are computed per vertex in the second pass, from
-//! the cells around the vertex's edge (a maximum, exact in any order): scattering each
-//! triangle's cell range to its vertices afterwards took 1.4–1.6 ms of one thread at 96³,
-//! about an eighth of the call (the sphere of the Python benchmark, 2-core AMD EPYC,
-//! 2026-12-02). So the result is the same bits for any thread count, like the mesh itself.
+//! finished mesh, in order. The values are computed per vertex in the parallel second
+//! pass, from the cells around the vertex's edge (a maximum, exact in any order), not by a
+//! pass over the finished triangles on one thread (docs/decisions/0053). So the result is
+//! the same bits for any thread count, like the mesh itself.
 
 use super::surface::{dense_mesh, CellRule};
 use super::{MeshError, TriangleMesh};
