@@ -22,6 +22,7 @@
 //! assert_eq!(tiles.value(sparse_levelset::Coord::new(0, 0, 0)), -3.0);
 //! ```
 
+pub mod alloc;
 pub mod bench;
 pub mod coord;
 pub mod distributed;

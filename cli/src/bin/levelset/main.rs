@@ -17,6 +17,10 @@ mod source;
 mod voxelize;
 
 use clap::{Parser, Subcommand};
+
+/// Large buffers in huge pages ([`sparse_levelset::alloc::LargePages`]).
+#[global_allocator]
+static ALLOC: sparse_levelset::alloc::LargePages = sparse_levelset::alloc::LargePages;
 use std::process::ExitCode;
 
 #[derive(Parser)]
