@@ -4,6 +4,7 @@
     target/py-venv/bin/python docs/segment_scaling.py                 # phantoms2, 128³, SNR 2
     target/py-venv/bin/python docs/segment_scaling.py --mni           # and the MNI T1
     target/py-venv/bin/python docs/segment_scaling.py --kinds torus --repeat 9 --json OUT.json
+    target/py-venv/bin/python docs/segment_scaling.py --vs OTHER/levelset --repeat 15
 
 The images come from the second phantom generator, docs/validation/phantoms2.py (NumPy and
 SciPy, nothing shared with `levelset phantom`; written into --work if missing), and with
@@ -15,11 +16,19 @@ its default parameters from the generator's seeds (threshold with the seeds file
 stopping tests; not reading or writing the files). The table gives both times, their ratio and
 the Dice against the truth (the same on both thread counts: the results are bitwise
 identical).
+
+With --vs OTHER, the same runs compare two builds of `levelset` instead: on each thread count
+the two run in turn, --repeat times, and the table gives each one's median `seconds` and
+page faults (the operating system's count for the finished process, reading and writing the
+files included) and the median of the pairs' ratios; the two masks must be bitwise the same.
 """
 
 import argparse
+import filecmp
 import json
 import pathlib
+import resource
+import statistics
 import subprocess
 import sys
 
@@ -75,6 +84,39 @@ def run(levelset, image, truth, seeds, window, method, threads, out):
     return json.loads(done.stdout)
 
 
+def faults_of(f):
+    """`f()` and the page faults of the child processes it waited for."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_minflt
+    out = f()
+    return out, resource.getrusage(resource.RUSAGE_CHILDREN).ru_minflt - before
+
+
+def compare(args):
+    """The --vs table: this build against another, run in turn."""
+    builds = {"A": args.levelset, "B": args.vs}
+    print(f"A: {args.levelset}, B: {args.vs}")
+    print("| image | method | threads | A s | B s | A / B | A page faults | B page faults |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, image, truth, seeds, window in cases(args):
+        for method in args.methods:
+            for threads in (1, 2):
+                seen = {"A": [], "B": []}
+                for _ in range(args.repeat):
+                    masks = {}
+                    for key, levelset in builds.items():
+                        masks[key] = args.work / f"mask-{method}-{threads}t-{key}.nii.gz"
+                        r, faults = faults_of(lambda: run(levelset, image, truth, seeds, window,
+                                                          method, threads, masks[key]))
+                        seen[key].append((r["seconds"], faults))
+                    if not filecmp.cmp(masks["A"], masks["B"], shallow=False):
+                        sys.exit(f"error: {name} {method} on {threads} threads: the masks differ")
+                med = {k: [statistics.median(x[i] for x in v) for i in (0, 1)]
+                       for k, v in seen.items()}
+                pairs = statistics.median(a[0] / b[0] for a, b in zip(seen["A"], seen["B"]))
+                print(f"| {name} | {method} | {threads} | {med['A'][0]:.3f} | {med['B'][0]:.3f} |"
+                      f" {pairs:.2f} | {med['A'][1]:.0f} | {med['B'][1]:.0f} |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levelset", type=pathlib.Path, default=ROOT / "target/release/levelset")
@@ -88,10 +130,18 @@ def main():
     ap.add_argument("--mni", action="store_true", help="also the MNI T1's white matter")
     ap.add_argument("--repeat", type=int, default=5, help="runs per thread count (default 5)")
     ap.add_argument("--json", type=pathlib.Path, help="also write the rows here")
+    ap.add_argument("--vs", type=pathlib.Path, metavar="OTHER",
+                    help="compare with this other build of levelset instead (see above)")
     args = ap.parse_args()
-    if not args.levelset.exists():
-        sys.exit(f"error: {args.levelset} is missing (cargo build --release -p levelset-cli)")
+    for levelset in filter(None, [args.levelset, args.vs]):
+        if not levelset.exists():
+            sys.exit(f"error: {levelset} is missing (cargo build --release -p levelset-cli)")
     args.work.mkdir(parents=True, exist_ok=True)
+    if args.vs:
+        if args.json:
+            sys.exit("error: --json writes the one-build table; it cannot go with --vs")
+        compare(args)
+        return
     rows = []
     print("| image | method | 1 thread, s | 2 threads, s | 2 threads / 1 | Dice |")
     print("|---|---|---|---|---|---|")
