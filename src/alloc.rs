@@ -4,13 +4,11 @@
 //!
 //! The whole-image passes of segmentation and the dense tools write fresh image-sized
 //! buffers (a Gaussian, a gradient, a mask) one after another. From the system allocator
-//! each one is touched first, page by page, by the pass that fills it: a fault per 4 KiB,
-//! which on a virtual machine costs about as much as the pass's arithmetic and does not
-//! scale over threads (a fresh 8 MiB buffer filled on 1 and 2 threads: 4.7 and 3.0 ms with
-//! 4 KiB pages, 0.97 and 0.50 ms with 2 MiB pages, 0.68 and 0.33 ms already touched; a C
-//! program with OpenMP, minima of 30, 2-core AMD EPYC under Firecracker, 2026-12-03).
-//! Mapped 2 MiB-aligned and advised `MADV_HUGEPAGE` before anything touches them, such
-//! blocks fault once per 2 MiB, on whichever thread writes there.
+//! each one is faulted in by the pass that fills it, a 4 KiB page at a time; mapped
+//! 2 MiB-aligned and advised `MADV_HUGEPAGE` before anything touches them, such blocks
+//! fault once per 2 MiB, on whichever thread writes there. Where that pays and where it
+//! loses (the same large blocks again and again in one process) is measured in decision
+//! 0055 (`docs/decisions/0055-large-blocks-in-huge-pages.md`).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 
@@ -32,11 +30,13 @@ impl LargePages {
     pub const THRESHOLD: usize = 1 << 20;
 }
 
+/// The page size the mappings are rounded to, and the largest alignment they serve.
+const PAGE: usize = 4096;
+
 #[cfg(target_os = "linux")]
 mod mapped {
-    /// A huge page of x86-64 and most aarch64 kernels.
-    const HUGE: usize = 2 << 20;
-    const PAGE: usize = 4096;
+    use super::PAGE;
+    use crate::memory::{advise_huge_range, HUGE_PAGE as HUGE};
 
     /// The bytes mapped for a block of `size` bytes.
     pub fn span(size: usize) -> usize {
@@ -67,8 +67,7 @@ mod mapped {
         let base = p as usize;
         let start = base.next_multiple_of(if extra > 0 { HUGE } else { PAGE });
         // SAFETY: the head and the tail trimmed lie inside the mapping just made, page
-        // aligned, and nothing refers to them; the advice changes how pages are backed,
-        // never their contents.
+        // aligned, and nothing refers to them.
         unsafe {
             if start > base {
                 libc::munmap(p, start - base);
@@ -77,8 +76,8 @@ mod mapped {
             if tail > 0 {
                 libc::munmap((start + len) as *mut libc::c_void, tail);
             }
-            libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
         }
+        advise_huge_range(start, len);
         start as *mut u8
     }
 
@@ -110,7 +109,7 @@ mod mapped {
 
 #[cfg(target_os = "linux")]
 fn is_mapped(layout: Layout) -> bool {
-    layout.size() >= LargePages::THRESHOLD && layout.align() <= 4096
+    layout.size() >= LargePages::THRESHOLD && layout.align() <= PAGE
 }
 
 #[cfg(not(target_os = "linux"))]

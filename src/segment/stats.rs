@@ -82,10 +82,11 @@ impl ValueParts for [&[f32]] {
 
 /// Up to this many values, [`order_statistics_of_parts`] selects from a copy of them
 /// instead of counting: the counting passes zero a histogram of 512 kB per part and pass,
-/// which costs more than selecting among a few thousand values (the middle ranks of 1,430
-/// values in two parts, as many as the seeds' voxels of the 128³ blobs phantom: 0.93 ms
-/// on one thread and 0.34–0.44 ms on two by counting, 0.004 ms from a copy; minima of 50
-/// calls in a test build, 2-core AMD EPYC, 2026-12-03).
+/// which costs more than selecting among that many values. The middle ranks of 1,430
+/// values in two parts (as many as the seeds' voxels of the 128³ blobs phantom): 0.93 and
+/// 1.6 ms on one thread, 0.34–0.44 and 0.12 ms on two by counting, 0.004–0.006 ms from a
+/// copy; of 2¹⁴ values, 0.11–0.13 ms by counting and 0.04 ms from a copy (minima of 50
+/// calls in a test build, two runs, 2-core AMD EPYC, 2026-12-03).
 const SELECT_FROM_COPY: usize = 1 << 14;
 
 /// [`order_statistics_of`] the values of all `parts` together (not all empty); the same
@@ -513,7 +514,8 @@ mod tests {
                 assert_eq!(g.to_bits(), sorted[(*k).min(n - 1)].to_bits(), "rank {k}");
             }
         }
-        // Below the copy's bound, a copy's selection and the counting agree at every rank.
+        // Below the copy's bound, a copy's selection and the counting agree with a sort
+        // (every 37th rank and the last).
         let few = &v[..SELECT_FROM_COPY];
         let mut s = few.to_vec();
         s.sort_by(f32::total_cmp);

@@ -17,11 +17,11 @@ mod source;
 mod voxelize;
 
 use clap::{Parser, Subcommand};
+use std::process::ExitCode;
 
 /// Large buffers in huge pages ([`sparse_levelset::alloc::LargePages`]).
 #[global_allocator]
 static ALLOC: sparse_levelset::alloc::LargePages = sparse_levelset::alloc::LargePages;
-use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(
