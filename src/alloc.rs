@@ -36,7 +36,9 @@ const PAGE: usize = 4096;
 #[cfg(target_os = "linux")]
 mod mapped {
     use super::PAGE;
-    use crate::memory::{advise_huge_range, HUGE_PAGE as HUGE};
+
+    /// A transparent huge page of x86-64 and most aarch64 kernels.
+    const HUGE: usize = 2 << 20;
 
     /// The bytes mapped for a block of `size` bytes.
     pub fn span(size: usize) -> usize {
@@ -67,7 +69,10 @@ mod mapped {
         let base = p as usize;
         let start = base.next_multiple_of(if extra > 0 { HUGE } else { PAGE });
         // SAFETY: the head and the tail trimmed lie inside the mapping just made, page
-        // aligned, and nothing refers to them.
+        // aligned, and nothing refers to them; the advice changes how pages are backed,
+        // never their contents. It covers the whole mapping, not only its whole huge pages
+        // as `memory::advise_huge_pages` does inside a buffer: advice on part of it would
+        // split the mapping in two, which `mremap` then refuses to resize.
         unsafe {
             if start > base {
                 libc::munmap(p, start - base);
@@ -76,8 +81,8 @@ mod mapped {
             if tail > 0 {
                 libc::munmap((start + len) as *mut libc::c_void, tail);
             }
+            libc::madvise(start as *mut libc::c_void, len, libc::MADV_HUGEPAGE);
         }
-        advise_huge_range(start, len);
         start as *mut u8
     }
 

@@ -189,28 +189,21 @@ pub(crate) fn resize_exact<T: Clone>(v: &mut Vec<T>, n: usize, fill: T) {
 /// 15, minima; 2-core AMD EPYC); where it reuses pages, nothing changes. A hint only:
 /// the contents and the result are the same either way, and elsewhere it is a no-op.
 pub(crate) fn advise_huge_pages<T>(v: &mut Vec<T>) {
-    advise_huge_range(v.as_mut_ptr() as usize, v.capacity() * std::mem::size_of::<T>());
-}
-
-/// A transparent huge page of x86-64 and most aarch64 kernels.
-pub(crate) const HUGE_PAGE: usize = 2 << 20;
-
-/// [`advise_huge_pages`] for the `bytes` bytes at address `p`, which must all belong to
-/// one allocation (or mapping) of the caller's: only its whole 2 MiB-aligned pages are
-/// advised.
-pub(crate) fn advise_huge_range(p: usize, bytes: usize) {
     #[cfg(target_os = "linux")]
     {
-        let (start, end) = (p.next_multiple_of(HUGE_PAGE), (p + bytes) & !(HUGE_PAGE - 1));
+        const HUGE: usize = 2 << 20;
+        let bytes = v.capacity() * std::mem::size_of::<T>();
+        let p = v.as_mut_ptr() as usize;
+        let (start, end) = (p.next_multiple_of(HUGE), (p + bytes) & !(HUGE - 1));
         if end > start {
-            // SAFETY: the range lies inside the caller's own allocation; MADV_HUGEPAGE
+            // SAFETY: the range lies inside the buffer's own allocation; MADV_HUGEPAGE
             // changes how pages are backed, never their contents, and a failure (THP
             // off, old kernel) only leaves the default.
             unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
         }
     }
     #[cfg(not(target_os = "linux"))]
-    let _ = (p, bytes);
+    let _ = v;
 }
 
 /// Asks the CPU to bring the cache line holding `p` into every cache level. A hint only:
