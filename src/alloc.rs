@@ -31,6 +31,7 @@ impl LargePages {
 }
 
 /// The page size the mappings are rounded to, and the largest alignment they serve.
+#[cfg(target_os = "linux")]
 const PAGE: usize = 4096;
 
 #[cfg(target_os = "linux")]
