@@ -118,7 +118,7 @@ pub(super) const fn bidx(x: usize, y: usize, z: usize) -> usize {
 /// The sign bits of a block: bit `x + 8 y` of slice `z` is set where the value is below
 /// `below`. For the rule "φ < iso" with an f64 iso value, `below` is the smallest f32 not
 /// below iso ([`f32_threshold`]).
-#[inline]
+#[inline(always)]
 pub(super) fn signs(values: &[f32; BLOCK], below: f32) -> [u64; B] {
     let mut s = [0u64; B];
     for (z, slice) in s.iter_mut().enumerate() {
@@ -167,7 +167,7 @@ pub(super) const REACH_XY: u64 = xy_mask(1, 7);
 
 /// Whether the voxels of block coordinates 1..7 along each axis (the corners of every
 /// cell a tile may own and the ends of its Kuhn edges) all lie on one side of iso.
-#[inline]
+#[inline(always)]
 pub(super) fn uniform(s: &[u64; B]) -> bool {
     let (mut any, mut all) = (0u64, REACH_XY);
     for &slice in &s[1..7] {
@@ -205,7 +205,7 @@ fn tile_bits(m: u64) -> u64 {
 /// The cut Kuhn edges that start at the tile's voxels: `out[d − 1]` has bit
 /// `x + 4 y + 16 z` (local) set when the values at that voxel and at voxel + d lie on
 /// different sides of iso, for the directions `d` in 1..8 (bit masks over x, y, z).
-#[inline]
+#[inline(always)]
 pub(super) fn edge_masks(s: &[u64; B]) -> [u64; 7] {
     let mut out = [0u64; 7];
     for (k, o) in out.iter_mut().enumerate() {
@@ -277,7 +277,7 @@ pub(super) fn tile_and_local(x: usize, y: usize, z: usize) -> (usize, u32) {
 /// Whether a cell with lower block corner `(x, y, z)` in 1..6 belongs to the tile: the
 /// tile of its first corner (corner order) that lies in a stored tile must be the tile
 /// itself (`stored`: the 27-bit set of stored neighbour tiles).
-#[inline]
+#[inline(always)]
 pub(super) fn owns_cell(stored: u32, x: usize, y: usize, z: usize) -> bool {
     (0..8)
         .map(|c| tile_and_local(x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2)).0)
@@ -392,7 +392,7 @@ impl VertexBatch {
     /// for output precision f32 (`F32`) or f64. `place` must be the placement whose
     /// precision rule chose `F32` for coordinates up to the batch's (so the ulps are
     /// finite). Returns whether some normal is zero.
-    #[inline]
+    #[inline(always)]
     pub fn finish<const F32: bool>(
         &mut self,
         place: &Placement,
