@@ -757,18 +757,25 @@ fn orphan_key(t: Coord, v: [usize; 3], d: u8) -> Orphan {
     ([w(2, t.z), w(1, t.y), w(0, t.x)], d)
 }
 
-/// Pass 1 of [`run`] over one chunk of slots (`start..start + info.len()`): each slot's
-/// cut edges and triangle count, and the chunk's orphans, bounds and active slots.
-/// Inlined into both [`run`] and [`count_chunk_avx2`], and so compiled for each.
+/// One work item of [`run`]'s first pass: slots `start..start + info.len()` and their
+/// results.
+struct CountPart<'a> {
+    start: usize,
+    info: &'a mut [SlotInfo],
+    tri_count: &'a mut [u32],
+}
+
+/// Pass 1 of [`run`] over one chunk of slots: each slot's cut edges and triangle count,
+/// and the chunk's orphans, bounds and active slots. Inlined into both [`run`] and
+/// [`count_chunk_avx2`], and so compiled for each.
 #[inline(always)]
 fn count_chunk<S: Source>(
     src: &S,
     below: f32,
-    start: usize,
-    info: &mut [SlotInfo],
-    tri_count: &mut [u32],
+    part: CountPart<'_>,
     values: &mut [f32; BLOCK],
 ) -> ChunkCount {
+    let CountPart { start, info, tri_count } = part;
     let (coords, cases) = (src.coords(), cell_cases());
     let mut out = ChunkCount::default();
     for nb in NeighbourCursor::new(coords, start, start + info.len()) {
@@ -816,12 +823,10 @@ fn count_chunk<S: Source>(
 unsafe fn count_chunk_avx2<S: Source>(
     src: &S,
     below: f32,
-    start: usize,
-    info: &mut [SlotInfo],
-    tri_count: &mut [u32],
+    part: CountPart<'_>,
     values: &mut [f32; BLOCK],
 ) -> ChunkCount {
-    count_chunk(src, below, start, info, tri_count, values)
+    count_chunk(src, below, part, values)
 }
 
 /// Whether the two passes run compiled for AVX2, POPCNT and BMI1 ([`count_chunk_avx2`],
@@ -868,13 +873,13 @@ fn run<S: Source>(
             || Box::new([0f32; BLOCK]),
             |values, (ci, (info, tri_count))| {
                 ticker.check()?;
-                let start = ci * CHUNK;
+                let part = CountPart { start: ci * CHUNK, info, tri_count };
                 Ok(if avx2 {
                     // SAFETY: `avx2` is set only where the CPU has AVX2, POPCNT and BMI1
                     // (`run`'s callers take it from `avx2()`, which detects them).
-                    unsafe { count_chunk_avx2(src, below, start, info, tri_count, values) }
+                    unsafe { count_chunk_avx2(src, below, part, values) }
                 } else {
-                    count_chunk(src, below, start, info, tri_count, values)
+                    count_chunk(src, below, part, values)
                 })
             },
         )
@@ -1008,6 +1013,7 @@ fn fill<S: Source, const F32: bool>(
             (p, q, r, g) = (p1, q1, r1, g1);
         }
     }
+    let inputs = FillInputs { src, iso, c, placer, want_values };
     let missing: Vec<bool> = work
         .into_par_iter()
         .map_init(
@@ -1018,11 +1024,9 @@ fn fill<S: Source, const F32: bool>(
                 let scratch = (&mut **values, &mut **batch, &mut **ranges);
                 let missing = if avx2 {
                     // SAFETY: as in `run`'s first pass.
-                    unsafe {
-                        fill_chunk_avx2::<S, F32>(src, iso, c, placer, want_values, part, scratch)
-                    }
+                    unsafe { fill_chunk_avx2::<S, F32>(&inputs, part, scratch) }
                 } else {
-                    fill_chunk::<S, F32>(src, iso, c, placer, want_values, part, scratch)
+                    fill_chunk::<S, F32>(&inputs, part, scratch)
                 };
                 ticker.advance((end - start) as u64)?;
                 Ok(missing)
@@ -1075,6 +1079,15 @@ struct FillPart<'a> {
     val: &'a mut [f32],
 }
 
+/// What every work item of [`fill`]'s second pass reads.
+struct FillInputs<'a, S> {
+    src: &'a S,
+    iso: f64,
+    c: &'a Counted,
+    placer: &'a Placer,
+    want_values: bool,
+}
+
 /// A task's scratch for [`fill_chunk`]: the block, the vertex batch, the cell ranges.
 type FillScratch<'a> = (&'a mut [f32; BLOCK], &'a mut VertexBatch, &'a mut [f32; BLOCK]);
 
@@ -1083,14 +1096,11 @@ type FillScratch<'a> = (&'a mut [f32; BLOCK], &'a mut VertexBatch, &'a mut [f32;
 /// [`fill_chunk_avx2`], and so compiled for each.
 #[inline(always)]
 fn fill_chunk<S: Source, const F32: bool>(
-    src: &S,
-    iso: f64,
-    c: &Counted,
-    placer: &Placer,
-    want_values: bool,
+    inputs: &FillInputs<'_, S>,
     part: FillPart<'_>,
     (values, batch, ranges): FillScratch<'_>,
 ) -> bool {
+    let &FillInputs { src, iso, c, placer, want_values } = inputs;
     let FillPart { start, pos, nrm, tri, val } = part;
     let (info, tri_start, slot_verts) = (&c.info, &c.tri_start, c.slot_verts);
     let below = f32_threshold(iso);
@@ -1179,15 +1189,11 @@ fn fill_chunk<S: Source, const F32: bool>(
 /// The CPU must have AVX2, POPCNT and BMI1 ([`avx2`]).
 #[cfg_attr(target_arch = "x86_64", target_feature(enable = "avx2,popcnt,bmi1"))]
 unsafe fn fill_chunk_avx2<S: Source, const F32: bool>(
-    src: &S,
-    iso: f64,
-    c: &Counted,
-    placer: &Placer,
-    want_values: bool,
+    inputs: &FillInputs<'_, S>,
     part: FillPart<'_>,
     scratch: FillScratch<'_>,
 ) -> bool {
-    fill_chunk::<S, F32>(src, iso, c, placer, want_values, part, scratch)
+    fill_chunk::<S, F32>(inputs, part, scratch)
 }
 
 /// Per direction `d` (bit mask over x, y, z) of a Kuhn edge, the cells that hold the edge,
