@@ -1009,18 +1009,18 @@ fn fill<S: Source, const F32: bool>(
             let (q0, q1) = q.split_at_mut(nv);
             let (r0, r1) = r.split_at_mut(nt);
             let (g0, g1) = g.split_at_mut(if want_values { nv } else { 0 });
-            work.push((start, end, p0, q0, r0, g0));
+            work.push((end, FillPart { start, pos: p0, nrm: q0, tri: r0, val: g0 }));
             (p, q, r, g) = (p1, q1, r1, g1);
         }
     }
-    let inputs = FillInputs { src, iso, c, placer, want_values };
+    let inputs = FillInputs { src, iso, below: f32_threshold(iso), c, placer, want_values };
     let missing: Vec<bool> = work
         .into_par_iter()
         .map_init(
             || (Box::new([0f32; BLOCK]), VertexBatch::new(), Box::new([0f32; BLOCK])),
-            |(values, batch, ranges), (start, end, pos, nrm, tri, val)| {
+            |(values, batch, ranges), (end, part)| {
                 ticker.check()?;
-                let part = FillPart { start, pos, nrm, tri, val };
+                let slots = (end - part.start) as u64;
                 let scratch = (&mut **values, &mut **batch, &mut **ranges);
                 let missing = if avx2 {
                     // SAFETY: as in `run`'s first pass.
@@ -1028,7 +1028,7 @@ fn fill<S: Source, const F32: bool>(
                 } else {
                     fill_chunk::<S, F32>(&inputs, part, scratch)
                 };
-                ticker.advance((end - start) as u64)?;
+                ticker.advance(slots)?;
                 Ok(missing)
             },
         )
@@ -1083,6 +1083,8 @@ struct FillPart<'a> {
 struct FillInputs<'a, S> {
     src: &'a S,
     iso: f64,
+    /// [`f32_threshold`] of `iso`.
+    below: f32,
     c: &'a Counted,
     placer: &'a Placer,
     want_values: bool,
@@ -1100,10 +1102,9 @@ fn fill_chunk<S: Source, const F32: bool>(
     part: FillPart<'_>,
     (values, batch, ranges): FillScratch<'_>,
 ) -> bool {
-    let &FillInputs { src, iso, c, placer, want_values } = inputs;
+    let &FillInputs { src, iso, below, c, placer, want_values } = inputs;
     let FillPart { start, pos, nrm, tri, val } = part;
     let (info, tri_start, slot_verts) = (&c.info, &c.tri_start, c.slot_verts);
-    let below = f32_threshold(iso);
     let cases = cell_cases();
     let vstart = |s: usize| c.vertex_start(s);
     let orphan_index = |key: Orphan| -> u32 {
