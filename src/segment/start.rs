@@ -95,6 +95,10 @@ fn morph(src: &[u8], dims: [usize; 3], r: usize, op: Op, masks: &mut Masks) -> V
 /// The window's minimum (erosion) or maximum (dilation) along `axis`, into `out` (every
 /// value written).
 fn along(src: &[u8], out: &mut [u8], dims: [usize; 3], r: usize, axis: usize, op: Op) {
+    // One instance per operation, so that the loops below compile to vector minima and
+    // maxima: with the operation chosen per voxel, this function took 11 % of the samples
+    // of a one-step GAC segmentation of a 128³ image on one thread (`perf record` of the
+    // whole command, 2-core AMD EPYC, 2026-11-28).
     match op {
         Op::Erode => along_by(src, out, dims, r, axis, op, u8::min),
         Op::Dilate => along_by(src, out, dims, r, axis, op, u8::max),
@@ -114,6 +118,7 @@ fn along_by(
     out.par_chunks_mut(nx).enumerate().take(ny * nz).for_each(|(row, dst)| {
         let (y, z) = (row % ny, row / ny);
         if axis == 0 {
+            // The window as shifted copies of the row, which vectorise.
             let line = &src[row * nx..(row + 1) * nx];
             dst.copy_from_slice(line);
             for o in 1..=r.min(nx.saturating_sub(1)) {
@@ -125,6 +130,7 @@ fn along_by(
                 }
             }
             if matches!(op, Op::Erode) {
+                // Beyond the image counts as 0: where the window reaches beyond it.
                 let edge = r.min(nx);
                 dst[..edge].fill(0);
                 dst[nx - edge..].fill(0);
@@ -158,6 +164,7 @@ fn along_by(
 fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3], out: &mut [u8]) {
     let [nx, ny, nz] = dims;
     out.par_iter_mut().for_each(|v| *v = 0);
+    // The seeds in the set, found in parallel (in index order).
     let mut stack: Vec<usize> = seeds
         .par_iter()
         .zip(set)
