@@ -173,6 +173,7 @@ fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3], out: &mut [u8]) {
         .map(|(i, _)| i)
         .collect();
     let open = |out: &[u8], i: usize| set[i] != 0 && out[i] == 0;
+    let plane = nx * ny;
     while let Some(i) = stack.pop() {
         if !open(out, i) {
             continue;
@@ -188,7 +189,6 @@ fn flood(set: &[u8], seeds: &[u8], dims: [usize; 3], out: &mut [u8]) {
         }
         out[a..b].fill(1);
         let (y, z) = (row % ny, row / ny);
-        let plane = nx * ny;
         let beside = [
             (y > 0).then(|| a - nx),
             (y + 1 < ny).then(|| a + nx),

@@ -993,7 +993,6 @@ fn fill<S: Source, const F32: bool>(
     crate::memory::advise_huge_pages(&mut triangles);
     let (slot_pos, orphan_pos) = positions.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
     let (slot_nrm, orphan_nrm) = normals.spare_capacity_mut()[..verts].split_at_mut(slot_verts);
-    let vstart = |s: usize| c.vertex_start(s);
     // Values per vertex, when asked for (zeroed: a plain, safe buffer).
     let mut vvalues = vec![0f32; if want_values { verts } else { 0 }];
     let (slot_val, orphan_val) = vvalues.split_at_mut(if want_values { slot_verts } else { 0 });
@@ -1003,7 +1002,7 @@ fn fill<S: Source, const F32: bool>(
             (slot_pos, slot_nrm, &mut triangles.spare_capacity_mut()[..tris], slot_val);
         for start in (0..n).step_by(CHUNK) {
             let end = (start + CHUNK).min(n);
-            let nv = vstart(end) - vstart(start);
+            let nv = c.vertex_start(end) - c.vertex_start(start);
             let nt = tri_start[end] - tri_start[start];
             let (p0, p1) = p.split_at_mut(nv);
             let (q0, q1) = q.split_at_mut(nv);
@@ -1106,13 +1105,12 @@ fn fill_chunk<S: Source, const F32: bool>(
     let FillPart { start, pos, nrm, tri, val } = part;
     let (info, tri_start, slot_verts) = (&c.info, &c.tri_start, c.slot_verts);
     let cases = cell_cases();
-    let vstart = |s: usize| c.vertex_start(s);
     let orphan_index = |key: Orphan| -> u32 {
         let i = c.orphans.binary_search(&key).expect("orphan edges were collected in pass 1");
         (slot_verts + i) as u32
     };
     let mut missing = false;
-    let (v0, t0) = (vstart(start), tri_start[start]);
+    let (v0, t0) = (c.vertex_start(start), tri_start[start]);
     let (mut wrote_v, mut wrote_t) = (0, 0);
     for nb in &c.active[start / CHUNK] {
         let me = &info[nb.pos];
@@ -1148,7 +1146,7 @@ fn fill_chunk<S: Source, const F32: bool>(
             &mut pos[w - batch.len()..],
             &mut nrm[w - batch.len()..],
         );
-        assert_eq!(w, vstart(nb.pos + 1) - v0, "every vertex written once");
+        assert_eq!(w, c.vertex_start(nb.pos + 1) - v0, "every vertex written once");
         wrote_v += batch.len();
         // Triangles of the owned cut cells.
         let nbr: [Option<&SlotInfo>; 27] = std::array::from_fn(|k| nb.get(k).map(|p| &info[p]));
