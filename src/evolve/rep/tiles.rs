@@ -16,7 +16,7 @@ use crate::grid::GridSpec;
 use crate::memory::grown_capacity;
 use crate::storage::tiles::{
     compute_activity, voxel_of, InPlaceTiles, NeighbourTable, PaddedBlock, Tile, TileGrid,
-    TileSource, ACTIVE_MASK, SLICE_LEN, TILE_LEN,
+    TileSource, SLICE_LEN, TILE_LEN,
 };
 use levelset_kernels::{BandMasked, Lane, LaneFn, TileBlock, VoxelKernel};
 use rayon::prelude::*;
@@ -1029,14 +1029,15 @@ impl LaneFn for KappaChunk<'_> {
     #[inline(always)]
     fn call<L: Lane>(self) -> Self::Output {
         let KappaChunk { grid, table, tiles, inv_h, width } = self;
-        // A tile without band voxels holds only ±γ, where δ vanishes when its width does
-        // not exceed γ: its terms are exactly zero.
-        let skip_inactive = width <= grid.gamma();
         let mut block = PaddedBlock::<1>::new();
         let (mut num, mut den) = (ExactSum::default(), ExactSum::default());
         let (mut a, mut b) = ([0.0f32; 64], [0.0f32; 64]);
         for pos in tiles {
-            if skip_inactive && grid.activity_flags(pos) & ACTIVE_MASK == 0 {
+            // δ(φ) is 0 wherever |φ| < ε fails (NaN included), and a term δ·x is then ±0
+            // or NaN, both of which the exact sums count as 0: a tile with no voxel
+            // closer to the interface than ε adds nothing, and is not gathered (with
+            // γ = 3 and ε = 1.5 voxels, about a quarter of the spiral's band tiles).
+            if !grid.tile(pos).0.iter().fold(false, |any, v| any | (width > v.abs())) {
                 continue;
             }
             block.gather_star_row(grid, pos, table.row(pos));
