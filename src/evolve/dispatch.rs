@@ -327,6 +327,31 @@ pub(crate) fn dispatch_renorm<'a, A: Anchors<'a>, V: Sweep>(
     }
 }
 
+/// The first sweep of [`dispatch_renorm`] with the anchors evaluated in place
+/// ([`AnchoredRenormRate`]) alone: for a sweep that stores them as well, whose type then
+/// compiles no other kernel.
+pub(crate) fn dispatch_renorm_first<V: Sweep>(
+    p: &RenormParams,
+    sweep: V,
+) -> Result<(), EvolveError> {
+    match p.scheme {
+        SpatialScheme::Upwind1 => renorm_in_place::<Upwind1, 1, V>(p, sweep),
+        SpatialScheme::Weno5 => renorm_in_place::<Weno5, 3, V>(p, sweep),
+    }
+}
+
+/// A sweep of [`AnchoredRenormRate`]: the anchors evaluated from the values swept (φ⁰).
+fn renorm_in_place<S: Scheme, const R: usize, V: Sweep>(
+    p: &RenormParams,
+    sweep: V,
+) -> Result<(), EvolveError>
+where
+    Halo<R>: Reach,
+{
+    let (h, dt, gamma) = (p.h, p.dtau, p.gamma);
+    sweep.run::<_, _, R>(move |_| Euler { rate: AnchoredRenormRate::<S>::new(h), dt, gamma })
+}
+
 fn renorm<'a, S: Scheme, const R: usize, A: Anchors<'a>, V: Sweep>(
     p: &RenormParams,
     anchor: Option<A>,
@@ -342,10 +367,6 @@ where
             dt,
             gamma,
         }),
-        None => sweep.run::<_, _, R>(move |_| Euler {
-            rate: AnchoredRenormRate::<S>::new(h),
-            dt,
-            gamma,
-        }),
+        None => renorm_in_place::<S, R, V>(p, sweep),
     }
 }

@@ -125,13 +125,14 @@ pub(crate) trait Representation: Send + Sync {
     ) -> Result<(), EvolveError>;
     /// Renormalisation ([`super::Renormalization::Sweeps`]): the Russo–Smereka anchors of
     /// the current values φ⁰, then `p.sweeps` forward-Euler sweeps in pseudo time, each
-    /// swapped into the values (a single sweep evaluates the anchors in place,
-    /// [`levelset_kernels::AnchoredRenormRate`]: no anchor pass). The voxels computed are those of the band mask of the
-    /// step in progress (after its stages, before its band maintenance: the stored set
-    /// every representation holds is still that of φⁿ) or, with `fresh`, the mask of
-    /// φ⁰ (at rest, where the band maintenance has stored it; the pass then begins an
-    /// undoable change like a step's first stage). The stored set does not change. On an
-    /// error the caller undoes the step.
+    /// swapped into the values (the first sweep may evaluate the anchors in place,
+    /// [`levelset_kernels::AnchoredRenormRate`]: no anchor pass when it is the only one;
+    /// the tile engine's first sweep also stores them for the others). The voxels computed
+    /// are those of the band mask of the step in progress (after its stages, before its
+    /// band maintenance: the stored set every representation holds is still that of φⁿ)
+    /// or, with `fresh`, the mask of φ⁰ (at rest, where the band maintenance has stored
+    /// it; the pass then begins an undoable change like a step's first stage). The stored
+    /// set does not change. On an error the caller undoes the step.
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError>;
     /// Band maintenance after a step or a reinitialisation: tile management, DT-Grid
     /// rebuild, dense bounds. New storage is admitted by `budget` before it is allocated

@@ -2,12 +2,12 @@
 //! the kernels over its 64 voxels with scalar or SIMD lanes, tiles in parallel chunks
 //! (van der Laan et al. 2011, Sec. 4.7), tile management after each step (Sec. 4.6).
 
-use super::packed::{self, PackedTiles};
+use super::packed::{self, PackedGroup, PackedTiles};
 use super::{growth_bytes, kappa_terms, resize_exact, vec_bytes, MemoryBudget, Representation};
 use crate::coord::Coord;
 use crate::distributed::{Comm, RankPart};
 use crate::evolve::dispatch::{
-    dispatch, dispatch_anchor, dispatch_renorm, Halo, RenormParams, StageParams, Sweep,
+    dispatch, dispatch_renorm, dispatch_renorm_first, Halo, RenormParams, StageParams, Sweep,
 };
 use crate::evolve::field::{ScalarFn, VectorFn};
 use crate::evolve::{EvolveError, Lanes, SpatialScheme, StepKeeps};
@@ -20,6 +20,7 @@ use crate::storage::tiles::{
 };
 use levelset_kernels::{BandMasked, Lane, LaneFn, TileBlock, VoxelKernel};
 use rayon::prelude::*;
+use std::marker::PhantomData;
 use std::ops::Range;
 
 /// Tiles per parallel task. Results do not depend on it: every tile is computed on its
@@ -599,91 +600,6 @@ where
     Ok(true)
 }
 
-/// One chunk of a tile sweep (the tiles from list position `start`), run by
-/// [`levelset_kernels::dispatch`] at the CPU's level.
-struct Chunk<'a, 'c, M, const R: usize> {
-    shared: &'a Shared<'a, M, TileGrid>,
-    start: usize,
-    out: &'c mut [Tile],
-    mask: &'c mut [u64],
-    act: &'c mut [u32],
-}
-
-impl<K, M, const R: usize> LaneFn for Chunk<'_, '_, M, R>
-where
-    K: VoxelKernel,
-    M: Fn(Range<usize>) -> K + Sync,
-{
-    type Output = Result<(), EvolveError>;
-
-    #[inline(always)]
-    fn call<L: Lane>(self) -> Result<(), EvolveError> {
-        let Chunk { shared, start, out, mask, act } = self;
-        let (grid, end) = (shared.grid, shared.table.len());
-        let mut block = PaddedBlock::<R>::new();
-        let mut m = [0.0f32; 64];
-        for (i, o) in out.iter_mut().enumerate() {
-            let pos = start + i;
-            if sweep_tile::<L, K, M, _, R>(shared, &mut block, &mut m, pos, end, &mut mask[i], o)? {
-                act[i] = compute_activity(o, grid.gamma());
-            } else {
-                // No voxel of the tile is in the computational band: every one keeps its
-                // value (what `BandMasked` selects), and so do the tile's activity flags.
-                *o = *grid.tile(pos);
-                act[i] = grid.activity_flags(pos);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The anchor pass of a renormalisation ([`levelset_kernels::InterfaceAnchor`] over φ⁰)
-/// into [`PackedTiles`]: each chunk of tiles is computed as a double-buffered sweep's into a
-/// buffer of its own, and only the anchors of the voxels in the band mask that are not ±∞
-/// are kept (a sweep reads no other, see [`crate::evolve::rep::packed`]). So the anchors
-/// take a few bytes per tile instead of a fourth value array.
-struct AnchorSweep<'a> {
-    grid: &'a TileGrid,
-    table: &'a NeighbourTable,
-    lanes: Lanes,
-    band: &'a mut [u64],
-    compute_mask: bool,
-    owned: Range<usize>,
-    anchors: &'a mut PackedTiles,
-}
-
-impl Sweep for AnchorSweep<'_> {
-    fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
-    where
-        K: VoxelKernel,
-        M: Fn(Range<usize>) -> K + Sync,
-        Halo<R>: crate::evolve::dispatch::Reach,
-    {
-        let simd = self.lanes == Lanes::Simd;
-        let AnchorSweep { grid, table, band, compute_mask, owned, anchors, .. } = self;
-        let shared =
-            Shared { grid, table, compute_mask, planar: false, owned: &owned, make: &make };
-        anchors.resize(grid.len());
-        band.par_chunks_mut(packed::GROUP).zip(anchors.groups_mut()).enumerate().try_for_each_init(
-            || (vec![Tile::splat(0.0); packed::GROUP], vec![0u32; packed::GROUP]),
-            |(out, act), (c, (mask, mut group))| {
-                let len = mask.len();
-                let (out, act) = (&mut out[..len], &mut act[..len]);
-                let chunk = Chunk::<M, R> {
-                    shared: &shared,
-                    start: c * packed::GROUP,
-                    out: &mut *out,
-                    mask: &mut *mask,
-                    act,
-                };
-                levelset_kernels::dispatch_default(simd, chunk)?;
-                group.fill(out, mask.iter().copied(), f32::INFINITY);
-                Ok(())
-            },
-        )
-    }
-}
-
 /// Parallel tasks per thread of a [`TileSweep`] in place: a task's first and last z-slabs
 /// of tiles are read by its neighbours' tasks and wait for the end of the sweep, so fewer,
 /// longer tasks hold fewer tiles aside.
@@ -704,7 +620,7 @@ const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 /// from the input in stage 1, read otherwise) and the activity flags, which are swapped
 /// in afterwards ([`TileGrid::swap_activity`], or with `out` by
 /// [`TileGrid::swap_values`]). One sweep type for both routes compiles each kernel once.
-struct TileSweep<'a> {
+struct TileSweep<'a, X: Extra = NoExtra> {
     grid: InPlaceTiles<'a>,
     table: &'a NeighbourTable,
     lanes: Lanes,
@@ -718,9 +634,14 @@ struct TileSweep<'a> {
     planar: bool,
     /// The double buffer, one tile per list position; `None`: in place.
     out: Option<&'a mut [Tile]>,
+    /// What else each task does with the tiles' blocks: nothing ([`NoExtra`]), or
+    /// ([`StoreAnchors`]) the anchors of the swept values, stored into this, evaluated
+    /// with this voxel size.
+    anchors: Option<(&'a mut PackedTiles, f32)>,
+    extra: PhantomData<X>,
 }
 
-impl Sweep for TileSweep<'_> {
+impl<X: Extra> Sweep for TileSweep<'_, X> {
     fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
@@ -728,14 +649,147 @@ impl Sweep for TileSweep<'_> {
         Halo<R>: crate::evolve::dispatch::Reach,
     {
         let simd = self.lanes == Lanes::Simd;
-        let TileSweep { grid, table, band, compute_mask, activity, owned, planar, out, .. } = self;
+        let TileSweep {
+            grid,
+            table,
+            band,
+            compute_mask,
+            activity,
+            owned,
+            planar,
+            out,
+            anchors,
+            ..
+        } = self;
+        let h = anchors.as_ref().map_or(0.0, |a| a.1);
         let shared =
             Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
-        let run = |start: usize, mask: &mut [u64], act: &mut [u32], out: Option<&mut [Tile]>| {
-            let chunk = SweepChunk::<M, R> { shared: &shared, start, mask, act, out };
+        let run = |start: usize,
+                   mask: &mut [u64],
+                   act: &mut [u32],
+                   out: Option<&mut [Tile]>,
+                   groups: &mut [Option<PackedGroup<'_>>]| {
+            let extra = X::Use::new(h, groups, act.len());
+            let chunk = SweepChunk::<M, X::Use<'_, '_>, R> {
+                shared: &shared,
+                start,
+                mask,
+                act,
+                out,
+                extra,
+            };
             levelset_kernels::dispatch_default(simd, chunk)
         };
-        run_sweep_tasks(&grid, band, activity, out, &run)
+        run_sweep_tasks(&grid, band, activity, out, anchors.map(|a| a.0), &run)
+    }
+}
+
+/// What the tasks of a [`TileSweep`] do with each tile's gathered block besides its kernel
+/// (a type, so that a sweep without extra work compiles none).
+trait Extra {
+    type Use<'c, 'g: 'c>: BlockUse<'c, 'g>;
+}
+
+/// A [`TileSweep`] that runs its kernel only.
+struct NoExtra;
+
+impl Extra for NoExtra {
+    type Use<'c, 'g: 'c> = NoUse;
+}
+
+/// A [`TileSweep`] that also stores the anchors of the values it sweeps (the first sweep of
+/// a renormalisation, over φ⁰; see [`StoreAnchors`]).
+struct AnchorExtra;
+
+impl Extra for AnchorExtra {
+    type Use<'c, 'g: 'c> = StoreAnchors<'c, 'g>;
+}
+
+/// A task's use of each tile's block besides the kernel.
+trait BlockUse<'c, 'g: 'c>: Sized {
+    /// For a task of `len` tiles whose groups of [`packed::GROUP`] tiles are `groups`
+    /// (`None` each unless anchors are stored), anchors evaluated with voxel size `h`.
+    fn new(h: f32, groups: &'c mut [Option<PackedGroup<'g>>], len: usize) -> Self;
+
+    /// After the task's tile `i`: `computed` whether the kernel ran on `block` (then its
+    /// band-mask word is `mask` and `m` the box minima or their stand-ins).
+    fn after<L: Lane, const R: usize>(
+        &mut self,
+        i: usize,
+        computed: bool,
+        mask: u64,
+        block: &PaddedBlock<R>,
+        m: &[f32; 64],
+        gamma: f32,
+    ) -> Result<(), EvolveError>;
+}
+
+/// Nothing besides the kernel.
+struct NoUse;
+
+impl<'c, 'g: 'c> BlockUse<'c, 'g> for NoUse {
+    #[inline(always)]
+    fn new(_: f32, _: &'c mut [Option<PackedGroup<'g>>], _: usize) -> Self {
+        NoUse
+    }
+
+    #[inline(always)]
+    fn after<L: Lane, const R: usize>(
+        &mut self,
+        _: usize,
+        _: bool,
+        _: u64,
+        _: &PaddedBlock<R>,
+        _: &[f32; 64],
+        _: f32,
+    ) -> Result<(), EvolveError> {
+        Ok(())
+    }
+}
+
+/// The anchors ([`levelset_kernels::InterfaceAnchor`], under the same band mask) of every
+/// computed tile from the block its kernel read, packed group by group as the anchor
+/// pass of a renormalisation packs them. The first sweep of a renormalisation reads φ⁰, so
+/// it stores what a pass of its own would (the same kernel over the same values), and
+/// that pass's gather and traversal are saved. Tiles not computed store none: no sweep
+/// reads their anchors.
+struct StoreAnchors<'c, 'g> {
+    h: f32,
+    groups: &'c mut [Option<PackedGroup<'g>>],
+    len: usize,
+    tiles: Vec<Tile>,
+    masks: [u64; packed::GROUP],
+}
+
+impl<'c, 'g: 'c> BlockUse<'c, 'g> for StoreAnchors<'c, 'g> {
+    fn new(h: f32, groups: &'c mut [Option<PackedGroup<'g>>], len: usize) -> Self {
+        let tiles = vec![Tile::splat(f32::INFINITY); packed::GROUP];
+        StoreAnchors { h, groups, len, tiles, masks: [0; packed::GROUP] }
+    }
+
+    #[inline(always)]
+    fn after<L: Lane, const R: usize>(
+        &mut self,
+        i: usize,
+        computed: bool,
+        mask: u64,
+        block: &PaddedBlock<R>,
+        m: &[f32; 64],
+        gamma: f32,
+    ) -> Result<(), EvolveError> {
+        let slot = i % packed::GROUP;
+        self.masks[slot] = if computed { mask } else { 0 };
+        if computed {
+            let tb = TileBlock::<R>::new(block.data())?;
+            let step = levelset_kernels::InterfaceAnchor { voxel_size: self.h };
+            let k = BandMasked { step, box_min: &m[..], gamma };
+            tb.apply_slices::<L, _>(&k, &mut self.tiles[slot].0, false)?;
+        }
+        if slot == packed::GROUP - 1 || i + 1 == self.len {
+            let group = self.groups[i / packed::GROUP].as_mut().expect("a group per 64 tiles");
+            group.fill(&self.tiles[..=slot], self.masks[..=slot].iter().copied(), f32::INFINITY);
+        }
+        Ok(())
     }
 }
 
@@ -746,6 +800,7 @@ type SweepTaskFn<'f> = dyn Fn(
         &mut [u64],
         &mut [u32],
         Option<&mut [Tile]>,
+        &mut [Option<PackedGroup<'_>>],
     ) -> Result<Vec<(usize, Tile)>, EvolveError>
     + Sync
     + 'f;
@@ -760,25 +815,39 @@ fn run_sweep_tasks(
     band: &mut [u64],
     activity: &mut [u32],
     out: Option<&mut [Tile]>,
+    anchors: Option<&mut PackedTiles>,
     task: &SweepTaskFn<'_>,
 ) -> Result<(), EvolveError> {
+    // The anchors' groups of `packed::GROUP` tiles (`None` each without anchors); every
+    // task starts at a multiple of the group size, so no group is split between tasks.
+    const { assert!(TILE_CHUNK.is_multiple_of(packed::GROUP), "chunks of whole groups") };
+    let n = grid.len();
+    let mut groups: Vec<Option<PackedGroup<'_>>> = match anchors {
+        Some(a) => {
+            a.resize(n);
+            a.groups_mut().map(Some).collect()
+        }
+        None => (0..n.div_ceil(packed::GROUP)).map(|_| None).collect(),
+    };
     if let Some(out) = out {
         return out
             .par_chunks_mut(TILE_CHUNK)
             .zip(band.par_chunks_mut(TILE_CHUNK))
             .zip(activity.par_chunks_mut(TILE_CHUNK))
+            .zip(groups.par_chunks_mut(TILE_CHUNK / packed::GROUP))
             .enumerate()
-            .try_for_each(|(c, ((out, mask), act))| {
-                task(c * TILE_CHUNK, mask, act, Some(out)).map(|_| ())
+            .try_for_each(|(c, (((out, mask), act), groups))| {
+                task(c * TILE_CHUNK, mask, act, Some(out), groups).map(|_| ())
             });
     }
     let tasks = IN_PLACE_TASKS_PER_THREAD * rayon::current_num_threads();
-    let len = grid.len().div_ceil(tasks).max(TILE_CHUNK);
+    let len = n.div_ceil(tasks).max(TILE_CHUNK).next_multiple_of(TILE_CHUNK);
     let held: Vec<Vec<(usize, Tile)>> = band
         .par_chunks_mut(len)
         .zip(activity.par_chunks_mut(len))
+        .zip(groups.par_chunks_mut(len / packed::GROUP))
         .enumerate()
-        .map(|(c, (mask, act))| task(c * len, mask, act, None))
+        .map(|(c, ((mask, act), groups))| task(c * len, mask, act, None, groups))
         .collect::<Result<_, _>>()?;
     held.par_iter().for_each(|tiles| {
         for (pos, t) in tiles {
@@ -793,24 +862,28 @@ fn run_sweep_tasks(
 /// One task of a [`TileSweep`]: the tiles from list position `start`. Returns the
 /// new values of its tiles that other tasks read, to be written after every task ends
 /// (none when double-buffered into `out`).
-struct SweepChunk<'a, 'c, M, const R: usize> {
+struct SweepChunk<'a, 'c, M, E, const R: usize> {
     shared: &'a Shared<'a, M, InPlaceTiles<'a>>,
     start: usize,
     mask: &'c mut [u64],
     act: &'c mut [u32],
     out: Option<&'c mut [Tile]>,
+    /// What else is done with each tile's block.
+    extra: E,
 }
 
-impl<K, M, const R: usize> LaneFn for SweepChunk<'_, '_, M, R>
+impl<'c, 'g: 'c, K, M, E, const R: usize> LaneFn for SweepChunk<'_, 'c, M, E, R>
 where
     K: VoxelKernel,
     M: Fn(Range<usize>) -> K + Sync,
+    E: BlockUse<'c, 'g>,
 {
     type Output = Result<Vec<(usize, Tile)>, EvolveError>;
 
     #[inline(always)]
     fn call<L: Lane>(self) -> Self::Output {
-        let SweepChunk { shared, start, mask, act, out } = self;
+        let SweepChunk { shared, start, mask, act, out, mut extra } = self;
+        let gamma = shared.grid.gamma();
         let end = start + act.len();
         // Double-buffered: prefetch across the chunk's end (the grid is only read); in
         // place, not beyond the task: another task may be writing there.
@@ -838,6 +911,7 @@ where
                 &mut mask[i],
                 t,
             )?;
+            extra.after::<L, R>(i, computed, mask[i], &block, &m, gamma)?;
             task.after(i, pos, computed);
         }
         Ok(task.finish())
@@ -1183,6 +1257,8 @@ impl Representation for TilesRep {
             activity,
             planar,
             out: (!in_place).then_some(&mut out[..]),
+            anchors: None,
+            extra: PhantomData::<NoExtra>,
         };
         dispatch(&p, scheme, sweep)?;
         self.take_sweep(!in_place)?;
@@ -1199,50 +1275,45 @@ impl Representation for TilesRep {
     fn renormalize(&mut self, p: &RenormParams, fresh: bool) -> Result<(), EvolveError> {
         let n = self.grid.len();
         let owned = self.owned();
-        // One sweep evaluates its anchors in place: no anchor pass, no anchor buffer.
+        // More than one sweep reads the anchors of φ⁰: the first sweep, which evaluates
+        // them in place, also stores them (no pass of their own); one sweep stores none.
         let anchored = p.anchored();
-        if anchored {
-            self.buf.resize_flags(n);
-            debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-            let Buffers { anchor, band, .. } = &mut self.buf;
-            // The anchors of φ⁰ (and, at rest, the band mask of φ⁰).
-            let sweep = AnchorSweep {
-                owned: owned.clone(),
-                grid: &self.grid,
-                table: &self.table,
-                lanes: self.lanes,
-                band,
-                compute_mask: fresh,
-                anchors: anchor,
-            };
-            dispatch_anchor(p.h, sweep)?;
-        }
         if self.undo == TileUndo::Nothing {
             // At rest: φ⁰ packed for undoing the renormalisation.
             self.keep_step_start();
         }
         for s in 0..p.sweeps {
             debug_assert_eq!(self.table.len(), n, "stale neighbour table");
-            // At rest, the single sweep computes the band mask of φ⁰ itself.
-            let compute_mask = fresh && !anchored && s == 0;
+            // At rest, the first sweep computes the band mask of φ⁰ itself.
+            let compute_mask = fresh && s == 0;
             // After stages that keep φⁿ apart, `out` is free: double-buffered.
             // When φⁿ is packed, the sweep writes into the grid behind itself instead of
             // into a second value array (docs/decisions/0033, 0043).
             let double = self.undo == TileUndo::PhiN;
             self.size_for_sweep(n, double);
             let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
-            let sweep = TileSweep {
-                owned: owned.clone(),
-                grid: self.grid.in_place(),
-                table: &self.table,
-                lanes: self.lanes,
-                band,
-                compute_mask,
-                activity,
-                planar: false,
-                out: double.then_some(&mut out[..]),
-            };
-            dispatch_renorm(p, anchored.then_some(&**anchor), sweep)?;
+            macro_rules! sweep {
+                ($anchors:expr, $extra:ty) => {
+                    TileSweep {
+                        owned: owned.clone(),
+                        grid: self.grid.in_place(),
+                        table: &self.table,
+                        lanes: self.lanes,
+                        band,
+                        compute_mask,
+                        activity,
+                        planar: false,
+                        out: double.then_some(&mut out[..]),
+                        anchors: $anchors,
+                        extra: PhantomData::<$extra>,
+                    }
+                };
+            }
+            if s == 0 && anchored {
+                dispatch_renorm_first(p, sweep!(Some((&mut **anchor, p.h)), AnchorExtra))?;
+            } else {
+                dispatch_renorm(p, (s > 0).then_some(&**anchor), sweep!(None, NoExtra))?;
+            }
             self.take_sweep(double)?;
         }
         // The anchors live only through a renormalisation: tile management, next, has
