@@ -711,17 +711,25 @@ trait BlockUse<'c, 'g: 'c>: Sized {
     /// (`None` each unless anchors are stored), anchors evaluated with voxel size `h`.
     fn new(h: f32, groups: &'c mut [Option<PackedGroup<'g>>], len: usize) -> Self;
 
-    /// After the task's tile `i`: `computed` whether the kernel ran on `block` (then its
-    /// band-mask word is `mask` and `m` the box minima or their stand-ins).
-    fn after<L: Lane, const R: usize>(
-        &mut self,
-        i: usize,
-        computed: bool,
-        mask: u64,
-        block: &PaddedBlock<R>,
-        m: &[f32; 64],
-        gamma: f32,
-    ) -> Result<(), EvolveError>;
+    /// After a tile of the task (nothing, unless the type does something).
+    #[inline(always)]
+    fn after<L: Lane, const R: usize>(&mut self, tile: TileDone<'_, R>) -> Result<(), EvolveError> {
+        let _ = tile;
+        Ok(())
+    }
+}
+
+/// A tile of a task whose kernel has run, as [`BlockUse::after`] sees it.
+struct TileDone<'b, const R: usize> {
+    /// Its place in the task.
+    i: usize,
+    /// Whether the kernel ran on `block` (then `mask` is the tile's band-mask word and `m`
+    /// the box minima or their stand-ins).
+    computed: bool,
+    mask: u64,
+    block: &'b PaddedBlock<R>,
+    m: &'b [f32; 64],
+    gamma: f32,
 }
 
 /// Nothing besides the kernel.
@@ -731,19 +739,6 @@ impl<'c, 'g: 'c> BlockUse<'c, 'g> for NoUse {
     #[inline(always)]
     fn new(_: f32, _: &'c mut [Option<PackedGroup<'g>>], _: usize) -> Self {
         NoUse
-    }
-
-    #[inline(always)]
-    fn after<L: Lane, const R: usize>(
-        &mut self,
-        _: usize,
-        _: bool,
-        _: u64,
-        _: &PaddedBlock<R>,
-        _: &[f32; 64],
-        _: f32,
-    ) -> Result<(), EvolveError> {
-        Ok(())
     }
 }
 
@@ -768,15 +763,8 @@ impl<'c, 'g: 'c> BlockUse<'c, 'g> for StoreAnchors<'c, 'g> {
     }
 
     #[inline(always)]
-    fn after<L: Lane, const R: usize>(
-        &mut self,
-        i: usize,
-        computed: bool,
-        mask: u64,
-        block: &PaddedBlock<R>,
-        m: &[f32; 64],
-        gamma: f32,
-    ) -> Result<(), EvolveError> {
+    fn after<L: Lane, const R: usize>(&mut self, tile: TileDone<'_, R>) -> Result<(), EvolveError> {
+        let TileDone { i, computed, mask, block, m, gamma } = tile;
         let slot = i % packed::GROUP;
         self.masks[slot] = if computed { mask } else { 0 };
         if computed {
@@ -911,7 +899,8 @@ where
                 &mut mask[i],
                 t,
             )?;
-            extra.after::<L, R>(i, computed, mask[i], &block, &m, gamma)?;
+            let mask = mask[i];
+            extra.after::<L, R>(TileDone { i, computed, mask, block: &block, m: &m, gamma })?;
             task.after(i, pos, computed);
         }
         Ok(task.finish())
