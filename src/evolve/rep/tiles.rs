@@ -20,7 +20,6 @@ use crate::storage::tiles::{
 };
 use levelset_kernels::{BandMasked, Lane, LaneFn, TileBlock, VoxelKernel};
 use rayon::prelude::*;
-use std::marker::PhantomData;
 use std::ops::Range;
 
 /// Tiles per parallel task. Results do not depend on it: every tile is computed on its
@@ -620,7 +619,7 @@ const IN_PLACE_TASKS_PER_THREAD: usize = 4;
 /// from the input in stage 1, read otherwise) and the activity flags, which are swapped
 /// in afterwards ([`TileGrid::swap_activity`], or with `out` by
 /// [`TileGrid::swap_values`]). One sweep type for both routes compiles each kernel once.
-struct TileSweep<'a, X: Extra = NoExtra> {
+struct TileSweep<'a, X: Extra<'a> = NoExtra> {
     grid: InPlaceTiles<'a>,
     table: &'a NeighbourTable,
     lanes: Lanes,
@@ -634,14 +633,12 @@ struct TileSweep<'a, X: Extra = NoExtra> {
     planar: bool,
     /// The double buffer, one tile per list position; `None`: in place.
     out: Option<&'a mut [Tile]>,
-    /// What else each task does with the tiles' blocks: nothing ([`NoExtra`]), or
-    /// ([`StoreAnchors`]) the anchors of the swept values, stored into this, evaluated
-    /// with this voxel size.
-    anchors: Option<(&'a mut PackedTiles, f32)>,
-    extra: PhantomData<X>,
+    /// What else each task does with the tiles' blocks: nothing ([`NoExtra`]), or store
+    /// the anchors of the swept values ([`AnchorExtra`]).
+    extra: X,
 }
 
-impl<X: Extra> Sweep for TileSweep<'_, X> {
+impl<'a, X: Extra<'a>> Sweep for TileSweep<'a, X> {
     fn run<K, M, const R: usize>(self, make: M) -> Result<(), EvolveError>
     where
         K: VoxelKernel,
@@ -650,18 +647,9 @@ impl<X: Extra> Sweep for TileSweep<'_, X> {
     {
         let simd = self.lanes == Lanes::Simd;
         let TileSweep {
-            grid,
-            table,
-            band,
-            compute_mask,
-            activity,
-            owned,
-            planar,
-            out,
-            anchors,
-            ..
+            grid, table, band, compute_mask, activity, owned, planar, out, extra, ..
         } = self;
-        let h = anchors.as_ref().map_or(0.0, |a| a.1);
+        let (anchors, h) = extra.anchors();
         let shared =
             Shared { grid: &grid, table, compute_mask, planar, owned: &owned, make: &make };
         let run = |start: usize,
@@ -680,29 +668,42 @@ impl<X: Extra> Sweep for TileSweep<'_, X> {
             };
             levelset_kernels::dispatch_default(simd, chunk)
         };
-        run_sweep_tasks(&grid, band, activity, out, anchors.map(|a| a.0), &run)
+        run_sweep_tasks(&grid, band, activity, out, anchors, &run)
     }
 }
 
 /// What the tasks of a [`TileSweep`] do with each tile's gathered block besides its kernel
 /// (a type, so that a sweep without extra work compiles none).
-trait Extra {
+trait Extra<'a> {
     type Use<'c, 'g: 'c>: BlockUse<'c, 'g>;
+    /// Where the anchors go and the voxel size they are evaluated with (none, and a size
+    /// no task reads, without anchors).
+    fn anchors(self) -> (Option<&'a mut PackedTiles>, f32);
 }
 
 /// A [`TileSweep`] that runs its kernel only.
 struct NoExtra;
 
-impl Extra for NoExtra {
+impl<'a> Extra<'a> for NoExtra {
     type Use<'c, 'g: 'c> = NoUse;
+    fn anchors(self) -> (Option<&'a mut PackedTiles>, f32) {
+        (None, 0.0)
+    }
 }
 
 /// A [`TileSweep`] that also stores the anchors of the values it sweeps (the first sweep of
 /// a renormalisation, over φ⁰; see [`StoreAnchors`]).
-struct AnchorExtra;
+struct AnchorExtra<'a> {
+    anchors: &'a mut PackedTiles,
+    /// The voxel size h.
+    h: f32,
+}
 
-impl Extra for AnchorExtra {
+impl<'a> Extra<'a> for AnchorExtra<'a> {
     type Use<'c, 'g: 'c> = StoreAnchors<'c, 'g>;
+    fn anchors(self) -> (Option<&'a mut PackedTiles>, f32) {
+        (Some(self.anchors), self.h)
+    }
 }
 
 /// A task's use of each tile's block besides the kernel.
@@ -1246,8 +1247,7 @@ impl Representation for TilesRep {
             activity,
             planar,
             out: (!in_place).then_some(&mut out[..]),
-            anchors: None,
-            extra: PhantomData::<NoExtra>,
+            extra: NoExtra,
         };
         dispatch(&p, scheme, sweep)?;
         self.take_sweep(!in_place)?;
@@ -1282,7 +1282,7 @@ impl Representation for TilesRep {
             self.size_for_sweep(n, double);
             let Buffers { out, band, activity, anchor, .. } = &mut self.buf;
             macro_rules! sweep {
-                ($anchors:expr, $extra:ty) => {
+                ($extra:expr) => {
                     TileSweep {
                         owned: owned.clone(),
                         grid: self.grid.in_place(),
@@ -1293,15 +1293,15 @@ impl Representation for TilesRep {
                         activity,
                         planar: false,
                         out: double.then_some(&mut out[..]),
-                        anchors: $anchors,
-                        extra: PhantomData::<$extra>,
+                        extra: $extra,
                     }
                 };
             }
             if s == 0 && anchored {
-                dispatch_renorm_first(p, sweep!(Some((&mut **anchor, p.h)), AnchorExtra))?;
+                let extra = AnchorExtra { anchors: anchor, h: p.h };
+                dispatch_renorm_first(p, sweep!(extra))?;
             } else {
-                dispatch_renorm(p, (s > 0).then_some(&**anchor), sweep!(None, NoExtra))?;
+                dispatch_renorm(p, (s > 0).then_some(&**anchor), sweep!(NoExtra))?;
             }
             self.take_sweep(double)?;
         }
